@@ -1,0 +1,343 @@
+"""InterLevel: a humanoid climbs a procedurally generated staircase to a target on the top floor."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, HumanoidIndices, load_humanoid_spec
+from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
+from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.tasks import interlevel as task
+from stairenv.tasks import interscene
+from stairenv.tasks.state import PELVIS, read_state
+from stairenv.validation import check_choice, check_number
+from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
+
+REWARDS = ("interlevel", "interscene")
+
+
+class InterLevelEnv(gym.Env):
+    r"""Stair climbing with the InterLevel 3-D reward (Shilton et al., AAAI 2025).
+
+    A 28-DoF humanoid starts near the arena centre; a staircase of random step
+    height, depth, width, count and orientation faces the centre. The target M_T
+    is on the top floor. Every reset draws a new staircase from the env's seed.
+
+    **Action** (28,): in [-1, 1], mapped to PD targets ``offset + scale * a``
+    (``stairenv.humanoid.pd_action_offset_scale``); MuJoCo clamps targets to that range.
+    Wrong shapes and non-finite values raise ``ValueError``.
+
+    **Observation** (118,): the paper's layout, see ``observation_structure``
+    (root height, root rotation 6-D, root linear and angular velocity, 12 local
+    joint rotations 6-D, 28 joint velocities, offset to M_T, |M_T - M_B|, angle
+    between the heading and the ascent direction). Vectors are in the heading frame.
+
+    **Reward** (``reward="interlevel"``), per policy step:
+
+        r = w_location R_location + w_facing R_facing + w_velocity R_velocity
+            + success_reward [on success] ;  r = failure_reward on a fall
+
+    with R_location the ReLU-scaled 3-D threshold Gaussian (paper Eq. 2-4, see
+    ``stairenv.tasks.interlevel``), R_facing = ReLU(F_tar . F_cur), R_velocity =
+    exp(-2 ReLU(S_tar - S_cur)^2), S_cur the root speed towards M_T.
+    ``progress_scaling=False`` is the InterLevel-2D ablation (Eq. 9).
+    ``reward="interscene"`` replaces the task terms by the InterScene 2-D reward
+    (0.7 near + 0.3 far, ``stairenv.tasks.interscene``). Each term is in ``info`` as
+    ``reward_*``; the terms sum to the reward.
+
+    **Episode end**: terminated on success (root within ``success_radius`` of M_T,
+    standing on the top floor) or a fall (head or a foot within
+    ``termination_height`` of the hips, vertically); truncated by the TimeLimit
+    wrapper (600 steps = 20 s in the presets) or when the physics becomes unstable
+    (``info["physics_unstable"] = True``; the last finite observation is returned).
+
+    **Info**: ``reward_*``, ``progress`` (height progress 0-1 between M_B and M_T),
+    ``success``, ``fell``, ``time`` (s), ``distance_to_target`` (m),
+    ``physics_unstable``, ``stairs`` (the staircase's parameters).
+
+    | keyword | default | meaning |
+    |---|---|---|
+    | reward | "interlevel" | "interlevel" or "interscene" (2-D baseline) |
+    | progress_scaling | True | ReLU height-progress factor of Eq. 4; False = InterLevel-2D |
+    | w_location, w_facing, w_velocity | 3.0, 0.1, 0.4 | weights of Eq. 1 |
+    | sigma_before, sigma_after, sigma_across | 2.0, 0.5, 0.5 | s1, s2, s3 of Eq. 3-4 (m) |
+    | w_scale | None | factor past the target; None = s2/s1 (equal peaks) |
+    | target_speed | 1.0 | S_tar (m/s) |
+    | success_reward | 10.0 | bonus on reaching M_T |
+    | failure_reward | -1.0 | reward of the step that ends in a fall |
+    | success_radius | 0.5 | horizontal distance to M_T that counts as arrived (m) |
+    | terminate_on_success | True | end the episode on success |
+    | termination_height | 0.2 | min vertical head-hips and hips-foot gap (m) |
+    | start_radius | 1.0 | start position uniform in this disc around the centre (m) |
+    | random_start_heading | True | start heading uniform; False = facing the stairs |
+    | step_height | (0.05, 0.20) | step height range (m) |
+    | step_height_set | None | sample heights from this set instead, e.g. (0.05, 0.1, 0.15, 0.2) |
+    | step_depth, step_width | (0.25, 0.40), (1.0, 2.0) | tread depth and width ranges (m) |
+    | num_steps | (3, 10) | risers, the landing's included |
+    | landing_depth | 2.0 | top floor depth (m) |
+    | stairs_distance | (2.0, 3.0) | arena centre to the foot of the stairs (m) |
+    | stairs_yaw | (0, 2 pi) | ascent direction range (rad) |
+    | pd_gains | "soft" | PD gain preset, "soft" or "stiff" |
+    | frame_skip | 4 | physics steps per action (120 Hz physics -> 30 Hz policy) |
+    | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
+    | render_mode | None | "rgb_array" or "human" |
+    | width, height | 640, 480 | rgb_array frame size |
+
+    Reward defaults (the paper gives none): the location term is an unnormalised
+    product of two normal densities whose peak is 1 / (2 pi s1 s3) = 0.16 with the
+    default sigmas; w_location = 3 brings its peak to 0.48, so that location,
+    velocity (0.4) and facing (0.1) weigh like InterScene's far reward (0.5/0.4/0.1)
+    and a perfect step earns about 1. s1 = 2 m gives a gradient over a staircase
+    of up to ~4 m; s2 = 0.5 m penalises overshooting M_T more sharply; s3 = 0.5 m is
+    about half a stair width. S_tar = 1 m/s is a relaxed climbing pace (the paper's
+    climbs take 8-13 s).
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+
+    def __init__(
+        self,
+        reward: str = "interlevel",
+        progress_scaling: bool = True,
+        w_location: float = 3.0,
+        w_facing: float = 0.1,
+        w_velocity: float = 0.4,
+        sigma_before: float = 2.0,
+        sigma_after: float = 0.5,
+        sigma_across: float = 0.5,
+        w_scale: float | None = None,
+        target_speed: float = 1.0,
+        success_reward: float = 10.0,
+        failure_reward: float = -1.0,
+        success_radius: float = 0.5,
+        terminate_on_success: bool = True,
+        termination_height: float = 0.2,
+        start_radius: float = 1.0,
+        random_start_heading: bool = True,
+        step_height: tuple[float, float] = (0.05, 0.20),
+        step_height_set: tuple[float, ...] | None = None,
+        step_depth: tuple[float, float] = (0.25, 0.40),
+        step_width: tuple[float, float] = (1.0, 2.0),
+        num_steps: tuple[int, int] = (3, 10),
+        landing_depth: float = 2.0,
+        stairs_distance: tuple[float, float] = (2.0, 3.0),
+        stairs_yaw: tuple[float, float] = (0.0, 2.0 * math.pi),
+        pd_gains: str = "soft",
+        frame_skip: int = 4,
+        reset_noise_scale: float = 0.05,
+        render_mode: str | None = None,
+        width: int = 640,
+        height: int = 480,
+    ) -> None:
+        self.reward_name = check_choice("reward", reward, REWARDS)
+        self._term_names = task.REWARD_TERMS if reward == "interlevel" else interscene.REWARD_TERMS
+        self.reward_config = task.InterLevelReward(
+            w_location=w_location, w_facing=w_facing, w_velocity=w_velocity,
+            sigma_before=sigma_before, sigma_after=sigma_after, sigma_across=sigma_across,
+            w_scale=w_scale, target_speed=target_speed, progress_scaling=bool(progress_scaling),
+        )
+        self.success_reward = check_number("success_reward", success_reward)
+        self.failure_reward = check_number("failure_reward", failure_reward)
+        self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
+        self.terminate_on_success = bool(terminate_on_success)
+        self.termination_height = check_number("termination_height", termination_height, 0.0, 1.0)
+        self.start_radius = check_number("start_radius", start_radius, 0.0, 10.0)
+        self.random_start_heading = bool(random_start_heading)
+        self.stairs_config = StairsConfig(
+            step_height=step_height,
+            step_height_set=step_height_set,
+            step_depth=step_depth,
+            step_width=step_width,
+            num_steps=num_steps,
+            landing_depth=landing_depth,
+            distance=stairs_distance,
+            yaw=stairs_yaw,
+        )
+        # The character (a disc of ~0.35 m around its root) must start clear of the stairs.
+        if self.stairs_config.distance[0] < self.start_radius + 0.5:
+            raise ValueError(
+                f"stairs_distance min {self.stairs_config.distance[0]} must be at least "
+                f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
+            )
+        self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
+        self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, RENDER_MODES)
+        self.render_mode = render_mode
+        self.width = int(check_number("width", width, 16, 4096))
+        self.height = int(check_number("height", height, 16, 4096))
+
+        spec = load_humanoid_spec(pd_gains)
+        spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
+        spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
+        self._slots = StairsSlots(spec, self.stairs_config.max_steps)
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self._slots.bind(self.model)
+        self._idx = HumanoidIndices.from_model(self.model)
+        low, high = self.model.actuator_ctrlrange.T.copy()
+        # Action -> PD target (load_humanoid_spec wrote the target range into ctrlrange).
+        self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
+        self.dt = self.model.opt.timestep * self.frame_skip
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(NUM_DOFS,), dtype=np.float32)
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.OBSERVATION_SIZE,), dtype=np.float64)
+        self.observation_structure = dict(task.OBSERVATION_STRUCTURE)
+
+        self.stairs: Staircase | None = None
+        self._needs_reset = True
+        self._camera: FollowCamera | None = None
+        self._viewer: HumanViewer | None = None
+
+    # --- episode ------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """New staircase and start pose. ``options={"stairs": Staircase}`` fixes the staircase."""
+        super().reset(seed=seed)
+        rng = self.np_random
+        stairs = generate_stairs(self.stairs_config, rng)
+        if options and "stairs" in options:
+            stairs = self._check_stairs_option(options["stairs"])
+        self._set_stairs(stairs)
+
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        radius = self.start_radius * math.sqrt(rng.uniform())
+        angle = rng.uniform(0.0, 2.0 * math.pi)
+        heading = rng.uniform(-math.pi, math.pi) if self.random_start_heading else stairs.yaw
+        data.qpos[self._idx.qpos_root] = (
+            radius * math.cos(angle), radius * math.sin(angle), STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading)
+        )
+        noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
+        joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
+        data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
+        # Start with the servos holding the initial pose.
+        data.ctrl[:] = np.clip(data.qpos[self._idx.qpos_joints], *model.actuator_ctrlrange.T)
+        mujoco.mj_forward(model, data)
+
+        self._needs_reset = False
+        self._steps = 0
+        state = read_state(data, self._idx)
+        self._prev_root = state.body_pos[:, PELVIS].copy()
+        self._obs = task.interlevel_observation(state, self._goal)[0]
+        return self._obs, self._info(state, success=False, fell=False)
+
+    def step(self, action):
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (NUM_DOFS,):
+            raise ValueError(f"action must have shape ({NUM_DOFS},), got {action.shape}")
+        if not np.isfinite(action).all():
+            raise ValueError(f"action must be finite, got NaN or inf at indices {np.flatnonzero(~np.isfinite(action)).tolist()}")
+        if self._needs_reset:
+            raise gym.error.ResetNeeded("call reset() before step() (after an unstable-physics truncation too)")
+        data = self.data
+        data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
+        expected_time = data.time + self.frame_skip * self.model.opt.timestep
+        mujoco.mj_step(self.model, data, self.frame_skip)
+        self._steps += 1
+        # MuJoCo resets the data (time back to 0) when positions, velocities or
+        # accelerations blow up; otherwise qpos and qvel are finite by its checks.
+        if data.time < expected_time - 1e-9:
+            return self._unstable()
+
+        state = read_state(data, self._idx)
+        goal = self._goal
+        obs = task.interlevel_observation(state, goal)[0]
+        root = state.body_pos[:, PELVIS]
+        fell = bool(task.has_fallen(state.body_pos, self.termination_height)[0])
+        success = bool(task.reached_top(root, goal.target, goal.top_height, self.success_radius)[0])
+        if self.reward_name == "interlevel":
+            values = task.interlevel_reward_terms(state, self._prev_root, goal, self.reward_config, self.dt)[0]
+        else:
+            values = interscene.interscene_reward_terms(state, self._prev_root, goal.target, self.dt)[0]
+        info = self._info(state, success=success, fell=fell)
+        # A fall replaces the task terms by the failure reward.
+        reward = 0.0
+        for key, value in zip(self._term_names, values.tolist()):
+            value = 0.0 if fell else value
+            info[key] = value
+            reward += value
+        info["reward_success"] = self.success_reward if success else 0.0
+        info["reward_failure"] = self.failure_reward if fell else 0.0
+        reward += info["reward_success"] + info["reward_failure"]
+        self._prev_root = root.copy()
+        self._obs = obs
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, fell or (success and self.terminate_on_success), False, info
+
+    # --- pieces -------------------------------------------------------------
+    def _check_stairs_option(self, stairs: Any) -> Staircase:
+        if not isinstance(stairs, Staircase):
+            raise ValueError(f"options['stairs'] must be a Staircase, got {type(stairs).__name__}")
+        if stairs.num_steps > self.stairs_config.max_steps:
+            raise ValueError(
+                f"options['stairs'] has {stairs.num_steps} steps; this env holds at most "
+                f"{self.stairs_config.max_steps} (the num_steps maximum)"
+            )
+        return stairs
+
+    def _set_stairs(self, stairs: Staircase) -> None:
+        self.stairs = stairs
+        self._slots.place(self.model, stairs)
+        self._goal = task.StairsGoal.from_stairs([stairs])
+        self._stairs_info = stairs.as_dict()
+        if self._camera is not None:
+            self._camera.camera.azimuth = math.degrees(stairs.yaw) + 120.0
+
+    def _info(self, state, success: bool, fell: bool) -> dict[str, Any]:
+        root = state.body_pos[:, PELVIS]
+        offset = self._goal.target[0] - root[0]
+        return {
+            "progress": float(task.progress(root, self._goal.bottom, self._goal.target)[0]),
+            "success": success,
+            "fell": fell,
+            "time": self._steps * self.dt,
+            "distance_to_target": math.sqrt(offset @ offset),
+            "physics_unstable": False,
+            "stairs": dict(self._stairs_info),
+        }
+
+    def _unstable(self):
+        """The simulation diverged and MuJoCo reset the data: truncate, keep the last good observation."""
+        info = {
+            "progress": 0.0, "success": False, "fell": False, "time": self._steps * self.dt,
+            "distance_to_target": float(np.linalg.norm(self._obs[task.OBSERVATION_STRUCTURE["target_offset"]])),
+            "physics_unstable": True, "stairs": dict(self._stairs_info),
+            **dict.fromkeys(self._term_names + ("reward_success", "reward_failure"), 0.0),
+        }
+        self._needs_reset = True
+        gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
+        return self._obs.copy(), 0.0, False, True, info
+
+    # --- rendering ----------------------------------------------------------
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self.render_mode == "human":
+            if self._viewer is None:
+                self._viewer = HumanViewer(self.model, self.data, self._idx.pelvis_id)
+            self._viewer.sync()
+            return None
+        if self._camera is None:
+            self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height)
+            if self.stairs is not None:
+                self._camera.camera.azimuth = math.degrees(self.stairs.yaw) + 120.0
+        hips = self.data.xpos[self._idx.pelvis_id]
+        lines = () if self.stairs is None else ((hips, self._goal.target[0], (0.1, 0.9, 0.2, 1.0)),)
+        return self._camera.render(self.data, lines)
+
+    def close(self) -> None:
+        if self._camera is not None:
+            self._camera.close()
+            self._camera = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None

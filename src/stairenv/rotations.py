@@ -1,0 +1,52 @@
+"""Batched rotation helpers (leading batch dimension, numpy).
+
+Rotation matrices are (..., 3, 3); the 6-D representation of Zhou et al. (2019) is
+the first two columns of the matrix, concatenated: (R[:, 0], R[:, 1]).
+Per-call conversions that are off the hot path use ``scipy.spatial.transform``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def matrix_to_6d(mats: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) -> (..., 6): first column then second column."""
+    return np.concatenate((mats[..., :, 0], mats[..., :, 1]), axis=-1)
+
+
+def sixd_to_matrix(sixd: np.ndarray) -> np.ndarray:
+    """(..., 6) -> (..., 3, 3) by Gram-Schmidt (the inverse of ``matrix_to_6d``)."""
+    a, b = sixd[..., :3], sixd[..., 3:]
+    c0 = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    b = b - np.sum(c0 * b, axis=-1, keepdims=True) * c0
+    c1 = b / np.linalg.norm(b, axis=-1, keepdims=True)
+    c2 = np.cross(c0, c1)
+    return np.stack((c0, c1, c2), axis=-1)
+
+
+def heading_angle(mats: np.ndarray) -> np.ndarray:
+    """Yaw of the body's forward (x) axis projected on the ground: (..., 3, 3) -> (...)."""
+    return np.arctan2(mats[..., 1, 0], mats[..., 0, 0])
+
+
+def yaw_matrix(yaw: np.ndarray) -> np.ndarray:
+    """Rotation about z: (...) -> (..., 3, 3)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    zero, one = np.zeros_like(c), np.ones_like(c)
+    return np.stack(
+        (np.stack((c, -s, zero), -1), np.stack((s, c, zero), -1), np.stack((zero, zero, one), -1)),
+        axis=-2,
+    )
+
+
+def wrap_angle(angle: np.ndarray) -> np.ndarray:
+    """Wrap to [-pi, pi)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def yaw_to_quat_wxyz(yaw: float) -> np.ndarray:
+    """MuJoCo (w, x, y, z) quaternion of a rotation by ``yaw`` about z."""
+    x, y, z, w = Rotation.from_euler("z", yaw).as_quat()
+    return np.array([w, x, y, z])

@@ -1,0 +1,6 @@
+"""Tasks: observation, reward and termination as pure array functions.
+
+Every function takes arrays with a leading batch dimension (B, ...) and returns
+arrays with the same leading dimension, so that a single-world env (B = 1), a
+natively batched vector env, or a JAX port can all call the same code.
+"""

@@ -1,0 +1,361 @@
+"""InterLevel stair climbing: observation, reward and termination (pure, batched).
+
+Every public function takes arrays with a leading batch dimension B and returns
+arrays with the same leading dimension: the single-world env calls them with
+B = 1, a natively batched env with B = number of worlds. The kernels are
+compiled with numba, which turns a step's ~80 small numpy calls (each costing
+more than its arithmetic) into one native call; the formulas below are their
+specification and the tests check them against hand-computed values.
+
+Coordinates. The paper is y-up with x along the incline and z across it. Here
+the world is z-up (MuJoCo) and every reward term is computed in the staircase's
+own frame (see ``stairenv.world.stairs``):
+
+| paper | here (stairs frame) | meaning |
+|---|---|---|
+| x | u | along the ascent, from M_B towards M_T |
+| z | w | across the stairs (left of the ascent) |
+| y | z | up |
+
+Reward (paper Eq. 1-8), with p the root (pelvis) position in the stairs frame,
+T = M_T and B = M_B:
+
+    G(x; mu, s)   = exp(-(x - mu)^2 / (2 s^2)) / (s sqrt(2 pi))                    (2)
+    TG(p_u)       = G(p_u; T_u, s1)            if T_u - p_u >= 0 (target ahead)
+                    w_scale G(p_u; T_u, s2)    otherwise (past the target)         (3)
+    R_location    = TG(p_u) G(p_w; T_w, s3) ReLU((p_z - B_z) / (T_z - B_z))        (4)
+    R_facing      = ReLU(F_tar . F_cur)                                            (5, 6)
+    R_velocity    = exp(-2 ReLU(S_tar - S_cur)^2)                                  (7, 8)
+    R_p           = w_loc R_location + w_face R_facing + w_vel R_velocity          (1)
+
+F_tar is the horizontal unit direction from the root to M_T, F_cur the root's
+horizontal heading, S_cur the root's speed along the 3-D direction to M_T over
+the last policy step (from p_{t-1} and p_t, as the paper computes it).
+``progress_scaling=False`` replaces the ReLU height-progress factor by 1
+(InterLevel-2D, Eq. 9). ``w_scale = s2 / s1`` makes the two peaks of TG equal.
+
+Observation (118-D, ``OBSERVATION_STRUCTURE``): vectors are expressed in the
+heading frame (the root's yaw removed), rotations as 6-D (first two columns of
+the rotation matrix, Zhou et al.), joint rotations relative to the parent body.
+The last entry is the angle between the root's heading and the ascent direction
+M_B -> M_T, wrapped to [-pi, pi).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+from stairenv.tasks.state import HEAD, JOINT_ROWS, LEFT_FOOT, PARENT_ROWS, PELVIS, RIGHT_FOOT, HumanoidState
+from stairenv.validation import check_number
+from stairenv.world.stairs import Staircase
+
+OBSERVATION_SIZE = 118
+OBSERVATION_STRUCTURE: dict[str, slice] = {
+    "root_height": slice(0, 1),              # world z of the pelvis
+    "root_rotation": slice(1, 7),            # 6-D, heading frame
+    "root_linear_velocity": slice(7, 10),    # heading frame
+    "root_angular_velocity": slice(10, 13),  # heading frame
+    "joint_rotations": slice(13, 85),        # 12 joints x 6-D, relative to the parent body
+    "joint_velocities": slice(85, 113),      # 28 hinge velocities
+    "target_offset": slice(113, 116),        # M_T - root, heading frame
+    "marker_distance": slice(116, 117),      # |M_T - M_B|
+    "stairs_angle": slice(117, 118),         # heading yaw - ascent yaw, in [-pi, pi)
+}
+REWARD_TERMS: tuple[str, ...] = ("reward_location", "reward_facing", "reward_velocity")
+
+# A root this far above the landing surface is standing on it (standing height 0.885 m).
+STANDING_ON_TOP_MARGIN = 0.5
+
+_SQRT_2PI = math.sqrt(2.0 * math.pi)
+_EPS = 1e-9
+_jit = njit(cache=True, nogil=True)
+
+
+class StairsGoal(NamedTuple):
+    """Per-world constants of the task, batch-first, fixed for an episode."""
+
+    target: np.ndarray           # (B, 3) M_T, world
+    bottom: np.ndarray           # (B, 3) M_B, world
+    origin: np.ndarray           # (B, 3) stairs frame origin, world
+    rotation: np.ndarray         # (B, 3, 3) world-from-stairs rotation (columns u, w, z)
+    yaw: np.ndarray              # (B,) ascent direction
+    marker_distance: np.ndarray  # (B,) |M_T - M_B|
+    target_local: np.ndarray     # (B, 3) M_T, stairs frame
+    bottom_local: np.ndarray     # (B, 3) M_B, stairs frame
+    top_height: np.ndarray       # (B,) height of the landing surface
+
+    @classmethod
+    def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
+        target = np.stack([s.marker_top for s in stairs])
+        bottom = np.stack([s.marker_bottom for s in stairs])
+        return cls(
+            target=target,
+            bottom=bottom,
+            origin=np.stack([s.origin for s in stairs]),
+            rotation=np.ascontiguousarray(np.stack([s.rotation for s in stairs])),
+            yaw=np.array([s.yaw for s in stairs]),
+            marker_distance=np.linalg.norm(target - bottom, axis=-1),
+            target_local=np.stack([s.marker_top_local for s in stairs]),
+            bottom_local=np.stack([s.marker_bottom_local for s in stairs]),
+            top_height=np.array([s.top_height for s in stairs]),
+        )
+
+
+@dataclass(frozen=True)
+class InterLevelReward:
+    """Weights and shape parameters of Eq. 1-8 (defaults justified in the env docstring)."""
+
+    w_location: float = 3.0
+    w_facing: float = 0.1
+    w_velocity: float = 0.4
+    sigma_before: float = 2.0
+    sigma_after: float = 0.5
+    sigma_across: float = 0.5
+    w_scale: float | None = None  # None: sigma_after / sigma_before (equal peaks)
+    target_speed: float = 1.0
+    progress_scaling: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("w_location", "w_facing", "w_velocity"):
+            object.__setattr__(self, name, check_number(name, getattr(self, name), 0.0))
+        for name in ("sigma_before", "sigma_after", "sigma_across"):
+            object.__setattr__(self, name, check_number(name, getattr(self, name), 0.0, low_open=True))
+        if self.w_scale is None:
+            object.__setattr__(self, "w_scale", equal_peak_scale(self.sigma_before, self.sigma_after))
+        object.__setattr__(self, "w_scale", check_number("w_scale", self.w_scale, 0.0))
+        object.__setattr__(self, "target_speed", check_number("target_speed", self.target_speed, 0.0, 10.0))
+        object.__setattr__(self, "progress_scaling", bool(self.progress_scaling))
+
+    def as_tuple(self) -> tuple:
+        return (self.w_location, self.w_facing, self.w_velocity, self.sigma_before, self.sigma_after,
+                self.sigma_across, self.w_scale, self.target_speed, self.progress_scaling)
+
+
+def equal_peak_scale(sigma_before: float, sigma_after: float) -> float:
+    """w_scale that gives both halves of the threshold Gaussian the same peak."""
+    return sigma_after / sigma_before
+
+
+# --- scalar formulas (compiled; also callable with numpy arrays) ----------------
+@_jit
+def gaussian(x, mu, sigma):
+    """Eq. (2): the normal density N(x; mu, sigma^2)."""
+    return np.exp((x - mu) * (x - mu) * (-0.5 / (sigma * sigma))) / (sigma * _SQRT_2PI)
+
+
+@_jit
+def _threshold_gaussian(x, mu, sigma_before, sigma_after, w_scale):
+    if mu - x >= 0.0:
+        return gaussian(x, mu, sigma_before)
+    return w_scale * gaussian(x, mu, sigma_after)
+
+
+@_jit
+def _height_progress(z, bottom_z, top_z):
+    return max((z - bottom_z) / (top_z - bottom_z), 0.0)
+
+
+@_jit
+def _velocity_reward(speed, target_speed):
+    error = max(target_speed - speed, 0.0)
+    return math.exp(-2.0 * error * error)
+
+
+@_jit
+def _facing(hx, hy, tx, ty):
+    norm = math.sqrt(hx * hx + hy * hy) * math.sqrt(tx * tx + ty * ty)
+    return max((hx * tx + hy * ty) / (norm + _EPS), 0.0)
+
+
+# --- batched reward pieces ------------------------------------------------------
+@_jit
+def threshold_gaussian(x, mu, sigma_before, sigma_after, w_scale):
+    """Eq. (3) for (B,) arrays: G(sigma_before) while mu - x >= 0, else w_scale G(sigma_after)."""
+    out = np.empty(x.shape[0])
+    for b in range(x.shape[0]):
+        out[b] = _threshold_gaussian(x[b], mu[b], sigma_before, sigma_after, w_scale)
+    return out
+
+
+@_jit
+def height_progress(z, bottom_z, top_z):
+    """ReLU((z - B_z) / (T_z - B_z)), the factor of Eq. (4), for (B,) arrays."""
+    out = np.empty(z.shape[0])
+    for b in range(z.shape[0]):
+        out[b] = _height_progress(z[b], bottom_z[b], top_z[b])
+    return out
+
+
+@_jit
+def location_reward(root_local, target_local, bottom_local, sigma_before, sigma_after, sigma_across,
+                    w_scale, progress_scaling):
+    """Eq. (4), or Eq. (9) with ``progress_scaling=False``; points (B, 3) in the stairs frame."""
+    out = np.empty(root_local.shape[0])
+    for b in range(root_local.shape[0]):
+        r = _threshold_gaussian(root_local[b, 0], target_local[b, 0], sigma_before, sigma_after, w_scale)
+        r *= gaussian(root_local[b, 1], target_local[b, 1], sigma_across)
+        if progress_scaling:
+            r *= _height_progress(root_local[b, 2], bottom_local[b, 2], target_local[b, 2])
+        out[b] = r
+    return out
+
+
+@_jit
+def facing_reward(heading, root_pos, target):
+    """Eq. (5)-(6): ReLU(F_tar . F_cur). heading (B, 2) any length; root_pos, target (B, 3)."""
+    out = np.empty(heading.shape[0])
+    for b in range(heading.shape[0]):
+        out[b] = _facing(heading[b, 0], heading[b, 1], target[b, 0] - root_pos[b, 0], target[b, 1] - root_pos[b, 1])
+    return out
+
+
+@_jit
+def speed_towards(prev_root, root, target, dt):
+    """S_cur: the root's speed along the 3-D direction from p_{t-1} to the target, (B,)."""
+    out = np.empty(root.shape[0])
+    for b in range(root.shape[0]):
+        dot, dist2 = 0.0, 0.0
+        for i in range(3):
+            d = target[b, i] - prev_root[b, i]
+            dot += (root[b, i] - prev_root[b, i]) * d
+            dist2 += d * d
+        out[b] = dot / (dt * math.sqrt(dist2) + _EPS)
+    return out
+
+
+@_jit
+def velocity_reward(speed, target_speed):
+    """Eq. (7)-(8): exp(-2 ReLU(S_tar - S_cur)^2) for (B,) speeds; only being too slow is penalised."""
+    out = np.empty(speed.shape[0])
+    for b in range(speed.shape[0]):
+        out[b] = _velocity_reward(speed[b], target_speed)
+    return out
+
+
+@_jit
+def to_stairs_frame(points, origin, rotation):
+    """World points (B, 3) -> stairs frame (u, w, z) given origins (B, 3) and rotations (B, 3, 3)."""
+    out = np.empty(points.shape)
+    for b in range(points.shape[0]):
+        for i in range(3):
+            acc = 0.0
+            for m in range(3):
+                acc += (points[b, m] - origin[b, m]) * rotation[b, m, i]
+            out[b, i] = acc
+    return out
+
+
+# --- termination ----------------------------------------------------------------
+@_jit
+def has_fallen(body_pos, min_height_gap):
+    """Early termination, (B, 15, 3) -> (B,) bool: the head or a foot within
+    ``min_height_gap`` (vertically) of the hips, i.e. the body is close to horizontal."""
+    out = np.empty(body_pos.shape[0], dtype=np.bool_)
+    for b in range(body_pos.shape[0]):
+        pelvis_z = body_pos[b, PELVIS, 2]
+        highest_foot = max(body_pos[b, RIGHT_FOOT, 2], body_pos[b, LEFT_FOOT, 2])
+        out[b] = (body_pos[b, HEAD, 2] - pelvis_z < min_height_gap) or (pelvis_z - highest_foot < min_height_gap)
+    return out
+
+
+@_jit
+def reached_top(root_pos, target, top_height, radius):
+    """Success, (B,) bool: root within ``radius`` of M_T on the ground plane and standing on the top floor."""
+    out = np.empty(root_pos.shape[0], dtype=np.bool_)
+    for b in range(root_pos.shape[0]):
+        dx, dy = root_pos[b, 0] - target[b, 0], root_pos[b, 1] - target[b, 1]
+        out[b] = dx * dx + dy * dy < radius * radius and root_pos[b, 2] > top_height[b] + STANDING_ON_TOP_MARGIN
+    return out
+
+
+@_jit
+def progress(root_pos, bottom, target):
+    """Height progress between M_B and M_T, clipped to [0, 1]: (B,)."""
+    out = np.empty(root_pos.shape[0])
+    for b in range(root_pos.shape[0]):
+        out[b] = min(max((root_pos[b, 2] - bottom[b, 2]) / (target[b, 2] - bottom[b, 2]), 0.0), 1.0)
+    return out
+
+
+# --- observation ----------------------------------------------------------------
+@_jit
+def _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, marker_distance,
+                        stairs_yaw, out):
+    for b in range(body_pos.shape[0]):
+        R = body_mat[b, PELVIS]
+        yaw = math.atan2(R[1, 0], R[0, 0])
+        c, s = math.cos(yaw), math.sin(yaw)
+        out[b, 0] = body_pos[b, PELVIS, 2]
+        # Root rotation in the heading frame, H R with H the rotation by -yaw: 6-D = its columns 0, 1.
+        for col in range(2):
+            out[b, 1 + 3 * col] = c * R[0, col] + s * R[1, col]
+            out[b, 2 + 3 * col] = -s * R[0, col] + c * R[1, col]
+            out[b, 3 + 3 * col] = R[2, col]
+        v = root_lin_vel[b]
+        out[b, 7] = c * v[0] + s * v[1]
+        out[b, 8] = -s * v[0] + c * v[1]
+        out[b, 9] = v[2]
+        # The free joint's angular velocity is in the root frame: world = R w, then heading = H (R w).
+        w = root_ang_vel[b]
+        wx = R[0, 0] * w[0] + R[0, 1] * w[1] + R[0, 2] * w[2]
+        wy = R[1, 0] * w[0] + R[1, 1] * w[1] + R[1, 2] * w[2]
+        out[b, 10] = c * wx + s * wy
+        out[b, 11] = -s * wx + c * wy
+        out[b, 12] = R[2, 0] * w[0] + R[2, 1] * w[1] + R[2, 2] * w[2]
+        # Joint rotations relative to the parent: P^T C, columns 0 and 1.
+        for j in range(JOINT_ROWS.shape[0]):
+            P = body_mat[b, PARENT_ROWS[j]]
+            C = body_mat[b, JOINT_ROWS[j]]
+            base = 13 + 6 * j
+            for col in range(2):
+                for i in range(3):
+                    out[b, base + 3 * col + i] = P[0, i] * C[0, col] + P[1, i] * C[1, col] + P[2, i] * C[2, col]
+        for k in range(dof_vel.shape[1]):
+            out[b, 85 + k] = dof_vel[b, k]
+        dx = target[b, 0] - body_pos[b, PELVIS, 0]
+        dy = target[b, 1] - body_pos[b, PELVIS, 1]
+        out[b, 113] = c * dx + s * dy
+        out[b, 114] = -s * dx + c * dy
+        out[b, 115] = target[b, 2] - body_pos[b, PELVIS, 2]
+        out[b, 116] = marker_distance[b]
+        out[b, 117] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi
+    return out
+
+
+def interlevel_observation(state: HumanoidState, goal: StairsGoal) -> np.ndarray:
+    """The 118-D observation, layout ``OBSERVATION_STRUCTURE``: (B, 118)."""
+    out = np.empty((state.body_pos.shape[0], OBSERVATION_SIZE))
+    return _observation_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
+                               state.dof_vel, goal.target, goal.marker_distance, goal.yaw, out)
+
+
+# --- the whole step -------------------------------------------------------------
+@_jit
+def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, target_local, bottom_local, dt,
+                   w_location, w_facing, w_velocity, sigma_before, sigma_after, sigma_across, w_scale,
+                   target_speed, progress_scaling, out):
+    root = body_pos[:, PELVIS]
+    location = location_reward(to_stairs_frame(root, origin, rotation), target_local, bottom_local,
+                               sigma_before, sigma_after, sigma_across, w_scale, progress_scaling)
+    facing = facing_reward(body_mat[:, PELVIS, :2, 0], root, target)
+    velocity = velocity_reward(speed_towards(prev_root, root, target, dt), target_speed)
+    for b in range(root.shape[0]):
+        out[b, 0] = w_location * location[b]
+        out[b, 1] = w_facing * facing[b]
+        out[b, 2] = w_velocity * velocity[b]
+    return out
+
+
+def interlevel_reward_terms(
+    state: HumanoidState, prev_root: np.ndarray, goal: StairsGoal, cfg: InterLevelReward, dt: float
+) -> np.ndarray:
+    """The weighted terms of Eq. (1), (B, 3) in ``REWARD_TERMS`` order (location, facing, velocity)."""
+    out = np.empty((state.body_pos.shape[0], 3))
+    return _reward_kernel(state.body_pos, state.body_mat, prev_root, goal.origin, goal.rotation, goal.target,
+                          goal.target_local, goal.bottom_local, dt, *cfg.as_tuple(), out)

@@ -1,0 +1,47 @@
+"""The humanoid's state as plain arrays read off ``mujoco.MjData``, batch-first.
+
+``read_state`` is the only place that touches MjData for the task functions: a
+natively batched backend fills the same fields from many worlds at once. The
+arrays may be views into MjData: use them before the next physics step, copy
+what must outlive it.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from stairenv.humanoid import HumanoidIndices
+
+
+class HumanoidState(NamedTuple):
+    body_pos: np.ndarray      # (B, 15, 3) world positions of the bodies, BODY_NAMES order
+    body_mat: np.ndarray      # (B, 15, 3, 3) world orientations (columns: body axes)
+    root_lin_vel: np.ndarray  # (B, 3) root linear velocity, world frame
+    root_ang_vel: np.ndarray  # (B, 3) root angular velocity, root (pelvis) frame, as MuJoCo's free joint
+    dof_pos: np.ndarray       # (B, 28)
+    dof_vel: np.ndarray       # (B, 28)
+
+
+# Rows of HumanoidState.body_* (BODY_NAMES order).
+PELVIS, HEAD = 0, 2
+RIGHT_HAND, LEFT_HAND = 5, 8
+RIGHT_FOOT, LEFT_FOOT = 11, 14
+# Joint bodies and their parents as rows of body_* (12 joints, qpos order).
+JOINT_ROWS = np.array([1, 2, 3, 4, 6, 7, 9, 10, 11, 12, 13, 14])
+PARENT_ROWS = np.array([0, 1, 1, 3, 1, 6, 0, 9, 10, 0, 12, 13])
+
+
+def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
+    """The humanoid's state in ``data`` as a batch of one."""
+    root_vel = data.qvel[idx.qvel_root]
+    return HumanoidState(
+        body_pos=data.xpos[idx.body_ids][None],
+        body_mat=data.xmat[idx.body_ids].reshape(1, 15, 3, 3),
+        root_lin_vel=root_vel[None, :3],
+        root_ang_vel=root_vel[None, 3:],
+        dof_pos=data.qpos[idx.qpos_joints][None],
+        dof_vel=data.qvel[idx.qvel_joints][None],
+    )

@@ -1,0 +1,284 @@
+"""Procedural staircases (InterLevel).
+
+A staircase is described in its own frame: ``u`` along the ascent, ``w`` across it
+(to the left), ``z`` up. The origin is the foot of the first riser, on the
+centre line. Tread ``k`` (1..n) is a solid box from the ground to height ``k*h``:
+treads 1..n-1 are ``depth`` deep, tread n is the top floor (landing),
+``landing_depth`` deep. Solid blocks leave no gap to fall through and cost one
+box-box or box-capsule test each.
+
+Markers (paper Fig. 4) sit at the height of a standing character's root, so
+that the height progress (p_z - M_B_z) / (M_T_z - M_B_z) runs from 0 at the
+bottom to 1 when standing on the landing:
+- ``M_B`` at the foot of the stairs (u = 0, w = 0),
+- ``M_T`` on the landing centre (the target).
+
+The world frame is the arena: its centre is the origin. The staircase is rotated
+by ``yaw`` (the ascent direction) and pushed ``distance`` along it, so that
+its front faces the arena centre.
+
+``generate_stairs(config, rng)`` is pure; ``StairsSlots`` adds reusable step
+bodies to an ``MjSpec`` once and ``StairsSlots.place`` writes a new staircase
+into the compiled model at every reset (no recompilation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import mujoco
+import numpy as np
+
+from stairenv.humanoid import STANDING_ROOT_HEIGHT
+from stairenv.validation import check_number, check_range
+
+# The four fixed-height evaluation sets of the paper (Tables 1-3, Fig. 9).
+PAPER_TEST_HEIGHTS: tuple[float, ...] = (0.05, 0.10, 0.15, 0.20)
+
+
+@dataclass(frozen=True)
+class StairsConfig:
+    """Ranges from which staircases are sampled (uniformly). Lengths in metres, angles in radians.
+
+    | field | default | valid |
+    |---|---|---|
+    | step_height | (0.05, 0.20) | within [0.01, 0.40] (the paper: 0.05-0.20) |
+    | step_height_set | None | a non-empty set of heights in [0.01, 0.40]: sample from it instead (test sets) |
+    | step_depth | (0.25, 0.40) | within [0.15, 1.0] |
+    | step_width | (1.0, 2.0) | within [0.5, 5.0] |
+    | num_steps | (3, 10) | integers within [1, 30]; risers, the landing's included |
+    | landing_depth | 2.0 | [1.0, 10.0] |
+    | distance | (2.0, 3.0) | within [0.5, 20]; arena centre to the foot of the stairs |
+    | yaw | (0, 2 pi) | within [-2 pi, 2 pi]; ascent direction |
+    """
+
+    step_height: tuple[float, float] = (0.05, 0.20)
+    step_height_set: tuple[float, ...] | None = None
+    step_depth: tuple[float, float] = (0.25, 0.40)
+    step_width: tuple[float, float] = (1.0, 2.0)
+    num_steps: tuple[int, int] = (3, 10)
+    landing_depth: float = 2.0
+    distance: tuple[float, float] = (2.0, 3.0)
+    yaw: tuple[float, float] = (0.0, 2.0 * math.pi)
+
+    def __post_init__(self) -> None:
+        # Keyword values may arrive as lists (e.g. from TOML presets): store tuples.
+        for name in ("step_height", "step_depth", "step_width", "num_steps", "distance", "yaw"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        if self.step_height_set is not None:
+            object.__setattr__(self, "step_height_set", tuple(float(h) for h in self.step_height_set))
+        check_range("step_height", self.step_height, 0.01, 0.40)
+        if self.step_height_set is not None:
+            if len(self.step_height_set) == 0 or any(
+                not (0.01 <= h <= 0.40) for h in self.step_height_set
+            ):
+                raise ValueError(
+                    f"step_height_set must be a non-empty set of heights in [0.01, 0.40], "
+                    f"got {self.step_height_set!r}"
+                )
+        check_range("step_depth", self.step_depth, 0.15, 1.0)
+        check_range("step_width", self.step_width, 0.5, 5.0)
+        check_range("num_steps", self.num_steps, 1, 30)
+        if any(int(n) != n for n in self.num_steps):
+            raise ValueError(f"num_steps must be integers within [1, 30], got {self.num_steps!r}")
+        check_number("landing_depth", self.landing_depth, 1.0, 10.0)
+        check_range("distance", self.distance, 0.5, 20.0)
+        check_range("yaw", self.yaw, -2.0 * math.pi, 2.0 * math.pi)
+
+    @property
+    def max_steps(self) -> int:
+        return int(self.num_steps[1])
+
+
+@dataclass(frozen=True)
+class Staircase:
+    """One staircase, fully determined by these numbers."""
+
+    step_height: float
+    step_depth: float
+    width: float
+    num_steps: int
+    landing_depth: float
+    yaw: float
+    distance: float
+
+    # --- frames --------------------------------------------------------------
+    @property
+    def axis(self) -> np.ndarray:
+        """Unit ascent direction in the world (horizontal)."""
+        return np.array([math.cos(self.yaw), math.sin(self.yaw), 0.0])
+
+    @property
+    def across(self) -> np.ndarray:
+        """Unit direction across the stairs, to the left of the ascent."""
+        return np.array([-math.sin(self.yaw), math.cos(self.yaw), 0.0])
+
+    @property
+    def origin(self) -> np.ndarray:
+        """World position of the foot of the first riser on the centre line."""
+        return self.distance * self.axis
+
+    @property
+    def rotation(self) -> np.ndarray:
+        """World-from-stairs rotation matrix: columns (u, w, z)."""
+        return np.stack((self.axis, self.across, np.array([0.0, 0.0, 1.0])), axis=1)
+
+    def to_local(self, points: np.ndarray) -> np.ndarray:
+        """World points (..., 3) -> stairs frame (u, w, z)."""
+        return (np.asarray(points) - self.origin) @ self.rotation
+
+    def to_world(self, points: np.ndarray) -> np.ndarray:
+        return np.asarray(points) @ self.rotation.T + self.origin
+
+    # --- geometry ------------------------------------------------------------
+    @property
+    def top_height(self) -> float:
+        return self.num_steps * self.step_height
+
+    @property
+    def landing_start(self) -> float:
+        """u of the landing's front edge (the top riser)."""
+        return (self.num_steps - 1) * self.step_depth
+
+    def local_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Centres and half sizes (n, 3) of the n tread blocks, in the stairs frame."""
+        k = np.arange(1, self.num_steps + 1)
+        depth = np.full(self.num_steps, self.step_depth)
+        depth[-1] = self.landing_depth
+        front = (k - 1) * self.step_depth
+        height = k * self.step_height
+        centres = np.stack((front + depth / 2, np.zeros(self.num_steps), height / 2), axis=1)
+        half = np.stack((depth / 2, np.full(self.num_steps, self.width / 2), height / 2), axis=1)
+        return centres, half
+
+    def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        centres, half = self.local_boxes()
+        return self.to_world(centres), half
+
+    def surface_height(self, points: np.ndarray) -> np.ndarray:
+        """Height of the walkable surface (tread top or floor) under world points (..., 2|3)."""
+        pts = np.asarray(points, dtype=float)
+        xyz = np.concatenate((pts[..., :2], np.zeros(pts.shape[:-1] + (1,))), axis=-1)
+        local = self.to_local(xyz)
+        u, w = local[..., 0], local[..., 1]
+        on = (u >= 0) & (u <= self.landing_start + self.landing_depth) & (np.abs(w) <= self.width / 2)
+        k = np.minimum(np.floor(u / self.step_depth) + 1, self.num_steps)
+        return np.where(on, k * self.step_height, 0.0)
+
+    # --- markers -------------------------------------------------------------
+    @property
+    def marker_bottom_local(self) -> np.ndarray:
+        return np.array([0.0, 0.0, STANDING_ROOT_HEIGHT])
+
+    @property
+    def marker_top_local(self) -> np.ndarray:
+        return np.array(
+            [self.landing_start + self.landing_depth / 2, 0.0, self.top_height + STANDING_ROOT_HEIGHT]
+        )
+
+    @property
+    def marker_bottom(self) -> np.ndarray:
+        """M_B in the world."""
+        return self.to_world(self.marker_bottom_local)
+
+    @property
+    def marker_top(self) -> np.ndarray:
+        """M_T in the world: the target."""
+        return self.to_world(self.marker_top_local)
+
+    def as_dict(self) -> dict[str, float | int]:
+        return asdict(self)
+
+
+def generate_stairs(config: StairsConfig, rng: np.random.Generator) -> Staircase:
+    """Sample one staircase from ``config`` with ``rng`` (pure: same rng state, same stairs)."""
+    if config.step_height_set is not None:
+        height = float(rng.choice(np.asarray(config.step_height_set)))
+    else:
+        height = float(rng.uniform(*config.step_height))
+    return Staircase(
+        step_height=height,
+        step_depth=float(rng.uniform(*config.step_depth)),
+        width=float(rng.uniform(*config.step_width)),
+        num_steps=int(rng.integers(config.num_steps[0], config.num_steps[1] + 1)),
+        landing_depth=float(config.landing_depth),
+        yaw=float(rng.uniform(*config.yaw)),
+        distance=float(rng.uniform(*config.distance)),
+    )
+
+
+# Where unused step slots wait: a sliver below the floor, out of reach and out of view.
+_PARKED_POS = np.array([0.0, 0.0, -5.0])
+_PARKED_HALF = np.array([0.01, 0.01, 0.01])
+
+STAIRS_RGBA = (0.72, 0.68, 0.6, 1.0)
+MARKER_RGBA = (0.9, 0.1, 0.1, 1.0)
+MARKER_RADIUS = 0.08
+
+
+class StairsSlots:
+    """``max_steps`` step bodies and the two markers, built once with MjSpec.
+
+    Each tread is its own static body with a single box geom at the body origin,
+    so a new staircase is written by changing body poses and box sizes in the
+    compiled model. (Geoms of one body share a bounding-volume hierarchy that
+    MuJoCo computes at compile time; moving them afterwards would break collisions.)
+    """
+
+    def __init__(self, spec: mujoco.MjSpec, max_steps: int, prefix: str = "stairs") -> None:
+        self.max_steps = int(max_steps)
+        self.prefix = prefix
+        for i in range(self.max_steps):
+            body = spec.worldbody.add_body(name=f"{prefix}_step{i}", pos=_PARKED_POS)
+            body.add_geom(
+                name=f"{prefix}_step{i}",
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=_PARKED_HALF,
+                rgba=STAIRS_RGBA,
+                condim=3,
+            )
+        for marker in ("marker_bottom", "marker_top"):
+            body = spec.worldbody.add_body(name=f"{prefix}_{marker}", pos=_PARKED_POS)
+            body.add_geom(
+                name=f"{prefix}_{marker}",
+                type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                size=[MARKER_RADIUS, 0, 0],
+                rgba=MARKER_RGBA,
+                contype=0,
+                conaffinity=0,
+                group=2,
+            )
+        self._body_ids: np.ndarray | None = None
+
+    def bind(self, model: mujoco.MjModel) -> None:
+        """Look up ids in the compiled model (call once after compile)."""
+        self._body_ids = np.array([model.body(f"{self.prefix}_step{i}").id for i in range(self.max_steps)])
+        self._geom_ids = np.array([model.geom(f"{self.prefix}_step{i}").id for i in range(self.max_steps)])
+        self._marker_ids = np.array(
+            [model.body(f"{self.prefix}_{m}").id for m in ("marker_bottom", "marker_top")]
+        )
+
+    @property
+    def geom_ids(self) -> np.ndarray:
+        return self._geom_ids
+
+    def place(self, model: mujoco.MjModel, stairs: Staircase) -> None:
+        """Write ``stairs`` into ``model`` (call mj_forward afterwards)."""
+        if self._body_ids is None:
+            raise RuntimeError("StairsSlots.bind(model) must be called before place()")
+        if stairs.num_steps > self.max_steps:
+            raise ValueError(f"staircase has {stairs.num_steps} steps; this model holds at most {self.max_steps}")
+        n = stairs.num_steps
+        centres, half = stairs.world_boxes()
+        half_all = np.tile(_PARKED_HALF, (self.max_steps, 1))
+        pos_all = np.tile(_PARKED_POS, (self.max_steps, 1))
+        half_all[:n], pos_all[:n] = half, centres
+        quat = np.array([math.cos(stairs.yaw / 2), 0.0, 0.0, math.sin(stairs.yaw / 2)])
+        model.body_pos[self._body_ids] = pos_all
+        model.body_quat[self._body_ids] = quat
+        model.geom_size[self._geom_ids] = half_all
+        model.geom_rbound[self._geom_ids] = np.linalg.norm(half_all, axis=1)
+        model.geom_aabb[self._geom_ids, :3] = 0.0
+        model.geom_aabb[self._geom_ids, 3:] = half_all
+        model.body_pos[self._marker_ids] = np.stack((stairs.marker_bottom, stairs.marker_top))
