@@ -4,7 +4,15 @@
 ``InterLevel-v0``, ``InterLevel2D-v0`` and ``InterSceneStairs-v0``.
 """
 
-from stairenv.registration import register_all
+import os as _os
+import sys as _sys
+
+# MuJoCo picks its OpenGL backend when first imported: on a Linux machine with no
+# display, default to headless EGL unless the user chose a backend.
+if _sys.platform.startswith("linux") and not _os.environ.get("DISPLAY"):
+    _os.environ.setdefault("MUJOCO_GL", "egl")
+
+from stairenv.registration import register_all  # noqa: E402
 
 __version__ = "0.1.0"
 

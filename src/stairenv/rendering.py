@@ -1,25 +1,17 @@
 """Rendering: an offscreen renderer with a camera that follows the character.
 
-``render_mode="rgb_array"`` needs an OpenGL backend; on a machine without a
-display set ``MUJOCO_GL=egl`` (or ``osmesa``). ``"human"`` opens MuJoCo's passive
+``render_mode="rgb_array"`` needs an OpenGL backend; on Linux without a display
+``import stairenv`` defaults ``MUJOCO_GL`` to ``egl`` (set it to ``osmesa`` before
+importing if EGL is missing). ``"human"`` opens MuJoCo's passive
 viewer and needs a display.
 """
 
 from __future__ import annotations
 
-import os
-import sys
-
 import mujoco
 import numpy as np
 
 RENDER_MODES = ("human", "rgb_array")
-
-
-def ensure_offscreen_backend() -> None:
-    """Pick EGL when no display is available and the user has not chosen a backend."""
-    if "MUJOCO_GL" not in os.environ and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
-        os.environ["MUJOCO_GL"] = "egl"
 
 
 class FollowCamera:
@@ -34,7 +26,6 @@ class FollowCamera:
         distance: float = 4.5,
         elevation: float = -18.0,
     ) -> None:
-        ensure_offscreen_backend()
         if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
             raise ValueError(
                 f"render size {width}x{height} exceeds the model's offscreen buffer "

@@ -245,6 +245,8 @@ class InterLevelEnv(gym.Env):
         # accelerations blow up; otherwise qpos and qvel are finite by its checks.
         if data.time < expected_time - 1e-9:
             return self._unstable()
+        # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
+        mujoco.mj_kinematics(self.model, data)
 
         state = read_state(data, self._idx)
         goal = self._goal

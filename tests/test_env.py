@@ -1,0 +1,368 @@
+"""InterLevel env: API conformance, determinism, observation layout, episode logic, bad input."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from scipy.spatial.transform import Rotation
+
+import stairenv
+from stairenv.environments.interlevel import InterLevelEnv
+from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
+from stairenv.tasks import interlevel as task
+from stairenv.tasks.state import read_state
+from stairenv.world.stairs import Staircase
+
+ENV_IDS = ["InterLevel-v0", "InterLevel2D-v0", "InterSceneStairs-v0"]
+
+
+def test_registered_ids():
+    assert set(ENV_IDS) <= set(stairenv.ENV_IDS)
+    env = gym.make("InterLevel-v0")
+    assert env.spec.max_episode_steps == 600
+    assert env.observation_space.shape == (118,)
+    assert env.action_space.shape == (28,)
+    assert env.unwrapped.dt == pytest.approx(1 / 30)
+    assert env.unwrapped.model.opt.timestep == pytest.approx(1 / 120)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_check_env(env_id):
+    env = gym.make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_presets_are_kwargs_of_one_class():
+    envs = {i: gym.make(i).unwrapped for i in ENV_IDS}
+    assert all(type(e) is InterLevelEnv for e in envs.values())
+    assert envs["InterLevel-v0"].reward_config.progress_scaling is True
+    assert envs["InterLevel2D-v0"].reward_config.progress_scaling is False
+    assert envs["InterSceneStairs-v0"].reward_name == "interscene"
+
+
+def rollout(env_id: str, seed: int, steps: int = 120, **kwargs):
+    env = gym.make(env_id, **kwargs)
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(123)
+    trace = [obs]
+    rewards = []
+    for _ in range(steps):
+        obs, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 28))
+        trace.append(obs)
+        rewards.append(reward)
+        if terminated or truncated:
+            obs, _ = env.reset()
+            trace.append(obs)
+    return np.array(trace), np.array(rewards)
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_trajectory(env_id):
+    obs_a, rew_a = rollout(env_id, seed=7)
+    obs_b, rew_b = rollout(env_id, seed=7)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    np.testing.assert_array_equal(rew_a, rew_b)
+    obs_c, _ = rollout(env_id, seed=8, steps=1)
+    assert not np.array_equal(obs_a[0], obs_c[0])
+
+
+def test_new_stairs_every_reset_from_seed():
+    env = gym.make("InterLevel-v0")
+    env.reset(seed=0)
+    first = [env.unwrapped.stairs]
+    for _ in range(4):
+        env.reset()
+        first.append(env.unwrapped.stairs)
+    assert len({s.yaw for s in first}) == 5
+    env.reset(seed=0)
+    again = [env.unwrapped.stairs] + [env.reset()[1] and env.unwrapped.stairs for _ in range(4)]
+    assert again == first
+
+
+def test_observation_structure_covers_118():
+    env = gym.make("InterLevel-v0").unwrapped
+    slices = list(env.observation_structure.values())
+    assert slices[0].start == 0 and slices[-1].stop == 118
+    for a, b in zip(slices, slices[1:]):
+        assert a.stop == b.start
+    sizes = {k: s.stop - s.start for k, s in env.observation_structure.items()}
+    assert sizes == {
+        "root_height": 1, "root_rotation": 6, "root_linear_velocity": 3, "root_angular_velocity": 3,
+        "joint_rotations": 72, "joint_velocities": 28, "target_offset": 3, "marker_distance": 1,
+        "stairs_angle": 1,
+    }
+
+
+def _obs_part(env, obs, name):
+    return obs[env.observation_structure[name]]
+
+
+def test_observation_values_against_mujoco():
+    env = gym.make("InterLevel-v0").unwrapped
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        obs, *_ = env.step(np.full(28, 0.2))
+    data, stairs = env.data, env.stairs
+    pelvis = env.model.body("pelvis").id
+    assert _obs_part(env, obs, "root_height")[0] == pytest.approx(data.xpos[pelvis, 2])
+    offset = _obs_part(env, obs, "target_offset")
+    assert np.linalg.norm(offset) == pytest.approx(np.linalg.norm(stairs.marker_top - data.xpos[pelvis]))
+    assert offset[2] == pytest.approx(stairs.marker_top[2] - data.xpos[pelvis, 2])
+    assert _obs_part(env, obs, "marker_distance")[0] == pytest.approx(
+        np.linalg.norm(stairs.marker_top - stairs.marker_bottom))
+    np.testing.assert_allclose(_obs_part(env, obs, "joint_velocities"), data.qvel[6:34])
+    # Heading frame: horizontal speed is preserved, vertical velocity unchanged.
+    lin = _obs_part(env, obs, "root_linear_velocity")
+    assert np.linalg.norm(lin[:2]) == pytest.approx(np.linalg.norm(data.qvel[:2]))
+    assert lin[2] == pytest.approx(data.qvel[2])
+    # Stairs angle: root heading minus ascent direction, wrapped.
+    root_mat = data.xmat[pelvis].reshape(3, 3)
+    heading = math.atan2(root_mat[1, 0], root_mat[0, 0])
+    expected = (heading - stairs.yaw + math.pi) % (2 * math.pi) - math.pi
+    assert _obs_part(env, obs, "stairs_angle")[0] == pytest.approx(expected)
+
+
+def test_joint_rotations_are_local_xyz_euler():
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=1)
+    angles = np.array([0.3, -0.5, 0.2])  # right hip x, y, z
+    hip_x = DOF_NAMES.index("right_hip_x")
+    env.data.qpos[7 + hip_x: 7 + hip_x + 3] = angles
+    env.data.qpos[7 + DOF_NAMES.index("right_knee")] = 0.7
+    mujoco.mj_forward(env.model, env.data)
+    obs = task.interlevel_observation(read_state(env.data, env._idx), env._goal)[0]
+    rot6 = _obs_part(env, obs, "joint_rotations").reshape(12, 6)
+    hip = Rotation.from_euler("XYZ", angles).as_matrix()
+    np.testing.assert_allclose(rot6[6], np.concatenate((hip[:, 0], hip[:, 1])), atol=1e-9)
+    knee = Rotation.from_euler("Y", 0.7).as_matrix()
+    np.testing.assert_allclose(rot6[7], np.concatenate((knee[:, 0], knee[:, 1])), atol=1e-9)
+
+
+def test_observation_invariant_to_rotating_the_whole_scene():
+    """Character and stairs turned together about the arena centre: the same observation."""
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=5)
+    for _ in range(8):
+        env.step(np.full(28, 0.1))
+    stairs, data = env.stairs, env.data
+    qpos, qvel = data.qpos.copy(), data.qvel.copy()
+    obs_a = task.interlevel_observation(read_state(data, env._idx), env._goal)[0]
+
+    turn = 1.1
+    rotated = Staircase(**{**stairs.as_dict(), "yaw": stairs.yaw + turn})
+    env.reset(seed=5, options={"stairs": rotated})
+    rot = Rotation.from_euler("z", turn)
+    data.qpos[:] = qpos
+    data.qpos[:3] = rot.apply(qpos[:3])
+    w, x, y, z = qpos[3:7]
+    xr, yr, zr, wr = (rot * Rotation.from_quat([x, y, z, w])).as_quat()
+    data.qpos[3:7] = [wr, xr, yr, zr]
+    data.qvel[:] = qvel
+    data.qvel[:3] = rot.apply(qvel[:3])  # world linear velocity; angular velocity is in the body frame
+    mujoco.mj_forward(env.model, data)
+    obs_b = task.interlevel_observation(read_state(data, env._idx), env._goal)[0]
+    np.testing.assert_allclose(obs_a, obs_b, atol=1e-9)
+
+
+def _stand_at(env, position, yaw=0.0):
+    """Put the character upright at ``position`` (root), servos holding the default pose."""
+    data = env.data
+    data.qpos[:3] = position
+    data.qpos[3:7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
+    data.qpos[7:] = 0.0
+    data.qvel[:] = 0.0
+    data.ctrl[:] = np.clip(0.0, *env.model.actuator_ctrlrange.T)
+    mujoco.mj_forward(env.model, data)
+    env._prev_root = data.xpos[env.model.body("pelvis").id][None].copy()
+
+
+def _hold_action(env):
+    """The action whose PD targets are the zero pose (clipped into range)."""
+    return np.clip(-env._ctrl_offset / env._ctrl_scale, -1, 1)
+
+
+def test_termination_on_fallen_pose():
+    env = gym.make("InterLevel-v0", failure_reward=-2.5)
+    env.reset(seed=0)
+    u = env.unwrapped
+    data = u.data
+    # Lying on the floor: body horizontal, root 0.15 m up.
+    data.qpos[:3] = [0.0, 0.0, 0.15]
+    data.qpos[3:7] = Rotation.from_euler("y", 90, degrees=True).as_quat(scalar_first=True)
+    data.qvel[:] = 0
+    mujoco.mj_forward(u.model, data)
+    _, reward, terminated, truncated, info = env.step(_hold_action(u))
+    assert terminated and not truncated
+    assert info["fell"] and not info["success"]
+    assert reward == pytest.approx(-2.5)
+    assert info["reward_failure"] == -2.5
+    assert info["reward_location"] == info["reward_facing"] == info["reward_velocity"] == 0.0
+
+
+def test_standing_does_not_terminate():
+    env = gym.make("InterLevel-v0")
+    env.reset(seed=0)
+    u = env.unwrapped
+    _stand_at(u, [0.0, 0.0, STANDING_ROOT_HEIGHT + 0.005])
+    _, _, terminated, _, info = env.step(_hold_action(u))
+    assert not terminated and not info["fell"]
+
+
+def test_success_on_the_top_floor_at_mt():
+    env = gym.make("InterLevel-v0", success_reward=7.0)
+    env.reset(seed=2)
+    u = env.unwrapped
+    stairs = u.stairs
+    target = stairs.marker_top
+    _stand_at(u, [target[0], target[1], stairs.top_height + STANDING_ROOT_HEIGHT + 0.005], yaw=stairs.yaw)
+    _, reward, terminated, _, info = env.step(_hold_action(u))
+    assert info["success"] and terminated and not info["fell"]
+    assert info["progress"] == pytest.approx(1.0, abs=0.02)
+    assert info["reward_success"] == 7.0
+    parts = sum(v for k, v in info.items() if k.startswith("reward_"))
+    assert reward == pytest.approx(parts)
+    # Location term at its peak region: TG and across-Gaussian near their maxima, progress ~1.
+    peak = 3.0 / (2 * math.pi * 2.0 * 0.5)
+    assert info["reward_location"] == pytest.approx(peak, rel=0.05)
+
+
+def test_success_needs_the_top_floor():
+    """Right under M_T but on the ground (e.g. a floating target above a short landing): no success."""
+    env = gym.make("InterLevel-v0")
+    env.reset(seed=2)
+    u = env.unwrapped
+    target = u.stairs.marker_top
+    _stand_at(u, [target[0], target[1], 0.3])  # inside the landing block: not standing on top
+    assert not task.reached_top(u.data.xpos[[1]], u._goal.target, u._goal.top_height, 0.5)[0]
+
+
+def test_no_termination_on_success_when_disabled():
+    env = gym.make("InterLevel-v0", terminate_on_success=False)
+    env.reset(seed=2)
+    u = env.unwrapped
+    stairs = u.stairs
+    target = stairs.marker_top
+    _stand_at(u, [target[0], target[1], stairs.top_height + STANDING_ROOT_HEIGHT + 0.005], yaw=stairs.yaw)
+    _, _, terminated, _, info = env.step(_hold_action(u))
+    assert info["success"] and not terminated
+
+
+def test_info_fields_and_time_limit():
+    env = gym.make("InterLevel-v0", termination_height=0.0, max_episode_steps=20)
+    _, info = env.reset(seed=0)
+    for key in ("progress", "success", "fell", "time", "distance_to_target", "physics_unstable", "stairs"):
+        assert key in info
+    assert set(info["stairs"]) >= {"step_height", "step_depth", "width", "num_steps", "yaw"}
+    for t in range(1, 21):
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        assert info["time"] == pytest.approx(t / 30)
+        assert 0.0 <= info["progress"] <= 1.0
+    assert truncated and not terminated
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"step_height": (-0.1, 0.2)}, "step_height"),
+        ({"step_height": (0.2, 0.1)}, "step_height"),
+        ({"step_depth": (0.0, 0.3)}, "step_depth"),
+        ({"num_steps": (0, 5)}, "num_steps"),
+        ({"num_steps": (3.5, 5)}, "num_steps"),
+        ({"step_height_set": ()}, "step_height_set"),
+        ({"reward": "interplanet"}, "reward"),
+        ({"pd_gains": "medium"}, "pd_gains"),
+        ({"sigma_before": 0.0}, "sigma_before"),
+        ({"w_location": -1.0}, "w_location"),
+        ({"target_speed": float("nan")}, "target_speed"),
+        ({"termination_height": 2.0}, "termination_height"),
+        ({"frame_skip": 0}, "frame_skip"),
+        ({"render_mode": "ascii"}, "render_mode"),
+        ({"stairs_distance": (0.5, 3.0)}, "stairs_distance"),
+        ({"success_radius": 0.0}, "success_radius"),
+    ],
+)
+def test_bad_keywords_name_the_parameter(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        InterLevelEnv(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "action, message",
+    [
+        (np.zeros(27), "shape"),
+        (np.zeros((2, 28)), "shape"),
+        (np.full(28, np.nan), "finite"),
+        (np.r_[np.zeros(27), np.inf], "finite"),
+    ],
+)
+def test_bad_actions_raise(action, message):
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=message):
+        env.step(action)
+
+
+def test_step_before_reset_raises():
+    env = InterLevelEnv()
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros(28))
+
+
+def test_out_of_range_actions_act_as_the_range_limits():
+    """Actions beyond [-1, 1] give the same PD targets as the limits (MuJoCo clamps ctrl)."""
+    results = []
+    for value in (5.0, 1.0):
+        env = gym.make("InterLevel-v0").unwrapped
+        env.reset(seed=0)
+        obs, *_ = env.step(np.r_[np.full(14, value), np.full(14, -value)])
+        results.append(obs)
+    np.testing.assert_array_equal(results[0], results[1])
+
+
+def test_physics_blow_up_truncates_with_flag():
+    env = gym.make("InterLevel-v0")
+    obs0, _ = env.reset(seed=0)
+    u = env.unwrapped
+    obs1, *_ = env.step(np.zeros(28))
+    u.data.qvel[:] = 1e12  # diverged state: MuJoCo's checks reset the data
+    with pytest.warns(UserWarning, match="unstable"):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(28))
+    assert truncated and not terminated
+    assert info["physics_unstable"] is True
+    assert np.isfinite(obs).all()
+    np.testing.assert_array_equal(obs, obs1)
+    assert reward == 0.0
+    with pytest.raises(gym.error.ResetNeeded):
+        u.step(np.zeros(28))
+    obs, _ = env.reset()
+    assert np.isfinite(obs).all()
+
+
+def test_random_action_soak_20k_steps():
+    env = gym.make("InterLevel-v0")
+    obs, _ = env.reset(seed=11)
+    rng = np.random.default_rng(11)
+    unstable = 0
+    for _ in range(20_000):
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, 28))
+        assert np.isfinite(obs).all() and math.isfinite(reward)
+        unstable += info["physics_unstable"]
+        if terminated or truncated:
+            obs, _ = env.reset()
+    assert unstable == 0
+    warnings = env.unwrapped.data.warning
+    assert warnings[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
+
+
+def test_rgb_array_render():
+    env = gym.make("InterLevel-v0", render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5  # not a blank image
+    env.close()
