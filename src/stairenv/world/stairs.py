@@ -221,9 +221,11 @@ class StairsSlots:
     """``max_steps`` step bodies and the two markers, built once with MjSpec.
 
     Each tread is its own static body with a single box geom at the body origin,
-    so a new staircase is written by changing body poses and box sizes in the
-    compiled model. (Geoms of one body share a bounding-volume hierarchy that
-    MuJoCo computes at compile time; moving them afterwards would break collisions.)
+    so a new staircase is written by changing body poses, box sizes and the
+    bodies' bounding boxes in the compiled model. (MuJoCo computes a body's
+    bounding-volume hierarchy at compile time; with one geom per body it is a
+    single box that ``place`` resizes. Moving several geoms of one body would
+    need the whole hierarchy rebuilt.)
     """
 
     def __init__(self, spec: mujoco.MjSpec, max_steps: int, prefix: str = "stairs") -> None:
@@ -281,4 +283,9 @@ class StairsSlots:
         model.geom_rbound[self._geom_ids] = np.linalg.norm(half_all, axis=1)
         model.geom_aabb[self._geom_ids, :3] = 0.0
         model.geom_aabb[self._geom_ids, 3:] = half_all
+        # The body's bounding volume (used when the other body has several geoms, e.g. the
+        # torso) is computed at compile time: resize it with the box (geom at the body origin).
+        bvh = model.body_bvhadr[self._body_ids]
+        model.bvh_aabb[bvh, :3] = 0.0
+        model.bvh_aabb[bvh, 3:] = half_all
         model.body_pos[self._marker_ids] = np.stack((stairs.marker_bottom, stairs.marker_top))
