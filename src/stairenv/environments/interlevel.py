@@ -13,6 +13,7 @@ from gymnasium import spaces
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, HumanoidIndices, load_humanoid_spec
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.tasks.state import PELVIS, read_state
@@ -59,7 +60,8 @@ class InterLevelEnv(gym.Env):
 
     **Info**: ``reward_*``, ``progress`` (height progress 0-1 between M_B and M_T),
     ``success``, ``fell``, ``time`` (s), ``distance_to_target`` (m),
-    ``physics_unstable``, ``stairs`` (the staircase's parameters).
+    ``physics_unstable``, ``stairs`` (the staircase's parameters), ``amp_obs`` (the
+    last ``amp_history`` frames of style features, ``stairenv.style.features``).
 
     | keyword | default | meaning |
     |---|---|---|
@@ -86,6 +88,7 @@ class InterLevelEnv(gym.Env):
     | pd_gains | "soft" | PD gain preset, "soft" or "stiff" |
     | frame_skip | 4 | physics steps per action (120 Hz physics -> 30 Hz policy) |
     | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
+    | amp_history | 2 | frames of AMP features in ``info["amp_obs"]`` (K x 105, oldest first) |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -131,6 +134,7 @@ class InterLevelEnv(gym.Env):
         pd_gains: str = "soft",
         frame_skip: int = 4,
         reset_noise_scale: float = 0.05,
+        amp_history: int = 2,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -167,6 +171,7 @@ class InterLevelEnv(gym.Env):
             )
         self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
+        self._amp = FeatureHistory(int(check_number("amp_history", amp_history, 1, 100)))
         if render_mode is not None:
             check_choice("render_mode", render_mode, RENDER_MODES)
         self.render_mode = render_mode
@@ -226,6 +231,7 @@ class InterLevelEnv(gym.Env):
         state = read_state(data, self._idx)
         self._prev_root = state.body_pos[:, PELVIS].copy()
         self._obs = task.interlevel_observation(state, self._goal)[0]
+        self._amp.fill(amp_features(state)[0])
         return self._obs, self._info(state, success=False, fell=False)
 
     def step(self, action):
@@ -258,6 +264,7 @@ class InterLevelEnv(gym.Env):
             values = task.interlevel_reward_terms(state, self._prev_root, goal, self.reward_config, self.dt)[0]
         else:
             values = interscene.interscene_reward_terms(state, self._prev_root, goal.target, self.dt)[0]
+        self._amp.push(amp_features(state)[0])
         info = self._info(state, success=success, fell=fell)
         # A fall replaces the task terms by the failure reward.
         reward = 0.0
@@ -304,6 +311,7 @@ class InterLevelEnv(gym.Env):
             "distance_to_target": math.sqrt(offset @ offset),
             "physics_unstable": False,
             "stairs": dict(self._stairs_info),
+            "amp_obs": self._amp.flat(),
         }
 
     def _unstable(self):
@@ -311,7 +319,7 @@ class InterLevelEnv(gym.Env):
         info = {
             "progress": 0.0, "success": False, "fell": False, "time": self._steps * self.dt,
             "distance_to_target": float(np.linalg.norm(self._obs[task.OBSERVATION_STRUCTURE["target_offset"]])),
-            "physics_unstable": True, "stairs": dict(self._stairs_info),
+            "physics_unstable": True, "stairs": dict(self._stairs_info), "amp_obs": self._amp.flat(),
             **dict.fromkeys(self._term_names + ("reward_success", "reward_failure"), 0.0),
         }
         self._needs_reset = True

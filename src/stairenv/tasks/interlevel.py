@@ -49,8 +49,15 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from stairenv.tasks.kernels import (
+    heading_cos_sin,
+    jit,
+    write_heading_vector,
+    write_local_angular_velocity,
+    write_relative_rotation_6d,
+    write_root_rotation_6d,
+)
 from stairenv.tasks.state import HEAD, JOINT_ROWS, LEFT_FOOT, PARENT_ROWS, PELVIS, RIGHT_FOOT, HumanoidState
 from stairenv.validation import check_number
 from stairenv.world.stairs import Staircase
@@ -74,7 +81,7 @@ STANDING_ON_TOP_MARGIN = 0.5
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 _EPS = 1e-9
-_jit = njit(cache=True, nogil=True)
+_jit = jit
 
 
 class StairsGoal(NamedTuple):
@@ -288,43 +295,21 @@ def progress(root_pos, bottom, target):
 def _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, marker_distance,
                         stairs_yaw, out):
     for b in range(body_pos.shape[0]):
+        row = out[b]
         R = body_mat[b, PELVIS]
-        yaw = math.atan2(R[1, 0], R[0, 0])
-        c, s = math.cos(yaw), math.sin(yaw)
-        out[b, 0] = body_pos[b, PELVIS, 2]
-        # Root rotation in the heading frame, H R with H the rotation by -yaw: 6-D = its columns 0, 1.
-        for col in range(2):
-            out[b, 1 + 3 * col] = c * R[0, col] + s * R[1, col]
-            out[b, 2 + 3 * col] = -s * R[0, col] + c * R[1, col]
-            out[b, 3 + 3 * col] = R[2, col]
+        p = body_pos[b, PELVIS]
+        yaw, c, s = heading_cos_sin(R)
+        row[0] = p[2]
+        write_root_rotation_6d(row, 1, R, c, s)
         v = root_lin_vel[b]
-        out[b, 7] = c * v[0] + s * v[1]
-        out[b, 8] = -s * v[0] + c * v[1]
-        out[b, 9] = v[2]
-        # The free joint's angular velocity is in the root frame: world = R w, then heading = H (R w).
-        w = root_ang_vel[b]
-        wx = R[0, 0] * w[0] + R[0, 1] * w[1] + R[0, 2] * w[2]
-        wy = R[1, 0] * w[0] + R[1, 1] * w[1] + R[1, 2] * w[2]
-        out[b, 10] = c * wx + s * wy
-        out[b, 11] = -s * wx + c * wy
-        out[b, 12] = R[2, 0] * w[0] + R[2, 1] * w[1] + R[2, 2] * w[2]
-        # Joint rotations relative to the parent: P^T C, columns 0 and 1.
+        write_heading_vector(row, 7, v[0], v[1], v[2], c, s)
+        write_local_angular_velocity(row, 10, R, root_ang_vel[b], c, s)
         for j in range(JOINT_ROWS.shape[0]):
-            P = body_mat[b, PARENT_ROWS[j]]
-            C = body_mat[b, JOINT_ROWS[j]]
-            base = 13 + 6 * j
-            for col in range(2):
-                for i in range(3):
-                    out[b, base + 3 * col + i] = P[0, i] * C[0, col] + P[1, i] * C[1, col] + P[2, i] * C[2, col]
-        for k in range(dof_vel.shape[1]):
-            out[b, 85 + k] = dof_vel[b, k]
-        dx = target[b, 0] - body_pos[b, PELVIS, 0]
-        dy = target[b, 1] - body_pos[b, PELVIS, 1]
-        out[b, 113] = c * dx + s * dy
-        out[b, 114] = -s * dx + c * dy
-        out[b, 115] = target[b, 2] - body_pos[b, PELVIS, 2]
-        out[b, 116] = marker_distance[b]
-        out[b, 117] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi
+            write_relative_rotation_6d(row, 13 + 6 * j, body_mat[b, PARENT_ROWS[j]], body_mat[b, JOINT_ROWS[j]])
+        row[85:113] = dof_vel[b]
+        write_heading_vector(row, 113, target[b, 0] - p[0], target[b, 1] - p[1], target[b, 2] - p[2], c, s)
+        row[116] = marker_distance[b]
+        row[117] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi
     return out
 
 

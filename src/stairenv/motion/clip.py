@@ -1,0 +1,210 @@
+"""One clip format of our own: frames of the humanoid's ``qpos`` at a known fps.
+
+A clip is ``qpos`` (T, 35): root position (3, world, z up), root quaternion
+(4, MuJoCo's w x y z), then the 28 hinge angles in ``DOF_NAMES`` order, sampled
+at ``fps``. Velocities are derived, never stored, with MuJoCo's own
+``mj_differentiatePos`` (central differences; the root's angular velocity in
+the root frame, as the free joint's qvel), so a clip's states are exactly what
+the env would read from ``MjData``.
+
+Files are ``.npz`` with the arrays ``qpos``, ``fps`` and a JSON ``meta`` string
+(name, loop, source, format version, anything an importer adds). ``load``
+checks everything and raises ``MotionFileError`` naming the file and the fault.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from stairenv.humanoid import JOINTS, NUM_DOFS, load_humanoid_spec
+
+FORMAT_VERSION = 1
+QPOS_SIZE = 7 + NUM_DOFS  # 35
+QVEL_SIZE = 6 + NUM_DOFS  # 34
+
+# Column ranges of the 3-axis joints (intrinsic XYZ Euler angles) and of the hinges in qpos.
+_BALL_COLUMNS: list[slice] = []
+_HINGE_COLUMNS: list[int] = []
+_col = 7
+for _, _, _axes in JOINTS:
+    if len(_axes) == 3:
+        _BALL_COLUMNS.append(slice(_col, _col + 3))
+    else:
+        _HINGE_COLUMNS.append(_col)
+    _col += len(_axes)
+
+
+class MotionFileError(ValueError):
+    """A motion file that cannot be read as a clip (corrupt, wrong shape, NaN, ...)."""
+
+
+@lru_cache(maxsize=1)
+def humanoid_model() -> mujoco.MjModel:
+    """The bare humanoid (no scene), for kinematics of clips."""
+    return load_humanoid_spec().compile()
+
+
+@dataclass
+class MotionClip:
+    qpos: np.ndarray
+    fps: float
+    name: str = ""
+    loop: bool = False
+    source: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.qpos = np.asarray(self.qpos, dtype=np.float64)
+        self.fps = float(self.fps)
+        problem = _check_qpos(self.qpos, self.fps)
+        if problem:
+            raise MotionFileError(f"clip {self.name or '<unnamed>'}: {problem}")
+        # One sign per quaternion hemisphere, continuous in time (q and -q are the same rotation).
+        quat = self.qpos[:, 3:7]
+        quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        flips = np.cumprod(np.where(np.sum(quat[1:] * quat[:-1], axis=1) < 0, -1.0, 1.0))
+        quat[1:] *= flips[:, None]
+
+    # --- basic properties ----------------------------------------------------------
+    @property
+    def num_frames(self) -> int:
+        return self.qpos.shape[0]
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.fps
+
+    @property
+    def duration(self) -> float:
+        """Time of the last frame (a one-frame clip lasts 0 s)."""
+        return (self.num_frames - 1) / self.fps
+
+    def qvel(self) -> np.ndarray:
+        """(T, 34) velocities from central differences of qpos (one-sided at the ends; wrapped for loops)."""
+        model = humanoid_model()
+        n = self.num_frames
+        qvel = np.zeros((n, QVEL_SIZE))
+        if n < 2:
+            return qvel
+        for t in range(n):
+            if self.loop and n > 2:
+                before, after, span = (t - 1) % n, (t + 1) % n, 2
+            else:
+                before, after = max(t - 1, 0), min(t + 1, n - 1)
+                span = after - before
+            mujoco.mj_differentiatePos(model, qvel[t], span * self.dt, self.qpos[before], self.qpos[after])
+        if self.loop and n > 2:
+            # The root's position does not wrap: one-sided differences at the seam.
+            for t, (before, after) in ((0, (0, 1)), (n - 1, (n - 2, n - 1))):
+                qvel[t, :3] = (self.qpos[after, :3] - self.qpos[before, :3]) * self.fps
+        return qvel
+
+    # --- interpolation -------------------------------------------------------------
+    def sample(self, times: np.ndarray) -> np.ndarray:
+        """qpos (N, 35) at ``times`` (s): slerp for the root and 3-axis joint rotations, linear otherwise.
+
+        Times are clamped to [0, duration], or wrapped for looping clips.
+        """
+        times = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        if self.num_frames == 1:
+            return np.repeat(self.qpos, len(times), axis=0)
+        times = np.mod(times, self.duration) if self.loop else np.clip(times, 0.0, self.duration)
+        frame = times * self.fps
+        i0 = np.minimum(np.floor(frame).astype(int), self.num_frames - 2)
+        alpha = (frame - i0)[:, None]
+        a, b = self.qpos[i0], self.qpos[i0 + 1]
+        out = (1.0 - alpha) * a + alpha * b
+        out[:, 3:7] = _slerp_wxyz(a[:, 3:7], b[:, 3:7], alpha[:, 0])
+        for cols in _BALL_COLUMNS:
+            ra = Rotation.from_euler("XYZ", a[:, cols])
+            rb = Rotation.from_euler("XYZ", b[:, cols])
+            euler = _slerp_rot(ra, rb, alpha[:, 0]).as_euler("XYZ")
+            # as_euler wraps to (-pi, pi]: pick the branch nearest the linear blend (ranges reach -180 deg).
+            out[:, cols] = euler + 2.0 * np.pi * np.round((out[:, cols] - euler) / (2.0 * np.pi))
+        return out
+
+    def resample(self, fps: float) -> "MotionClip":
+        """The same motion at another frame rate."""
+        if not (fps > 0 and math.isfinite(fps)):
+            raise ValueError(f"fps must be a positive number, got {fps!r}")
+        n = max(int(round(self.duration * fps)) + 1, 1)
+        times = np.arange(n) / fps
+        return MotionClip(self.sample(times), fps, self.name, self.loop, self.source, dict(self.meta))
+
+    # --- files -----------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_suffix(".npz")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meta = {"name": self.name, "loop": self.loop, "source": self.source,
+                "format_version": FORMAT_VERSION, **self.meta}
+        np.savez_compressed(path, qpos=self.qpos, fps=np.float64(self.fps), meta=np.array(json.dumps(meta)))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "MotionClip":
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                missing = {"qpos", "fps", "meta"} - set(f.files)
+                if missing:
+                    raise MotionFileError(f"{path}: not a stairenv clip (missing {sorted(missing)})")
+                qpos, fps, meta_text = f["qpos"], float(f["fps"]), str(f["meta"])
+        except MotionFileError:
+            raise
+        except Exception as err:  # zip/npy corruption surfaces as many types
+            raise MotionFileError(f"{path}: cannot read ({type(err).__name__}: {err})") from err
+        try:
+            meta = json.loads(meta_text)
+        except json.JSONDecodeError as err:
+            raise MotionFileError(f"{path}: metadata is not JSON ({err})") from err
+        if meta.get("format_version", 0) > FORMAT_VERSION:
+            raise MotionFileError(f"{path}: format version {meta['format_version']} is newer than {FORMAT_VERSION}")
+        problem = _check_qpos(np.asarray(qpos), fps)
+        if problem:
+            raise MotionFileError(f"{path}: {problem}")
+        name = meta.pop("name", path.stem)
+        loop = bool(meta.pop("loop", False))
+        source = meta.pop("source", "")
+        meta.pop("format_version", None)
+        return cls(qpos, fps, name, loop, source, meta)
+
+
+def _check_qpos(qpos: np.ndarray, fps: float) -> str | None:
+    if qpos.ndim != 2 or qpos.shape[1] != QPOS_SIZE or qpos.shape[0] < 1:
+        return f"qpos must have shape (T >= 1, {QPOS_SIZE}), got {qpos.shape}"
+    if not np.isfinite(qpos).all():
+        return "qpos contains NaN or inf"
+    if not (math.isfinite(fps) and fps > 0):
+        return f"fps must be a positive number, got {fps!r}"
+    norms = np.linalg.norm(qpos[:, 3:7], axis=1)
+    if np.any(norms < 1e-6):
+        return "root quaternion of zero length"
+    return None
+
+
+def _slerp_rot(ra: Rotation, rb: Rotation, alpha: np.ndarray) -> Rotation:
+    """Element-wise slerp between two stacks of rotations."""
+    delta = (ra.inv() * rb).as_rotvec()
+    return ra * Rotation.from_rotvec(delta * alpha[:, None])
+
+
+def _slerp_wxyz(qa: np.ndarray, qb: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    ra = Rotation.from_quat(qa, scalar_first=True)
+    rb = Rotation.from_quat(qb, scalar_first=True)
+    out = _slerp_rot(ra, rb, alpha).as_quat(scalar_first=True)
+    # Keep the hemisphere of the first frame so sequences stay continuous.
+    out *= np.where(np.sum(out * qa, axis=1) < 0, -1.0, 1.0)[:, None]
+    return out
+
+

@@ -1,0 +1,1 @@
+"""Style: adversarial motion priors (AMP) — features, discriminator, vec-env wrappers."""
