@@ -35,7 +35,7 @@ class DiscriminatorConfig:
     grad_penalty: float = 5.0
     logit_reg: float = 0.01
     weight_decay: float = 1e-4
-    batch_size: int = 512
+    batch_size: int = 256
     replay_size: int = 100_000
 
     def __post_init__(self) -> None:

@@ -44,7 +44,7 @@ class AMPStyleReward:
         w_style: float = 0.5,
         config: DiscriminatorConfig | None = None,
         update_interval: int = 2048,
-        updates_per_round: int = 4,
+        updates_per_round: int = 2,
         train: bool = True,
         seed: int = 0,
         discriminator: AMPDiscriminator | None = None,
