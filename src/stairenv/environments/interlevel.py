@@ -12,6 +12,7 @@ from gymnasium import spaces
 
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, HumanoidIndices, load_humanoid_spec
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
+from stairenv.motion.rsi import load_reference_library, place_reference_state
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.tasks import interlevel as task
@@ -21,6 +22,7 @@ from stairenv.validation import check_choice, check_number
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
+INITS = ("default", "reference", "hybrid")
 
 
 class InterLevelEnv(gym.Env):
@@ -89,6 +91,9 @@ class InterLevelEnv(gym.Env):
     | frame_skip | 4 | physics steps per action (120 Hz physics -> 30 Hz policy) |
     | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
     | amp_history | 2 | frames of AMP features in ``info["amp_obs"]`` (K x 105, oldest first) |
+    | init | "default" | start pose: "default" (standing), "reference" (a random reference frame), "hybrid" |
+    | reference_motion | None | folder / .npz of reference clips; None = the built-in synthesised set |
+    | hybrid_fraction | 0.5 | share of episodes that start from a reference frame with init="hybrid" |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -135,6 +140,9 @@ class InterLevelEnv(gym.Env):
         frame_skip: int = 4,
         reset_noise_scale: float = 0.05,
         amp_history: int = 2,
+        init: str = "default",
+        reference_motion: str | None = None,
+        hybrid_fraction: float = 0.5,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -172,6 +180,10 @@ class InterLevelEnv(gym.Env):
         self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
         self._amp = FeatureHistory(int(check_number("amp_history", amp_history, 1, 100)))
+        self.init = check_choice("init", init, INITS)
+        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self.reference_motion = reference_motion
+        self._library = None if self.init == "default" else load_reference_library(reference_motion)
         if render_mode is not None:
             check_choice("render_mode", render_mode, RENDER_MODES)
         self.render_mode = render_mode
@@ -216,12 +228,20 @@ class InterLevelEnv(gym.Env):
         radius = self.start_radius * math.sqrt(rng.uniform())
         angle = rng.uniform(0.0, 2.0 * math.pi)
         heading = rng.uniform(-math.pi, math.pi) if self.random_start_heading else stairs.yaw
-        data.qpos[self._idx.qpos_root] = (
-            radius * math.cos(angle), radius * math.sin(angle), STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading)
+        start_xy = (radius * math.cos(angle), radius * math.sin(angle))
+        use_reference = self.init == "reference" or (
+            self.init == "hybrid" and rng.uniform() < self.hybrid_fraction
         )
-        noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
-        joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
-        data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
+        if use_reference:
+            clip_ids, times = self._library.sample(1, rng)
+            ref_qpos, ref_qvel = self._library.states(clip_ids, times)
+            place_reference_state(model, data, self._idx, ref_qpos[0], ref_qvel[0], start_xy, heading)
+        else:
+            data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+            noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
+            joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
+            data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
+        self._reference_start = use_reference
         # Start with the servos holding the initial pose.
         data.ctrl[:] = np.clip(data.qpos[self._idx.qpos_joints], *model.actuator_ctrlrange.T)
         mujoco.mj_forward(model, data)
@@ -312,6 +332,7 @@ class InterLevelEnv(gym.Env):
             "physics_unstable": False,
             "stairs": dict(self._stairs_info),
             "amp_obs": self._amp.flat(),
+            "reference_start": self._reference_start,
         }
 
     def _unstable(self):
@@ -320,6 +341,7 @@ class InterLevelEnv(gym.Env):
             "progress": 0.0, "success": False, "fell": False, "time": self._steps * self.dt,
             "distance_to_target": float(np.linalg.norm(self._obs[task.OBSERVATION_STRUCTURE["target_offset"]])),
             "physics_unstable": True, "stairs": dict(self._stairs_info), "amp_obs": self._amp.flat(),
+            "reference_start": self._reference_start,
             **dict.fromkeys(self._term_names + ("reward_success", "reward_failure"), 0.0),
         }
         self._needs_reset = True
