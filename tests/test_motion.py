@@ -138,3 +138,14 @@ def test_reference_init_from_a_folder(tmp_path):
     env = gym.make("InterLevel-v0", init="reference", reference_motion=str(tmp_path))
     env.reset(seed=0)
     assert env.unwrapped._library.names == ["turn"]
+
+
+def test_sampling_keeps_hip_flexion_beyond_90_degrees():
+    """Interpolating a hip flexed past 90 deg must stay on the right Euler branch (no jump)."""
+    q = np.zeros((2, 35))
+    q[:, 2], q[:, 3] = STANDING_ROOT_HEIGHT, 1.0
+    hip = 7 + DOF_NAMES.index("right_hip_x")
+    q[0, hip:hip + 3] = [0.1, -2.0, 0.2]   # 115 deg of flexion
+    q[1, hip:hip + 3] = [0.2, -2.2, 0.1]
+    mid = MotionClip(q, 30.0).sample([0.5 / 30])[0, hip:hip + 3]
+    np.testing.assert_allclose(mid, [0.15, -2.1, 0.15], atol=0.02)

@@ -127,9 +127,7 @@ class MotionClip:
         for cols in _BALL_COLUMNS:
             ra = Rotation.from_euler("XYZ", a[:, cols])
             rb = Rotation.from_euler("XYZ", b[:, cols])
-            euler = _slerp_rot(ra, rb, alpha[:, 0]).as_euler("XYZ")
-            # as_euler wraps to (-pi, pi]: pick the branch nearest the linear blend (ranges reach -180 deg).
-            out[:, cols] = euler + 2.0 * np.pi * np.round((out[:, cols] - euler) / (2.0 * np.pi))
+            out[:, cols] = euler_near(_slerp_rot(ra, rb, alpha[:, 0]), out[:, cols])
         return out
 
     def resample(self, fps: float) -> "MotionClip":
@@ -191,6 +189,24 @@ def _check_qpos(qpos: np.ndarray, fps: float) -> str | None:
     if np.any(norms < 1e-6):
         return "root quaternion of zero length"
     return None
+
+
+def euler_near(rot: Rotation, reference: np.ndarray) -> np.ndarray:
+    """Intrinsic XYZ angles of ``rot`` (N,) nearest to ``reference`` (N, 3).
+
+    Every rotation has two XYZ solutions, (x, y, z) and (x + pi, pi - y, z + pi), each
+    defined up to 2 pi per angle; hip and shoulder flexion beyond 90 degrees needs the
+    second. Both are wrapped towards ``reference`` and the closer one is kept.
+    """
+    first = rot.as_euler("XYZ")
+    second = first + np.array([np.pi, 0.0, np.pi])
+    second[:, 1] = np.pi - first[:, 1]
+    best = []
+    for cand in (first, second):
+        cand = cand + 2.0 * np.pi * np.round((reference - cand) / (2.0 * np.pi))
+        best.append(cand)
+    closer = np.sum((best[0] - reference) ** 2, axis=1) <= np.sum((best[1] - reference) ** 2, axis=1)
+    return np.where(closer[:, None], best[0], best[1])
 
 
 def _slerp_rot(ra: Rotation, rb: Rotation, alpha: np.ndarray) -> Rotation:

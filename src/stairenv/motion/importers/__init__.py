@@ -1,0 +1,494 @@
+"""Importers: motion-capture files of other formats -> our ``MotionClip``.
+
+``import_motion(path, **kwargs)`` picks the importer from the file suffix:
+
+========  =====================================================  ==========================
+suffix    format                                                 module
+========  =====================================================  ==========================
+``.npy``  IsaacGymEnvs / ASE poselib ``SkeletonMotion`` (and     :mod:`.isaac_npy`
+          single-frame ``SkeletonState``), read without poselib
+``.txt``  DeepMimic motion (JSON, 44 numbers per frame)          :mod:`.deepmimic`
+``.bvh``  Biovision hierarchy, retargeted from a named skeleton  :mod:`.bvh`
+          (``skeleton="cmu"``)
+========  =====================================================  ==========================
+
+Every importer ends in the same place, the shared helpers of this module:
+
+* :func:`joints_to_qpos` turns per-joint *local* rotations (each joint's body
+  relative to its parent body, in our z-up, x-forward, y-left body frames, the
+  zero pose being our MJCF zero pose) into the 28 hinge angles. Three-axis joints
+  are intrinsic ``XYZ`` Euler angles (``Rotation.from_euler("XYZ", [ax, ay, az])``
+  is MuJoCo's x-then-y-then-z hinge chain); of the two Euler solutions
+  ``(x, y, z)`` and ``(x + pi, pi - y, z + pi)`` the one that fits the joint
+  ranges is taken (hip and shoulder flexion go past 90 degrees), each angle
+  wrapped by 2 pi towards its range; a rotation out of the joint's reach becomes
+  a nearby reachable one, chosen along the clip so that the angles do not hop
+  between the two solutions (``ball_joint_angles``). Hinges (elbows, knees)
+  take the twist of the rotation about their y axis (swing-twist decomposition;
+  exact for a pure hinge rotation), clamped. How much the source exceeds the
+  ranges goes into the clip's ``meta`` (``clamped_fraction``, ``max_clamp_deg``,
+  ``clamp_deg_by_dof``).
+* :func:`make_clip` resamples to the requested frame rate *before* that
+  projection, by slerp of the rotations, so Euler angles are never interpolated.
+* :func:`ground_offset` measures, by forward kinematics of our humanoid, how far
+  the clip must be raised (or lowered) so that its lowest point over the whole
+  clip touches ``z = 0``: for motion on the feet the lowest foot sole (soles are
+  the bottom faces of the foot boxes, 0.05 m below the ankles), for crawling or
+  rolling whatever body part is lowest (``ground="body"``, the default; ``"feet"``
+  considers the soles only). Source root heights are not trusted: the
+  IsaacGymEnvs clips need +0.02 to +0.09 m, depending on the clip.
+
+Corrupt or unreadable files raise :class:`~stairenv.motion.clip.MotionFileError`
+naming the file and the fault.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from stairenv.humanoid import BODY_NAMES, DOF_NAMES, FOOT_BODIES, JOINTS, NUM_DOFS
+from stairenv.motion.clip import QPOS_SIZE, MotionClip, MotionFileError, humanoid_model
+
+__all__ = [
+    "SUFFIXES",
+    "MotionFileError",
+    "body_positions",
+    "fk_position_error",
+    "foot_sole_heights",
+    "ground_offset",
+    "import_motion",
+    "joints_to_qpos",
+    "lowest_body_point",
+    "make_clip",
+    "snap_fps",
+]
+
+# suffix -> (module, function name); modules are imported on first use.
+SUFFIXES: dict[str, tuple[str, str]] = {
+    ".npy": ("stairenv.motion.importers.isaac_npy", "import_isaac_npy"),
+    ".txt": ("stairenv.motion.importers.deepmimic", "import_deepmimic"),
+    ".bvh": ("stairenv.motion.importers.bvh", "import_bvh"),
+}
+
+
+def import_motion(path: str | Path, **kwargs: Any) -> MotionClip:
+    """Read the motion file ``path`` into a ``MotionClip``; the importer is chosen by suffix.
+
+    ``kwargs`` go to the importer (see each module; e.g. ``fps``/``skeleton``/``skip_frames``
+    for BVH). Raises ``MotionFileError`` for unknown suffixes and unreadable files.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise MotionFileError(
+            f"{path}: unknown motion file type {path.suffix or '(no suffix)'!r}; "
+            f"supported: {', '.join(sorted(SUFFIXES))}"
+        )
+    if not path.is_file():
+        raise MotionFileError(f"{path}: no such file")
+    module_name, function = SUFFIXES[suffix]
+    import importlib
+
+    importer = getattr(importlib.import_module(module_name), function)
+    return importer(path, **kwargs)
+
+
+# --------------------------------------------------------------------------------------
+# Local joint rotations -> hinge angles
+# --------------------------------------------------------------------------------------
+_HINGE_DOFS = [i for i, name in enumerate(DOF_NAMES) if name in {j for j, _, a in JOINTS if len(a) == 1}]
+
+
+# Direction of the segment each three-axis joint moves, in the joint body's frame (zero pose):
+# the spine and neck point up, limbs down, the foot forward.
+_BONES: dict[str, np.ndarray] = {
+    "abdomen": np.array([0.0, 0.0, 1.0]), "neck": np.array([0.0, 0.0, 1.0]),
+    "right_shoulder": np.array([0.0, 0.0, -1.0]), "left_shoulder": np.array([0.0, 0.0, -1.0]),
+    "right_hip": np.array([0.0, 0.0, -1.0]), "left_hip": np.array([0.0, 0.0, -1.0]),
+    "right_ankle": np.array([1.0, 0.0, 0.0]), "left_ankle": np.array([1.0, 0.0, 0.0]),
+}
+
+
+@lru_cache(maxsize=1)
+def _dof_ranges() -> np.ndarray:
+    model = humanoid_model()
+    return np.array([model.jnt_range[model.joint(n).id] for n in DOF_NAMES])
+
+
+def _wrap_towards(angles: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Add multiples of 2 pi so each angle lies in [centre - pi, centre + pi) of its range."""
+    centre = 0.5 * (low + high)
+    return centre + np.mod(angles - centre + np.pi, 2.0 * np.pi) - np.pi
+
+
+def _violation(angles: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    return (np.maximum(low - angles, 0.0) + np.maximum(angles - high, 0.0)).sum(axis=-1)
+
+
+def ball_joint_angles(
+    rot: Rotation,
+    low: np.ndarray,
+    high: np.ndarray,
+    bone: np.ndarray | None = None,
+    bone_weight: float = 3.0,
+    smoothness: float = 0.05,
+    fit: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(T,) rotations -> in-range intrinsic XYZ Euler angles (T, 3), and the raw angles (T, 3).
+
+    Every rotation has two XYZ solutions, (x, y, z) and (x + pi, pi - y, z + pi) (hip and
+    shoulder flexion beyond 90 degrees needs the second); each angle is wrapped by 2 pi
+    towards its range. Each frame gets one in-range candidate per solution: the solution
+    itself when it lies in [low, high] (exact), else its per-axis clamp, refined when
+    neither solution is in range (``fit``) by a bounded least-squares fit that minimises
+    the chordal distance of the rotation matrices plus ``bone_weight`` times the distance
+    between the images of ``bone`` (the child segment's direction, whose end position
+    matters most); clamping each angle on its own is not the nearest reachable rotation.
+
+    The candidates are then chosen along the clip by dynamic programming (Viterbi over
+    the two per frame), minimising the summed pose error (the same distance) plus
+    ``smoothness`` times the squared change of the angles between frames. Exact
+    candidates win unless taking one would mean a jump of the angles between branches
+    (the gimbal region y = +-90 degrees, or a rotation that leaves the joint's reach);
+    there the sequence follows one branch instead of hopping.
+
+    The raw angles are the solution nearest the range, unclamped: raw - angles is how far
+    the source is out of range.
+    """
+    e1 = rot.as_euler("XYZ")
+    e2 = e1 + np.array([np.pi, 0.0, np.pi])
+    e2[:, 1] = np.pi - e1[:, 1]
+    e1 = _wrap_towards(e1, low, high)
+    e2 = _wrap_towards(e2, low, high)
+    v1, v2 = _violation(e1, low, high), _violation(e2, low, high)
+    raw = np.where((v1 <= v2)[:, None], e1, e2)
+    n = len(e1)
+    cands = np.stack((np.clip(e1, low, high), np.clip(e2, low, high)), axis=1)  # (T, 2, 3)
+    mats = rot.as_matrix()
+    if fit:
+        for t in np.flatnonzero((v1 > 1e-12) & (v2 > 1e-12)):
+            for k in range(2):
+                cands[t, k] = _fit_in_range(mats[t], cands[t, k], low, high, bone, bone_weight)
+    diff = Rotation.from_euler("XYZ", cands.reshape(-1, 3)).as_matrix().reshape(n, 2, 3, 3) - mats[:, None]
+    error = np.sum(diff ** 2, axis=(2, 3))
+    if bone is not None:
+        error += bone_weight ** 2 * np.sum((diff @ bone) ** 2, axis=2)
+    # Viterbi over the two candidates per frame.
+    cost = error[0].copy()
+    back = np.zeros((n, 2), dtype=int)
+    for t in range(1, n):
+        step = smoothness * np.sum((cands[t][None, :, :] - cands[t - 1][:, None, :]) ** 2, axis=2)
+        total = cost[:, None] + step  # (previous choice, current choice)
+        back[t] = np.argmin(total, axis=0)
+        cost = total[back[t], [0, 1]] + error[t]
+    choice = np.empty(n, dtype=int)
+    choice[-1] = int(np.argmin(cost))
+    for t in range(n - 1, 0, -1):
+        choice[t - 1] = back[t, choice[t]]
+    return cands[np.arange(n), choice], raw
+
+
+def _fit_in_range(
+    target: np.ndarray,
+    start: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    bone: np.ndarray | None,
+    bone_weight: float,
+) -> np.ndarray:
+    """In-range angles near the rotation matrix ``target``, from ``start`` (see ``ball_joint_angles``)."""
+    from scipy.optimize import least_squares
+
+    lo, hi = low + 1e-9, high - 1e-9
+
+    def residual(e: np.ndarray) -> np.ndarray:
+        diff = Rotation.from_euler("XYZ", e).as_matrix() - target
+        if bone is None:
+            return diff.ravel()
+        return np.concatenate((diff.ravel(), bone_weight * (diff @ bone)))
+
+    fit = least_squares(residual, np.clip(start, lo, hi), bounds=(lo, hi), xtol=1e-10, ftol=1e-10)
+    if np.sum(fit.fun ** 2) < np.sum(residual(start) ** 2):
+        return np.clip(fit.x, low, high)
+    return start
+
+
+def hinge_twist_y(rot: Rotation) -> np.ndarray:
+    """(T,) rotations -> (T,) angle of their twist about the y axis (swing-twist), in (-pi, pi].
+
+    With q = (x, y, z, w) the twist about y is the normalised (0, y, 0, w); its angle
+    is 2 atan2(y, w). For a pure rotation about y this is exactly that rotation's angle.
+    """
+    q = rot.as_quat()
+    angle = 2.0 * np.arctan2(q[:, 1], q[:, 3])
+    return np.arctan2(np.sin(angle), np.cos(angle))
+
+
+def joints_to_qpos(
+    root_pos: np.ndarray,
+    root_rot: Rotation,
+    local: Mapping[str, Rotation],
+    clamp_tolerance: float = 1e-6,
+    project: bool = True,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Build qpos (T, 35) from a root pose and each joint's local rotation.
+
+    ``root_pos`` (T, 3) in metres, z up; ``root_rot`` (T,) the pelvis orientation in the
+    world; ``local`` maps every joint name of ``stairenv.humanoid.JOINTS`` ("abdomen",
+    "right_knee", ...) to a (T,) ``Rotation``: the joint's body relative to its parent
+    body, where the identity is our zero pose. Returns qpos and a report of the clamping:
+    ``clamped_fraction`` (share of the T x 28 angles outside their range by more than
+    ``clamp_tolerance`` rad), ``max_clamp_deg`` and ``clamp_deg_by_dof`` (worst excess per
+    DoF, in the Euler branch nearest the range). Out-of-range three-axis rotations are
+    replaced by a nearby reachable rotation (``ball_joint_angles``) when ``project`` is
+    true, else by the per-axis clamped Euler angles; hinge angles are clamped.
+    """
+    root_pos = np.asarray(root_pos, dtype=np.float64)
+    n = root_pos.shape[0]
+    ranges = _dof_ranges()
+    raw = np.zeros((n, NUM_DOFS))
+    projected = np.zeros((n, NUM_DOFS))
+    dof = 0
+    for joint, _, axes in JOINTS:
+        if joint not in local:
+            raise KeyError(f"no rotation given for joint {joint!r}")
+        rot = local[joint]
+        if len(rot) != n:
+            raise ValueError(f"joint {joint!r}: {len(rot)} frames, root has {n}")
+        low, high = ranges[dof:dof + len(axes), 0], ranges[dof:dof + len(axes), 1]
+        if len(axes) == 3:
+            projected[:, dof:dof + 3], raw[:, dof:dof + 3] = ball_joint_angles(
+                rot, low, high, _BONES[joint], fit=project)
+        else:
+            raw[:, dof] = _wrap_towards(hinge_twist_y(rot)[:, None], low, high)[:, 0]
+        dof += len(axes)
+    clipped = np.clip(raw, ranges[:, 0], ranges[:, 1])
+    moved = np.abs(clipped - raw)
+    clamped = moved > clamp_tolerance
+    angles = projected
+    angles[:, _HINGE_DOFS] = clipped[:, _HINGE_DOFS]
+    report = {
+        "clamped_fraction": float(clamped.mean()) if n else 0.0,
+        "max_clamp_deg": float(np.degrees(moved.max())) if n else 0.0,
+        "clamp_deg_by_dof": {
+            DOF_NAMES[i]: round(float(np.degrees(moved[:, i].max())), 3)
+            for i in range(NUM_DOFS) if clamped[:, i].any()
+        },
+    }
+    qpos = np.zeros((n, QPOS_SIZE))
+    qpos[:, :3] = root_pos
+    qpos[:, 3:7] = root_rot.as_quat(scalar_first=True)
+    qpos[:, 7:] = angles
+    return qpos, report
+
+
+# --------------------------------------------------------------------------------------
+# Forward kinematics of our humanoid
+# --------------------------------------------------------------------------------------
+def _kinematics(qpos: np.ndarray):
+    """Yield (t, data) after mj_kinematics for every frame of qpos."""
+    model = humanoid_model()
+    data = mujoco.MjData(model)
+    for t in range(qpos.shape[0]):
+        data.qpos[:] = qpos[t]
+        mujoco.mj_kinematics(model, data)
+        yield t, data
+
+
+def body_positions(qpos: np.ndarray) -> np.ndarray:
+    """(T, 15, 3) world positions of our bodies (BODY_NAMES order) for each frame of qpos."""
+    model = humanoid_model()
+    ids = [model.body(n).id for n in BODY_NAMES]
+    out = np.zeros((qpos.shape[0], len(ids), 3))
+    for t, data in _kinematics(qpos):
+        out[t] = data.xpos[ids]
+    return out
+
+
+@lru_cache(maxsize=1)
+def _foot_box_corners() -> tuple[np.ndarray, np.ndarray]:
+    """Geom ids of the two foot boxes and the 8 corners of a box of half sizes 1 (signs)."""
+    model = humanoid_model()
+    geoms = []
+    for body in FOOT_BODIES:
+        bid = model.body(body).id
+        boxes = [g for g in range(model.ngeom)
+                 if model.geom_bodyid[g] == bid and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
+        if len(boxes) != 1:
+            raise RuntimeError(f"expected one box geom on {body}, found {len(boxes)}")
+        geoms.append(boxes[0])
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
+    return np.array(geoms), signs
+
+
+def foot_sole_heights(qpos: np.ndarray) -> np.ndarray:
+    """(T, 2) height of the lowest corner of the right and left foot box in each frame."""
+    model = humanoid_model()
+    geoms, signs = _foot_box_corners()
+    out = np.zeros((qpos.shape[0], 2))
+    for t, data in _kinematics(qpos):
+        for k, g in enumerate(geoms):
+            corners = data.geom_xpos[g] + (signs * model.geom_size[g]) @ data.geom_xmat[g].reshape(3, 3).T
+            out[t, k] = corners[:, 2].min()
+    return out
+
+
+def lowest_body_point(qpos: np.ndarray) -> np.ndarray:
+    """(T,) height of the lowest point of any geom of the humanoid (spheres, capsules, boxes)."""
+    model = humanoid_model()
+    out = np.full(qpos.shape[0], np.inf)
+    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
+    _, signs = _foot_box_corners()
+    for t, data in _kinematics(qpos):
+        low = np.inf
+        for g in geoms:
+            kind, size = model.geom_type[g], model.geom_size[g]
+            pos, mat = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
+            if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+                z = pos[2] - size[0]
+            elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+                z = pos[2] - abs(mat[2, 2]) * size[1] - size[0]
+            elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+                z = (pos + (signs * size) @ mat.T)[:, 2].min()
+            else:
+                z = pos[2] - model.geom_rbound[g]
+            low = min(low, z)
+        out[t] = low
+    return out
+
+
+def fk_position_error(qpos: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """Distances between our bodies' FK positions and ``reference`` (T, 15, 3), same frames.
+
+    Returns ``mean_m``, ``max_m`` and ``worst_body``: a check that the imported joint angles
+    reproduce the source pose (up to differences of bone lengths and clamping).
+    """
+    err = np.linalg.norm(body_positions(qpos) - reference, axis=-1)
+    return {
+        "mean_m": round(float(err.mean()), 6),
+        "max_m": round(float(err.max()), 6),
+        "worst_body": BODY_NAMES[int(np.argmax(err.max(axis=0)))],
+    }
+
+
+def ground_offset(qpos: np.ndarray, ground: str = "body") -> float:
+    """Vertical shift that puts the clip on the floor: add it to ``qpos[:, 2]``.
+
+    ``ground="feet"``: the lowest foot-sole point over the whole clip ends at z = 0.
+    ``"body"`` (the importers' default): the lowest point of any geom over the clip ends at
+    z = 0; for motion on the feet (walking, running, climbing stairs from the floor) this is
+    the lowest sole, the same as "feet", and for crawling, rolling or getting up it keeps
+    hands, knees and back out of the floor. ``"none"``: 0 (keep the source's heights).
+    """
+    if ground == "none":
+        return 0.0
+    if ground == "feet":
+        return float(-foot_sole_heights(qpos).min())
+    if ground == "body":
+        return float(-lowest_body_point(qpos).min())
+    raise ValueError(f"ground must be 'feet', 'body' or 'none', got {ground!r}")
+
+
+def snap_fps(fps: float, rel_tol: float = 5e-4) -> float:
+    """Round a frame rate to the nearest integer when within ``rel_tol``.
+
+    Files store frame times with few digits (DeepMimic 0.033332 s, BVH ``.0083333`` s),
+    which would otherwise give 30.001 or 120.0005 fps.
+    """
+    nearest = float(round(fps))
+    return nearest if nearest > 0 and abs(fps - nearest) <= rel_tol * fps else fps
+
+
+def make_clip(
+    times: np.ndarray,
+    root_pos: np.ndarray,
+    root_rot: Rotation,
+    local: Mapping[str, Rotation],
+    fps: float,
+    *,
+    name: str,
+    loop: bool,
+    source: str,
+    meta: dict[str, Any],
+    ground: str = "body",
+    projected: tuple[np.ndarray, dict[str, Any]] | None = None,
+) -> MotionClip:
+    """A clip at ``fps`` from a pose sequence given at ``times`` (s, increasing, maybe irregular).
+
+    If ``times`` are not already the grid k / fps, the pose is resampled *as rotations*:
+    linear interpolation of the root position, slerp of the root and of every joint's
+    local rotation (scipy ``Slerp``), and only then the projection onto our joint angles
+    and ranges (``joints_to_qpos``), so Euler angles are never interpolated and resampled
+    frames are in range too. Then the clip is put on the floor (``finish_clip``; measured
+    on the output frames) and ``meta`` gains the clamping report of the output frames.
+    ``projected``: ``joints_to_qpos`` of the given frames, if already computed (used when
+    no resampling is needed).
+    """
+    times = np.asarray(times, dtype=np.float64)
+    if times.ndim != 1 or len(times) != len(root_pos) or np.any(np.diff(times) <= 0):
+        raise ValueError("times must be increasing, one per frame")
+    n_out = int(math.floor((times[-1] - times[0]) * fps + 1e-6)) + 1
+    grid = times[0] + np.arange(n_out) / fps
+    resample = len(times) != n_out or not np.allclose(times, grid, atol=1e-6 / fps)
+    if resample:
+        if len(times) < 2:
+            raise ValueError("cannot resample a single frame")
+        root_pos = np.stack([np.interp(grid, times, root_pos[:, k]) for k in range(3)], axis=1)
+        root_rot = Slerp(times, root_rot)(grid)
+        local = {joint: Slerp(times, rot)(grid) for joint, rot in local.items()}
+        meta = {**meta, "resampled": True}
+    if projected is not None and not resample:
+        qpos, report = projected[0], dict(projected[1])
+    else:
+        qpos, report = joints_to_qpos(root_pos, root_rot, local)
+    if len(qpos) > 1:
+        # Largest change of one joint angle between frames: large values flag branch
+        # changes where the source leaves a joint's reach (cartwheels, crawling).
+        report["max_joint_step_deg"] = round(float(np.degrees(np.abs(np.diff(qpos[:, 7:], axis=0)).max())), 3)
+    return finish_clip(qpos, fps, name, loop, source, {**meta, **report}, ground=ground)
+
+
+def finish_clip(
+    qpos: np.ndarray,
+    fps: float,
+    name: str,
+    loop: bool,
+    source: str,
+    meta: dict[str, Any],
+    ground: str = "body",
+) -> MotionClip:
+    """Shift qpos onto the floor (``ground_offset``), record the shift, and build the clip.
+
+    ``meta`` gains ``ground``, ``root_height_offset`` (m, added to the root height) and
+    ``lowest_sole_height`` (m, the lowest foot-sole point over the clip after the shift).
+    """
+    if ground not in ("feet", "body", "none"):
+        raise ValueError(f"ground must be 'feet', 'body' or 'none', got {ground!r}")
+    offset = ground_offset(qpos, ground)
+    qpos = qpos.copy()
+    qpos[:, 2] += offset
+    # Normalise the root quaternions to a floating-point fixed point of q / |q|, so that
+    # MotionClip's own normalisation (on creation and on load) leaves them bit-identical
+    # and a saved clip loads back exactly.
+    quat = qpos[:, 3:7]
+    for _ in range(8):
+        normed = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        if np.array_equal(normed, quat):
+            break
+        quat = normed
+    qpos[:, 3:7] = quat
+    meta = {
+        **meta,
+        "ground": ground,
+        "root_height_offset": round(offset, 6),
+        "lowest_sole_height": round(float(foot_sole_heights(qpos).min()), 6),
+    }
+    return MotionClip(qpos, fps, name=name, loop=loop, source=source, meta=meta)
