@@ -1,0 +1,48 @@
+"""python -m stairenv: a short MP4 (and PNG stills) of one policy."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+
+
+def _run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    return subprocess.run([sys.executable, "-m", "stairenv", *args], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+
+
+def test_writes_video_and_pngs(tmp_path):
+    out = tmp_path / "sub" / "v.mp4"
+    pngs = tmp_path / "stills"
+    result = _run("--seconds", "2", "--width", "160", "--height", "120", "--out", str(out),
+                  "--policy", "random", "--frames-png", str(pngs), "--no-progress")
+    assert result.returncode == 0, result.stderr
+    assert str(out) in result.stdout and "steps" in result.stdout and "progress" in result.stdout
+    assert out.stat().st_size > 0
+    frames = iio.imread(out)
+    assert frames.shape[1:] == (120, 160, 3)
+    assert 58 <= frames.shape[0] <= 62  # 2 s at 30 fps, episodes restarted after falls
+    assert frames.std() > 5  # not a blank image
+    stills = sorted(pngs.glob("*.png"))
+    assert len(stills) == 2  # one per second
+    image = iio.imread(stills[0])
+    assert image.shape == (120, 160, 3) and image.dtype == np.uint8
+
+
+def test_one_second_defaults(tmp_path):
+    out = tmp_path / "v.mp4"
+    result = _run("--seconds", "1", "--width", "160", "--height", "120", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert 28 <= iio.imread(out).shape[0] <= 32
+
+
+def test_bad_arguments(tmp_path):
+    result = _run("--policy", "nope", "--out", str(tmp_path / "v.mp4"))
+    assert result.returncode == 2 and "policy must be one of" in result.stderr
+    result = _run("--seconds", "0", "--out", str(tmp_path / "v.mp4"))
+    assert result.returncode == 2 and "seconds" in result.stderr
