@@ -60,7 +60,10 @@ class InterLevelEnv(gym.Env):
     wrapper (600 steps = 20 s in the presets) or when the physics becomes unstable
     (``info["physics_unstable"] = True``; the last finite observation is returned).
 
-    **Info**: ``reward_*``, ``progress`` (height progress 0-1 between M_B and M_T),
+    **Info**: ``reward_*``, ``progress`` (how far up the stairs the character is: the
+    tread under its root as a fraction of the risers, 0 on the floor, 1 on the landing;
+    the evaluation's progress), ``height_progress`` (the root's height progress 0-1
+    between M_B and M_T, the factor of the location reward, clipped),
     ``success``, ``fell``, ``time`` (s), ``distance_to_target`` (m),
     ``physics_unstable``, ``stairs`` (the staircase's parameters), ``amp_obs`` (the
     last ``amp_history`` frames of style features, ``stairenv.style.features``).
@@ -323,8 +326,12 @@ class InterLevelEnv(gym.Env):
     def _info(self, state, success: bool, fell: bool) -> dict[str, Any]:
         root = state.body_pos[:, PELVIS]
         offset = self._goal.target[0] - root[0]
+        goal = self._goal
+        self._last_progress = float(task.surface_progress(
+            root, goal.origin, goal.rotation, goal.step_depth, goal.num_steps, goal.landing_end, goal.half_width)[0])
         return {
-            "progress": float(task.progress(root, self._goal.bottom, self._goal.target)[0]),
+            "progress": self._last_progress,
+            "height_progress": float(task.progress(root, goal.bottom, goal.target)[0]),
             "success": success,
             "fell": fell,
             "time": self._steps * self.dt,
@@ -338,7 +345,8 @@ class InterLevelEnv(gym.Env):
     def _unstable(self):
         """The simulation diverged and MuJoCo reset the data: truncate, keep the last good observation."""
         info = {
-            "progress": 0.0, "success": False, "fell": False, "time": self._steps * self.dt,
+            "progress": self._last_progress, "height_progress": 0.0, "success": False, "fell": False,
+            "time": self._steps * self.dt,
             "distance_to_target": float(np.linalg.norm(self._obs[task.OBSERVATION_STRUCTURE["target_offset"]])),
             "physics_unstable": True, "stairs": dict(self._stairs_info), "amp_obs": self._amp.flat(),
             "reference_start": self._reference_start,

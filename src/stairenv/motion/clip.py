@@ -2,7 +2,8 @@
 
 A clip is ``qpos`` (T, 35): root position (3, world, z up), root quaternion
 (4, MuJoCo's w x y z), then the 28 hinge angles in ``DOF_NAMES`` order, sampled
-at ``fps``. Velocities are derived, never stored, with MuJoCo's own
+at ``fps``. A looping clip (``loop=True``) ends on the pose it starts with (the
+root may have moved on): its period is ``duration = (T - 1) / fps``. Velocities are derived, never stored, with MuJoCo's own
 ``mj_differentiatePos`` (central differences; the root's angular velocity in
 the root frame, as the free joint's qvel), so a clip's states are exactly what
 the env would read from ``MjData``.
@@ -89,23 +90,25 @@ class MotionClip:
         return (self.num_frames - 1) / self.fps
 
     def qvel(self) -> np.ndarray:
-        """(T, 34) velocities from central differences of qpos (one-sided at the ends; wrapped for loops)."""
+        """(T, 34) velocities from central differences of qpos (one-sided at the ends).
+
+        A looping clip's last frame repeats its first pose (the root may have moved on), so
+        at the seam the velocity is the mean of the differences just before and after it.
+        """
         model = humanoid_model()
         n = self.num_frames
         qvel = np.zeros((n, QVEL_SIZE))
         if n < 2:
             return qvel
         for t in range(n):
-            if self.loop and n > 2:
-                before, after, span = (t - 1) % n, (t + 1) % n, 2
-            else:
-                before, after = max(t - 1, 0), min(t + 1, n - 1)
-                span = after - before
-            mujoco.mj_differentiatePos(model, qvel[t], span * self.dt, self.qpos[before], self.qpos[after])
+            before, after = max(t - 1, 0), min(t + 1, n - 1)
+            mujoco.mj_differentiatePos(model, qvel[t], (after - before) * self.dt, self.qpos[before], self.qpos[after])
         if self.loop and n > 2:
-            # The root's position does not wrap: one-sided differences at the seam.
-            for t, (before, after) in ((0, (0, 1)), (n - 1, (n - 2, n - 1))):
-                qvel[t, :3] = (self.qpos[after, :3] - self.qpos[before, :3]) * self.fps
+            into_seam = np.zeros(QVEL_SIZE)
+            mujoco.mj_differentiatePos(model, into_seam, self.dt, self.qpos[n - 2], self.qpos[n - 1])
+            out_of_seam = np.zeros(QVEL_SIZE)
+            mujoco.mj_differentiatePos(model, out_of_seam, self.dt, self.qpos[0], self.qpos[1])
+            qvel[0] = qvel[n - 1] = 0.5 * (into_seam + out_of_seam)
         return qvel
 
     # --- interpolation -------------------------------------------------------------

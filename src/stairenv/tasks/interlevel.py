@@ -96,6 +96,10 @@ class StairsGoal(NamedTuple):
     target_local: np.ndarray     # (B, 3) M_T, stairs frame
     bottom_local: np.ndarray     # (B, 3) M_B, stairs frame
     top_height: np.ndarray       # (B,) height of the landing surface
+    step_depth: np.ndarray       # (B,) tread depth
+    num_steps: np.ndarray        # (B,) risers, the landing's included
+    landing_end: np.ndarray      # (B,) u of the landing's far edge
+    half_width: np.ndarray       # (B,) half the stair width
 
     @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
@@ -111,6 +115,10 @@ class StairsGoal(NamedTuple):
             target_local=np.stack([s.marker_top_local for s in stairs]),
             bottom_local=np.stack([s.marker_bottom_local for s in stairs]),
             top_height=np.array([s.top_height for s in stairs]),
+            step_depth=np.array([s.step_depth for s in stairs]),
+            num_steps=np.array([float(s.num_steps) for s in stairs]),
+            landing_end=np.array([s.landing_start + s.landing_depth for s in stairs]),
+            half_width=np.array([s.width / 2 for s in stairs]),
         )
 
 
@@ -282,8 +290,27 @@ def reached_top(root_pos, target, top_height, radius):
 
 
 @_jit
+def surface_progress(root_pos, origin, rotation, step_depth, num_steps, landing_end, half_width):
+    """Progress up the stairs, (B,): the tread under the root's ground point as a fraction of the
+    risers (k / n on tread k, 1 on the landing, 0 on the floor). Unlike the root's height it
+    does not count a hop or a crouch on the floor, nor a fall onto the stairs from above."""
+    out = np.empty(root_pos.shape[0])
+    for b in range(root_pos.shape[0]):
+        u = 0.0
+        w = 0.0
+        for m in range(2):
+            u += (root_pos[b, m] - origin[b, m]) * rotation[b, m, 0]
+            w += (root_pos[b, m] - origin[b, m]) * rotation[b, m, 1]
+        if u < 0.0 or u > landing_end[b] or abs(w) > half_width[b]:
+            out[b] = 0.0
+        else:
+            out[b] = min(math.floor(u / step_depth[b]) + 1.0, num_steps[b]) / num_steps[b]
+    return out
+
+
+@_jit
 def progress(root_pos, bottom, target):
-    """Height progress between M_B and M_T, clipped to [0, 1]: (B,)."""
+    """Height progress of the root between M_B and M_T, clipped to [0, 1]: (B,)."""
     out = np.empty(root_pos.shape[0])
     for b in range(root_pos.shape[0]):
         out[b] = min(max((root_pos[b, 2] - bottom[b, 2]) / (target[b, 2] - bottom[b, 2]), 0.0), 1.0)
