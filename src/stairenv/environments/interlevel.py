@@ -23,6 +23,8 @@ from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate
 
 REWARDS = ("interlevel", "interscene")
 INITS = ("default", "reference", "hybrid")
+# The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
+CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 
 
 class InterLevelEnv(gym.Env):
@@ -321,7 +323,7 @@ class InterLevelEnv(gym.Env):
         self._goal = task.StairsGoal.from_stairs([stairs])
         self._stairs_info = stairs.as_dict()
         if self._camera is not None:
-            self._camera.camera.azimuth = math.degrees(stairs.yaw) + 120.0
+            self._camera.camera.azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
 
     def _info(self, state, success: bool, fell: bool) -> dict[str, Any]:
         root = state.body_pos[:, PELVIS]
@@ -367,9 +369,10 @@ class InterLevelEnv(gym.Env):
             self._viewer.sync()
             return None
         if self._camera is None:
-            self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height)
+            self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height, distance=6.0,
+                                        elevation=-20.0)
             if self.stairs is not None:
-                self._camera.camera.azimuth = math.degrees(self.stairs.yaw) + 120.0
+                self._camera.camera.azimuth = math.degrees(self.stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
         hips = self.data.xpos[self._idx.pelvis_id]
         lines = () if self.stairs is None else ((hips, self._goal.target[0], (0.1, 0.9, 0.2, 1.0)),)
         return self._camera.render(self.data, lines)
