@@ -1,0 +1,234 @@
+"""Train PPO + AMP (Stable-Baselines3) on a stairenv env with the InterLevel paper's settings.
+
+    python baselines/train_ppo.py                         # InterLevel-v0, PPO + AMP, paper settings
+    python baselines/train_ppo.py --env InterLevel2D-v0   # the 2-D ablation
+    python baselines/train_ppo.py --env InterSceneStairs-v0 --style none   # task reward only
+    python baselines/train_ppo.py --env-kwarg target_speed=0.8 --timesteps 5e6
+    python baselines/train_ppo.py --config my_run.toml    # any of the flags below as keys
+    python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
+
+Paper settings (InterLevel, BRIEF section 2): learning rate 2e-5 constant, MLP
+[1024, 512] ReLU for policy and value, gradient-norm clip 1.0, entropy 0,
+gamma 0.99, minibatch 64, observation and return normalisation (VecNormalize).
+Style: the AMP discriminator wrapper (``stairenv.style.wrappers``) trained on
+reference clips (``--reference``; default: the built-in synthesised walks and
+stair ascents), reward 0.5 task + 0.5 style, episodes started half from
+reference states (``--init hybrid``).
+
+Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
+checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
+``vecnormalize.pkl`` + ``amp.pt`` and the evaluation table
+(``evaluation.csv`` / ``.json``) of the trained policy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import importlib.util
+import tomllib
+from pathlib import Path
+
+import gymnasium as gym
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+import stairenv  # noqa: F401  (registers the envs)
+from stairenv.evaluation import evaluate, load_policy
+from stairenv.motion.rsi import load_reference_library
+from stairenv.style.discriminator import LOSSES, DiscriminatorConfig
+from stairenv.style.reference import ReferenceWindows
+from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+
+PAPER_PPO = {
+    "learning_rate": 2e-5,
+    "n_steps": 256,
+    "batch_size": 64,
+    "n_epochs": 5,
+    "gamma": 0.99,
+    "gae_lambda": 0.95,
+    "clip_range": 0.2,
+    "ent_coef": 0.0,
+    "max_grad_norm": 1.0,
+}
+
+
+def parse_kwarg(text: str) -> tuple[str, object]:
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--env-kwarg expects key=value, got {text!r}")
+    key, value = text.split("=", 1)
+    try:
+        return key, ast.literal_eval(value)
+    except (ValueError, SyntaxError):
+        return key, value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", type=Path, help="TOML file whose keys set any flag below (flags win)")
+    p.add_argument("--env", default="InterLevel-v0", help="registered env id")
+    p.add_argument("--env-kwarg", action="append", type=parse_kwarg, default=[], metavar="KEY=VALUE")
+    p.add_argument("--timesteps", type=float, default=2e6)
+    p.add_argument("--n-envs", type=int, default=4)
+    p.add_argument("--vec-env", choices=("subproc", "dummy"), default="subproc")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--logdir", type=Path, default=Path("runs"))
+    p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
+    p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from")
+    p.add_argument("--eval-episodes", type=int, default=50, help="0 skips the final evaluation")
+    p.add_argument("--eval-max-episode-steps", type=int, default=None, help="shorter evaluation episodes")
+    p.add_argument("--style", choices=("amp", "none"), default="amp", help="add the AMP style reward")
+    p.add_argument("--reference", type=Path, default=None, help="folder or .npz of reference clips")
+    p.add_argument("--init", choices=("default", "reference", "hybrid"), default="hybrid",
+                   help="episode start: standing, reference frames, or half/half")
+    p.add_argument("--w-task", type=float, default=0.5)
+    p.add_argument("--w-style", type=float, default=0.5)
+    p.add_argument("--amp-history", type=int, default=2, help="frames per discriminator sample")
+    p.add_argument("--disc-loss", choices=LOSSES, default="lsgan")
+    p.add_argument("--disc-lr", type=float, default=1e-4)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--no-progress-bar", action="store_true")
+    for key, value in PAPER_PPO.items():
+        p.add_argument(f"--{key.replace('_', '-')}", type=type(value), default=value)
+    return p
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.config is not None:
+        with args.config.open("rb") as f:
+            config = tomllib.load(f)
+        known = {a.dest for a in parser._actions}
+        unknown = set(config) - known - {"env_kwargs"}
+        if unknown:
+            raise SystemExit(f"--config {args.config}: unknown keys {sorted(unknown)}; valid: {sorted(known)}")
+        defaults = vars(parser.parse_args([]))
+        for key, value in config.items():
+            if key == "env_kwargs":
+                args.env_kwarg = list(value.items()) + args.env_kwarg
+            elif getattr(args, key) == defaults[key]:
+                setattr(args, key, value)
+    if args.env not in gym.registry:
+        raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
+    if args.n_envs < 1:
+        raise SystemExit("--n-envs must be >= 1")
+    return args
+
+
+class AMPCallback(BaseCallback):
+    """Logs the discriminator's statistics and saves the AMP state next to each checkpoint."""
+
+    def __init__(self, style: AMPStyleReward, save_freq: int, folder: Path) -> None:
+        super().__init__()
+        self.style, self.save_freq, self.folder = style, save_freq, folder
+
+    def _on_step(self) -> bool:
+        infos = self.locals.get("infos", [])
+        if infos:
+            self.logger.record_mean("amp/style_reward", float(sum(i["style_reward"] for i in infos) / len(infos)))
+            self.logger.record_mean("amp/task_reward", float(sum(i["task_reward"] for i in infos) / len(infos)))
+        for key, value in self.style.last_stats.items():
+            self.logger.record(f"amp/{key}", value)
+        if self.n_calls % self.save_freq == 0:
+            self.style.save(self.folder / f"amp_{self.num_timesteps}_steps.pt")
+        return True
+
+
+def _amp_state_beside(checkpoint: Path) -> Path | None:
+    """The AMP state saved with a checkpoint (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
+    for candidate in (checkpoint.with_name(checkpoint.stem.replace("ppo_", "amp_") + ".pt"),
+                      checkpoint.parent / "amp.pt"):
+        if candidate.exists():
+            return candidate
+    return None
+
+
+def main(argv: list[str] | None = None) -> Path:
+    args = parse_args(argv)
+    env_kwargs = dict(args.env_kwarg)
+    env_kwargs.setdefault("init", args.init)
+    if args.reference is not None:
+        env_kwargs.setdefault("reference_motion", str(args.reference))
+    if args.style == "amp":
+        env_kwargs.setdefault("amp_history", args.amp_history)
+    run_dir = args.logdir / args.env / f"seed{args.seed}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+
+    vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
+    venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
+    ppo_kwargs = {key: getattr(args, key) for key in PAPER_PPO}
+    tensorboard = str(run_dir / "tb") if importlib.util.find_spec("tensorboard") else None
+
+    style = None
+    if args.style == "amp":
+        reference = ReferenceWindows(load_reference_library(args.reference), num_frames=args.amp_history,
+                                     fps=1.0 / gym.make(args.env, **env_kwargs).unwrapped.dt)
+        amp_state = _amp_state_beside(args.resume) if args.resume is not None else None
+        if amp_state is not None:
+            style = AMPStyleReward.load(amp_state, reference, seed=args.seed)
+        else:
+            style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
+                                   config=DiscriminatorConfig(loss=args.disc_loss, learning_rate=args.disc_lr))
+        venv = AMPVecEnvWrapper(venv, style)
+
+    if args.resume is not None:
+        stats = args.resume.with_name(args.resume.stem.replace("ppo_", "ppo_vecnormalize_") + ".pkl")
+        if not stats.exists():
+            stats = args.resume.parent / "vecnormalize.pkl"
+        venv = VecNormalize.load(str(stats), venv)
+        model = PPO.load(args.resume, env=venv, device=args.device, tensorboard_log=tensorboard)
+        print(f"resumed from {args.resume} ({model.num_timesteps} steps) with statistics {stats}")
+    else:
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=args.gamma)
+        model = PPO(
+            "MlpPolicy",
+            venv,
+            policy_kwargs={"net_arch": {"pi": [1024, 512], "vf": [1024, 512]}, "activation_fn": torch.nn.ReLU},
+            tensorboard_log=tensorboard,
+            seed=args.seed,
+            device=args.device,
+            verbose=0,
+            **ppo_kwargs,
+        )
+
+    save_freq = max(args.checkpoint_every // args.n_envs, 1)
+    callbacks: list[BaseCallback] = [CheckpointCallback(
+        save_freq=save_freq, save_path=str(run_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True,
+    )]
+    if style is not None:
+        callbacks.append(AMPCallback(style, save_freq, run_dir / "checkpoints"))
+    model.learn(
+        total_timesteps=int(args.timesteps),
+        callback=CallbackList(callbacks),
+        progress_bar=not args.no_progress_bar,
+        reset_num_timesteps=args.resume is None,
+        tb_log_name="ppo",
+    )
+    model_path = run_dir / "final_model.zip"
+    model.save(model_path)
+    venv.save(str(run_dir / "vecnormalize.pkl"))
+    if style is not None:
+        style.save(run_dir / "amp.pt")
+    venv.close()
+    print(f"saved {model_path}")
+
+    if args.eval_episodes > 0:
+        eval_env = gym.make(args.env, **env_kwargs)
+        policy = load_policy(str(model_path), eval_env)
+        eval_env.close()
+        eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
+        report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
+                          env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
+                          progress_bar=not args.no_progress_bar)
+        print(report.format_table())
+        report.to_csv(run_dir / "evaluation.csv")
+        report.to_json(run_dir / "evaluation.json")
+    return model_path
+
+
+if __name__ == "__main__":
+    main()

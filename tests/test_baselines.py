@@ -1,0 +1,51 @@
+"""The PPO + AMP training script runs end to end, checkpoints, resumes and evaluates."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
+TINY = ["--n-envs", "2", "--vec-env", "dummy", "--n-steps", "256", "--batch-size", "128",
+        "--no-progress-bar", "--checkpoint-every", "512"]
+
+
+def run(args: list[str], cwd: Path) -> str:
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(SCRIPT), *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+@pytest.mark.slow
+def test_train_checkpoint_resume_evaluate(tmp_path):
+    out = run(["--timesteps", "1024", "--logdir", str(tmp_path), "--eval-episodes", "2",
+               "--eval-max-episode-steps", "20", *TINY], tmp_path)
+    run_dir = tmp_path / "InterLevel-v0" / "seed0"
+    for name in ("final_model.zip", "vecnormalize.pkl", "amp.pt", "evaluation.csv", "evaluation.json",
+                 "checkpoints/ppo_512_steps.zip", "checkpoints/ppo_vecnormalize_512_steps.pkl",
+                 "checkpoints/amp_512_steps.pt"):
+        assert (run_dir / name).exists(), name
+    assert "Progress (%)" in out
+    assert any((run_dir / "tb").rglob("events.out.tfevents*"))
+
+    out = run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0",
+               "--resume", str(run_dir / "checkpoints" / "ppo_512_steps.zip"), *TINY], tmp_path)
+    assert "resumed from" in out and "(512 steps)" in out
+
+
+def test_bad_flags_are_rejected(tmp_path):
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(SCRIPT), "--env", "NoSuchEnv-v0", "--timesteps", "10"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0 and "not registered" in done.stderr
+    config = tmp_path / "run.toml"
+    config.write_text('timesteps = 10\nbogus_key = 1\n')
+    done = subprocess.run([sys.executable, str(SCRIPT), "--config", str(config)],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0 and "bogus_key" in done.stderr
