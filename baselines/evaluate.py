@@ -17,17 +17,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
-from stairenv.evaluation import PAPER_STEP_HEIGHTS, evaluate, parse_env_kwarg
-
-
-def env_kwarg(text: str) -> tuple[str, Any]:
-    """argparse type for ``--env-kwarg key=value`` (``ast.literal_eval``, else a string)."""
-    try:
-        return parse_env_kwarg(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
+from stairenv.evaluation import PAPER_STEP_HEIGHTS, env_kwarg_argument, evaluate
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--csv", metavar="PATH", help="write the per-group results as CSV")
     parser.add_argument("--json", metavar="PATH", help="write settings, per-group and per-episode results as JSON")
     parser.add_argument("--label", help="Method name in the table (default: the --policy value)")
-    parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg, metavar="KEY=VALUE",
+    parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable; values parsed as Python literals, else strings")
     parser.add_argument("--compare-paper", action="store_true", help="also print the published numbers")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -24,7 +24,6 @@ checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
 from __future__ import annotations
 
 import argparse
-import ast
 import importlib.util
 import tomllib
 from pathlib import Path
@@ -37,7 +36,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation import evaluate, load_policy
+from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows
@@ -56,21 +55,11 @@ PAPER_PPO = {
 }
 
 
-def parse_kwarg(text: str) -> tuple[str, object]:
-    if "=" not in text:
-        raise argparse.ArgumentTypeError(f"--env-kwarg expects key=value, got {text!r}")
-    key, value = text.split("=", 1)
-    try:
-        return key, ast.literal_eval(value)
-    except (ValueError, SyntaxError):
-        return key, value
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", type=Path, help="TOML file whose keys set any flag below (flags win)")
     p.add_argument("--env", default="InterLevel-v0", help="registered env id")
-    p.add_argument("--env-kwarg", action="append", type=parse_kwarg, default=[], metavar="KEY=VALUE")
+    p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
     p.add_argument("--n-envs", type=int, default=4)
     p.add_argument("--vec-env", choices=("subproc", "dummy"), default="subproc")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 import pytest
 import torch

@@ -18,18 +18,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from stairenv.evaluation import env_kwarg_argument
+
 DEFAULT_ENV = "InterLevel-v0"
 DEFAULT_POLICY = "zero"
 DEFAULT_OUT = "videos/interlevel.mp4"
-
-
-def _env_kwarg(text: str) -> tuple[str, Any]:
-    from stairenv.evaluation import parse_env_kwarg
-
-    try:
-        return parse_env_kwarg(text)
-    except ValueError as error:
-        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,7 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", default=DEFAULT_OUT, help="output .mp4 path (default: %(default)s)")
     parser.add_argument("--width", type=int, default=640, help="frame width in pixels (default: %(default)s)")
     parser.add_argument("--height", type=int, default=480, help="frame height in pixels (default: %(default)s)")
-    parser.add_argument("--env-kwarg", action="append", default=[], type=_env_kwarg, metavar="KEY=VALUE",
+    parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable; values parsed as Python literals, else strings")
     parser.add_argument("--frames-png", metavar="DIR", help="also write one PNG still per second of video into DIR")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")

@@ -510,6 +510,16 @@ def parse_env_kwarg(text: str) -> tuple[str, Any]:
     return key, value
 
 
+def env_kwarg_argument(text: str) -> tuple[str, Any]:
+    """argparse ``type=`` for ``--env-kwarg key=value`` (see :func:`parse_env_kwarg`)."""
+    import argparse
+
+    try:
+        return parse_env_kwarg(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 # --- the evaluation loop --------------------------------------------------------
 def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
     bounds = [-math.inf, *edges, math.inf]
