@@ -366,3 +366,47 @@ def test_rgb_array_render():
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
     assert frame.std() > 5  # not a blank image
     env.close()
+
+
+def test_fused_step_kernel_matches_the_separate_functions():
+    """The env's one-call kernel gives what the separately tested functions give."""
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=9)
+    prev = None
+    for _ in range(6):
+        prev = env.data.xpos[env.model.body("pelvis").id][None].copy()
+        env.step(np.full(28, 0.15))
+    state = read_state(env.data, env._idx)
+    goal = env._goal
+    packed = goal.pack()
+    assert packed.shape == (1, task.GOAL_SIZE)
+    obs, res = task.interlevel_step(state, prev, packed, goal.rotation, env.reward_config.as_array(), env.dt,
+                                    0.2, 0.5)
+    np.testing.assert_allclose(obs, task.interlevel_observation(state, goal), atol=0)
+    np.testing.assert_allclose(res[:, :3], task.interlevel_reward_terms(state, prev, goal, env.reward_config, env.dt))
+    root = state.body_pos[:, 0]
+    assert res[0, 3] == task.has_fallen(state.body_pos, 0.2)[0]
+    assert res[0, 4] == task.reached_top(root, goal.target, goal.top_height, 0.5)[0]
+    assert res[0, 5] == task.surface_progress(root, goal.origin, goal.rotation, goal.step_depth, goal.num_steps,
+                                              goal.landing_end, goal.half_width)[0]
+    assert res[0, 6] == task.progress(root, goal.bottom, goal.target)[0]
+    assert res[0, 7] == pytest.approx(np.linalg.norm(goal.target[0] - root[0]))
+
+
+def test_progress_counts_treads_not_hops():
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=2)
+    stairs = env.stairs
+    goal = env._goal
+
+    def progress_at(u, height):
+        p = stairs.to_world(np.array([u, 0.0, 0.0]))
+        p[2] = height
+        return task.surface_progress(p[None], goal.origin, goal.rotation, goal.step_depth, goal.num_steps,
+                                     goal.landing_end, goal.half_width)[0]
+
+    assert progress_at(-0.5, 1.5) == 0.0  # a hop in front of the stairs counts nothing
+    assert progress_at(0.5 * stairs.step_depth, 1.0) == pytest.approx(1 / stairs.num_steps)
+    assert progress_at(1.5 * stairs.step_depth, 1.0) == pytest.approx(2 / stairs.num_steps)
+    assert progress_at(stairs.landing_start + 0.5, 2.0) == 1.0
+    assert progress_at(stairs.landing_start + stairs.landing_depth + 0.1, 2.0) == 0.0

@@ -128,6 +128,7 @@ class HumanoidIndices:
     """Ids of the humanoid's bodies and DoFs in a compiled model (which may hold a scene too)."""
 
     body_ids: np.ndarray          # (15,) MuJoCo body ids in BODY_NAMES order
+    body_slice: slice | None      # the same ids as a slice when they are consecutive (cheap views)
     parent_ids: np.ndarray        # (12,) body id of each joint body's parent
     joint_body_ids: np.ndarray    # (12,) body id moved by each joint
     key_body_ids: np.ndarray      # (4,) hands then feet
@@ -145,8 +146,10 @@ class HumanoidIndices:
         root = model.joint("root")
         qpos0, qvel0 = int(root.qposadr[0]), int(root.dofadr[0])
         joint_body_ids = np.array([model.body(b).id for b in JOINT_BODIES])
+        consecutive = bool(np.all(np.diff(body_ids) == 1))
         return cls(
             body_ids=body_ids,
+            body_slice=slice(int(body_ids[0]), int(body_ids[-1]) + 1) if consecutive else None,
             parent_ids=model.body_parentid[joint_body_ids].copy(),
             joint_body_ids=joint_body_ids,
             key_body_ids=np.array([model.body(n).id for n in KEY_BODIES]),

@@ -14,7 +14,7 @@ from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, HumanoidIndices, l
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.motion.rsi import load_reference_library, place_reference_state
 from stairenv.rotations import yaw_to_quat_wxyz
-from stairenv.style.features import FeatureHistory, amp_features
+from stairenv.style.features import FeatureHistory
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.tasks.state import PELVIS, read_state
@@ -159,6 +159,7 @@ class InterLevelEnv(gym.Env):
             sigma_before=sigma_before, sigma_after=sigma_after, sigma_across=sigma_across,
             w_scale=w_scale, target_speed=target_speed, progress_scaling=bool(progress_scaling),
         )
+        self._reward_array = self.reward_config.as_array()
         self.success_reward = check_number("success_reward", success_reward)
         self.failure_reward = check_number("failure_reward", failure_reward)
         self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
@@ -255,9 +256,10 @@ class InterLevelEnv(gym.Env):
         self._steps = 0
         state = read_state(data, self._idx)
         self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._obs = task.interlevel_observation(state, self._goal)[0]
-        self._amp.fill(amp_features(state)[0])
-        return self._obs, self._info(state, success=False, fell=False)
+        self._amp.fill(state)
+        self._obs, results = self._evaluate(state)
+        results[3] = results[4] = 0.0  # nothing has happened yet
+        return self._obs, self._info(results)
 
     def step(self, action):
         action = np.asarray(action, dtype=np.float64)
@@ -280,27 +282,23 @@ class InterLevelEnv(gym.Env):
         mujoco.mj_kinematics(self.model, data)
 
         state = read_state(data, self._idx)
-        goal = self._goal
-        obs = task.interlevel_observation(state, goal)[0]
-        root = state.body_pos[:, PELVIS]
-        fell = bool(task.has_fallen(state.body_pos, self.termination_height)[0])
-        success = bool(task.reached_top(root, goal.target, goal.top_height, self.success_radius)[0])
+        obs, results = self._evaluate(state)
+        fell, success = results[3] > 0.5, results[4] > 0.5
         if self.reward_name == "interlevel":
-            values = task.interlevel_reward_terms(state, self._prev_root, goal, self.reward_config, self.dt)[0]
+            values = results[:3]
         else:
-            values = interscene.interscene_reward_terms(state, self._prev_root, goal.target, self.dt)[0]
-        self._amp.push(amp_features(state)[0])
-        info = self._info(state, success=success, fell=fell)
+            values = interscene.interscene_reward_terms(state, self._prev_root, self._goal.target, self.dt)[0].tolist()
+        info = self._info(results)
         # A fall replaces the task terms by the failure reward.
         reward = 0.0
-        for key, value in zip(self._term_names, values.tolist()):
+        for key, value in zip(self._term_names, values):
             value = 0.0 if fell else value
             info[key] = value
             reward += value
         info["reward_success"] = self.success_reward if success else 0.0
         info["reward_failure"] = self.failure_reward if fell else 0.0
         reward += info["reward_success"] + info["reward_failure"]
-        self._prev_root = root.copy()
+        self._prev_root = state.body_pos[:, PELVIS].copy()
         self._obs = obs
         if self.render_mode == "human":
             self.render()
@@ -321,23 +319,29 @@ class InterLevelEnv(gym.Env):
         self.stairs = stairs
         self._slots.place(self.model, stairs)
         self._goal = task.StairsGoal.from_stairs([stairs])
+        self._packed_goal = self._goal.pack()
         self._stairs_info = stairs.as_dict()
         if self._camera is not None:
             self._camera.camera.azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
 
-    def _info(self, state, success: bool, fell: bool) -> dict[str, Any]:
-        root = state.body_pos[:, PELVIS]
-        offset = self._goal.target[0] - root[0]
-        goal = self._goal
-        self._last_progress = float(task.surface_progress(
-            root, goal.origin, goal.rotation, goal.step_depth, goal.num_steps, goal.landing_end, goal.half_width)[0])
+    def _evaluate(self, state) -> tuple[np.ndarray, list[float]]:
+        """Observation and STEP_RESULTS of one world (one compiled call); records AMP features."""
+        obs, results = task.interlevel_step(
+            state, self._prev_root, self._packed_goal, self._goal.rotation, self._reward_array, self.dt,
+            self.termination_height, self.success_radius,
+        )
+        self._amp.push(state)
+        return obs[0], results[0].tolist()
+
+    def _info(self, results: list[float]) -> dict[str, Any]:
+        self._last_progress = results[5]
         return {
-            "progress": self._last_progress,
-            "height_progress": float(task.progress(root, goal.bottom, goal.target)[0]),
-            "success": success,
-            "fell": fell,
+            "progress": results[5],
+            "height_progress": results[6],
+            "success": results[4] > 0.5,
+            "fell": results[3] > 0.5,
             "time": self._steps * self.dt,
-            "distance_to_target": math.sqrt(offset @ offset),
+            "distance_to_target": results[7],
             "physics_unstable": False,
             "stairs": dict(self._stairs_info),
             "amp_obs": self._amp.flat(),

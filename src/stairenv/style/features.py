@@ -89,9 +89,10 @@ def _feature_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof
     return out
 
 
-def amp_features(state: HumanoidState) -> np.ndarray:
-    """Per-frame AMP features of a batch of humanoid states: (B, 105)."""
-    out = np.empty((state.body_pos.shape[0], AMP_FEATURE_SIZE))
+def amp_features(state: HumanoidState, out: np.ndarray | None = None) -> np.ndarray:
+    """Per-frame AMP features of a batch of humanoid states: (B, 105), written to ``out`` if given."""
+    if out is None:
+        out = np.empty((state.body_pos.shape[0], AMP_FEATURE_SIZE))
     return _feature_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
                            state.dof_pos, state.dof_vel, out)
 
@@ -126,12 +127,15 @@ class FeatureHistory:
             raise ValueError(f"amp_history must be >= 1, got {num_frames}")
         self.frames = np.zeros((num_frames, AMP_FEATURE_SIZE))
 
-    def fill(self, features: np.ndarray) -> None:
-        self.frames[:] = features
+    def fill(self, state: HumanoidState) -> None:
+        """Every frame the features of ``state`` (a batch of one), as at an episode start."""
+        amp_features(state, self.frames[-1:])
+        self.frames[:-1] = self.frames[-1]
 
-    def push(self, features: np.ndarray) -> None:
+    def push(self, state: HumanoidState) -> None:
+        """Drop the oldest frame and append the features of ``state`` (a batch of one)."""
         self.frames[:-1] = self.frames[1:]
-        self.frames[-1] = features
+        amp_features(state, self.frames[-1:])
 
     def flat(self) -> np.ndarray:
         return self.frames.reshape(-1).copy()

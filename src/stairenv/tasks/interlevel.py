@@ -85,7 +85,12 @@ _jit = jit
 
 
 class StairsGoal(NamedTuple):
-    """Per-world constants of the task, batch-first, fixed for an episode."""
+    """Per-world constants of the task, batch-first, fixed for an episode.
+
+    ``pack()`` lays the vectors and scalars side by side in one (B, GOAL_SIZE) array
+    (columns ``GOAL_COLUMNS``) for the fused step kernel, which then takes one argument
+    instead of thirteen.
+    """
 
     target: np.ndarray           # (B, 3) M_T, world
     bottom: np.ndarray           # (B, 3) M_B, world
@@ -100,6 +105,11 @@ class StairsGoal(NamedTuple):
     num_steps: np.ndarray        # (B,) risers, the landing's included
     landing_end: np.ndarray      # (B,) u of the landing's far edge
     half_width: np.ndarray       # (B,) half the stair width
+
+    def pack(self) -> np.ndarray:
+        b = self.target.shape[0]
+        return np.ascontiguousarray(np.concatenate(
+            [np.reshape(getattr(self, name), (b, -1)) for name in GOAL_COLUMNS], axis=1))
 
     @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
@@ -120,6 +130,21 @@ class StairsGoal(NamedTuple):
             landing_end=np.array([s.landing_start + s.landing_depth for s in stairs]),
             half_width=np.array([s.width / 2 for s in stairs]),
         )
+
+
+# Field order of StairsGoal.pack(); the step kernel reads columns by these offsets.
+GOAL_COLUMNS: tuple[str, ...] = (
+    "target", "bottom", "origin", "rotation", "yaw", "marker_distance", "target_local", "bottom_local",
+    "top_height", "step_depth", "num_steps", "landing_end", "half_width",
+)
+GOAL_SIZE = 31
+_T, _B, _O, _R, _YAW, _MD, _TL, _BL, _TOP, _DEPTH, _N, _END, _HW = 0, 3, 6, 9, 18, 19, 20, 23, 26, 27, 28, 29, 30
+
+# Columns of the fused step kernel's per-world results.
+STEP_RESULTS: tuple[str, ...] = (
+    "reward_location", "reward_facing", "reward_velocity", "fell", "success", "progress", "height_progress",
+    "distance_to_target",
+)
 
 
 @dataclass(frozen=True)
@@ -150,6 +175,9 @@ class InterLevelReward:
     def as_tuple(self) -> tuple:
         return (self.w_location, self.w_facing, self.w_velocity, self.sigma_before, self.sigma_after,
                 self.sigma_across, self.w_scale, self.target_speed, self.progress_scaling)
+
+    def as_array(self) -> np.ndarray:
+        return np.array(self.as_tuple(), dtype=np.float64)
 
 
 def equal_peak_scale(sigma_before: float, sigma_after: float) -> float:
@@ -371,3 +399,57 @@ def interlevel_reward_terms(
     out = np.empty((state.body_pos.shape[0], 3))
     return _reward_kernel(state.body_pos, state.body_mat, prev_root, goal.origin, goal.rotation, goal.target,
                           goal.target_local, goal.bottom_local, dt, *cfg.as_tuple(), out)
+
+
+@_jit
+def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_root, goal, rotation, reward,
+                 dt, termination_height, success_radius, obs, results):
+    target = goal[:, _T:_T + 3]
+    bottom = goal[:, _B:_B + 3]
+    _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, goal[:, _MD],
+                        goal[:, _YAW], obs)
+    _reward_kernel(body_pos, body_mat, prev_root, goal[:, _O:_O + 3], rotation, target, goal[:, _TL:_TL + 3],
+                   goal[:, _BL:_BL + 3], dt, reward[0], reward[1], reward[2], reward[3], reward[4], reward[5],
+                   reward[6], reward[7], reward[8] > 0.5, results)
+    root = body_pos[:, PELVIS]
+    fell = has_fallen(body_pos, termination_height)
+    success = reached_top(root, target, goal[:, _TOP], success_radius)
+    stairs_progress = surface_progress(root, goal[:, _O:_O + 3], rotation, goal[:, _DEPTH], goal[:, _N],
+                                       goal[:, _END], goal[:, _HW])
+    root_progress = progress(root, bottom, target)
+    for b in range(root.shape[0]):
+        results[b, 3] = fell[b]
+        results[b, 4] = success[b]
+        results[b, 5] = stairs_progress[b]
+        results[b, 6] = root_progress[b]
+        d2 = 0.0
+        for i in range(3):
+            d2 += (target[b, i] - root[b, i]) ** 2
+        results[b, 7] = math.sqrt(d2)
+    return obs, results
+
+
+def interlevel_step(
+    state: HumanoidState,
+    prev_root: np.ndarray,
+    packed_goal: np.ndarray,
+    rotation: np.ndarray,
+    reward: np.ndarray,
+    dt: float,
+    termination_height: float,
+    success_radius: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Everything a step needs in one compiled call: the observation (B, 118) and per-world
+    results (B, 8) in ``STEP_RESULTS`` order (the three weighted reward terms, fell, success,
+    progress, height progress, distance to M_T).
+
+    ``packed_goal = goal.pack()``, ``rotation = goal.rotation``, ``reward = cfg.as_array()``.
+    It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
+    ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
+    """
+    batch = state.body_pos.shape[0]
+    obs = np.empty((batch, OBSERVATION_SIZE))
+    results = np.empty((batch, len(STEP_RESULTS)))
+    return _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                        prev_root, packed_goal, rotation, reward, dt, termination_height, success_radius,
+                        obs, results)

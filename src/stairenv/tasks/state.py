@@ -37,9 +37,10 @@ PARENT_ROWS = np.array([0, 1, 1, 3, 1, 6, 0, 9, 10, 0, 12, 13])
 def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
     """The humanoid's state in ``data`` as a batch of one."""
     root_vel = data.qvel[idx.qvel_root]
+    bodies = idx.body_ids if idx.body_slice is None else idx.body_slice
     return HumanoidState(
-        body_pos=data.xpos[idx.body_ids][None],
-        body_mat=data.xmat[idx.body_ids].reshape(1, 15, 3, 3),
+        body_pos=data.xpos[bodies][None],
+        body_mat=data.xmat[bodies].reshape(1, 15, 3, 3),
         root_lin_vel=root_vel[None, :3],
         root_ang_vel=root_vel[None, 3:],
         dof_pos=data.qpos[idx.qpos_joints][None],
