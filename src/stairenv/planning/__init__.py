@@ -1,0 +1,1 @@
+"""PlaMo planning: instructions -> segments -> grid paths -> refined, timed waypoints."""
