@@ -92,9 +92,6 @@ class AMPDiscriminator(nn.Module):
         self.logit.weight.data *= 0.01  # small initial logits: rewards start near the middle
         nn.init.zeros_(self.logit.bias)
         self.optimizer = torch.optim.Adam(self.parameters(), lr=config.learning_rate)
-        linears = [m for m in self.trunk if isinstance(m, nn.Linear)] + [self.logit]
-        self._numpy_layers = [(m.weight.detach().numpy().T, m.bias.detach().numpy()) for m in linears]
-        self._numpy_norm: tuple[np.ndarray, np.ndarray] | None = None  # refreshed after the statistics change
 
     def _mlp(self, x_normalised: torch.Tensor) -> torch.Tensor:
         return self.logit(self.trunk(x_normalised)).squeeze(-1)
@@ -103,22 +100,10 @@ class AMPDiscriminator(nn.Module):
         """Logits d(x) of raw feature windows (normalised inside): (N,)."""
         return self._mlp(self.norm(x))
 
+    @torch.inference_mode()
     def logits(self, features: np.ndarray) -> np.ndarray:
-        """Logits of raw feature windows (N, input_dim), without autograd: (N,).
-
-        Computed in numpy on views of the parameters (the optimiser updates them in
-        place): for the handful of windows a vectorised step scores, numpy's matmul
-        is faster than torch's, and this runs on every env step.
-        """
-        if self._numpy_norm is None:
-            std = np.sqrt(self.norm.var.numpy() + 1e-8)
-            self._numpy_norm = (self.norm.mean.numpy().astype(np.float32), (1.0 / std).astype(np.float32))
-        mean, inv_std = self._numpy_norm
-        h = np.clip((np.asarray(features, dtype=np.float32) - mean) * inv_std, -self.norm.clip, self.norm.clip)
-        for weight, bias in self._numpy_layers[:-1]:
-            h = np.maximum(h @ weight + bias, 0.0)
-        weight, bias = self._numpy_layers[-1]
-        return (h @ weight + bias)[:, 0]
+        """Logits of raw feature windows (N, input_dim), without autograd: (N,)."""
+        return self(torch.as_tensor(features, dtype=torch.float32)).numpy()
 
     def reward(self, features: np.ndarray) -> np.ndarray:
         """Style reward of K-frame feature windows (N, input_dim): (N,)."""
@@ -129,7 +114,6 @@ class AMPDiscriminator(nn.Module):
         ref = torch.as_tensor(reference, dtype=torch.float32)
         fake = torch.as_tensor(agent, dtype=torch.float32)
         self.norm.update(torch.cat((ref, fake)))
-        self._numpy_norm = None
         # The gradient penalty is taken with respect to the normalised inputs, which the MLP sees.
         ref_n = self.norm(ref).requires_grad_(True)
         d_ref = self._mlp(ref_n)
@@ -169,9 +153,8 @@ class AMPDiscriminator(nn.Module):
         config = state["config"]
         config["hidden"] = tuple(config["hidden"])
         disc = cls(state["input_dim"], DiscriminatorConfig(**config))
-        disc.load_state_dict(state["model"])  # copies into the parameters: the numpy views stay valid
+        disc.load_state_dict(state["model"])
         disc.optimizer.load_state_dict(state["optimizer"])
-        disc._numpy_norm = None
         return disc
 
 
