@@ -5,16 +5,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, HumanoidIndices, load_humanoid_spec
-from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
+from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
+from stairenv.environments.base import HumanoidEnv
 from stairenv.motion.rsi import load_reference_library, place_reference_state
 from stairenv.rotations import yaw_to_quat_wxyz
-from stairenv.style.features import FeatureHistory
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.tasks.state import PELVIS, read_state
@@ -27,7 +25,7 @@ INITS = ("default", "reference", "hybrid")
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 
 
-class InterLevelEnv(gym.Env):
+class InterLevelEnv(HumanoidEnv):
     r"""Stair climbing with the InterLevel 3-D reward (Shilton et al., AAAI 2025).
 
     A 28-DoF humanoid starts near the arena centre; a staircase of random step
@@ -112,8 +110,6 @@ class InterLevelEnv(gym.Env):
     climbs take 8-13 s).
     """
 
-    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
-
     def __init__(
         self,
         reward: str = "interlevel",
@@ -183,41 +179,20 @@ class InterLevelEnv(gym.Env):
                 f"stairs_distance min {self.stairs_config.distance[0]} must be at least "
                 f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
             )
-        self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
         self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
-        self._amp = FeatureHistory(int(check_number("amp_history", amp_history, 1, 100)))
         self.init = check_choice("init", init, INITS)
         self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
         self.reference_motion = reference_motion
         self._library = None if self.init == "default" else load_reference_library(reference_motion)
-        if render_mode is not None:
-            check_choice("render_mode", render_mode, RENDER_MODES)
-        self.render_mode = render_mode
-        self.width = int(check_number("width", width, 16, 4096))
-        self.height = int(check_number("height", height, 16, 4096))
 
         spec = load_humanoid_spec(pd_gains)
-        spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
-        spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)
-        self.model = spec.compile()
-        self.data = mujoco.MjData(self.model)
+        self._setup(spec, frame_skip, amp_history, render_mode, width, height)
         self._slots.bind(self.model)
-        self._idx = HumanoidIndices.from_model(self.model)
-        low, high = self.model.actuator_ctrlrange.T.copy()
-        # Action -> PD target (load_humanoid_spec wrote the target range into ctrlrange).
-        self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
-        self.dt = self.model.opt.timestep * self.frame_skip
-        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
-
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(NUM_DOFS,), dtype=np.float32)
+        self._camera_distance, self._camera_elevation = 6.0, -20.0
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.OBSERVATION_SIZE,), dtype=np.float64)
         self.observation_structure = dict(task.OBSERVATION_STRUCTURE)
-
         self.stairs: Staircase | None = None
-        self._needs_reset = True
-        self._camera: FollowCamera | None = None
-        self._viewer: HumanViewer | None = None
 
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -248,8 +223,7 @@ class InterLevelEnv(gym.Env):
             joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
             data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
         self._reference_start = use_reference
-        # Start with the servos holding the initial pose.
-        data.ctrl[:] = np.clip(data.qpos[self._idx.qpos_joints], *model.actuator_ctrlrange.T)
+        self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
 
         self._needs_reset = False
@@ -262,26 +236,11 @@ class InterLevelEnv(gym.Env):
         return self._obs, self._info(results)
 
     def step(self, action):
-        action = np.asarray(action, dtype=np.float64)
-        if action.shape != (NUM_DOFS,):
-            raise ValueError(f"action must have shape ({NUM_DOFS},), got {action.shape}")
-        if not np.isfinite(action).all():
-            raise ValueError(f"action must be finite, got NaN or inf at indices {np.flatnonzero(~np.isfinite(action)).tolist()}")
-        if self._needs_reset:
-            raise gym.error.ResetNeeded("call reset() before step() (after an unstable-physics truncation too)")
-        data = self.data
-        data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
-        expected_time = data.time + self.frame_skip * self.model.opt.timestep
-        mujoco.mj_step(self.model, data, self.frame_skip)
+        stable = self._simulate(action)
         self._steps += 1
-        # MuJoCo resets the data (time back to 0) when positions, velocities or
-        # accelerations blow up; otherwise qpos and qvel are finite by its checks.
-        if data.time < expected_time - 1e-9:
+        if not stable:
             return self._unstable()
-        # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
-        mujoco.mj_kinematics(self.model, data)
-
-        state = read_state(data, self._idx)
+        state = read_state(self.data, self._idx)
         obs, results = self._evaluate(state)
         fell, success = results[3] > 0.5, results[4] > 0.5
         if self.reward_name == "interlevel":
@@ -321,8 +280,7 @@ class InterLevelEnv(gym.Env):
         self._goal = task.StairsGoal.from_stairs([stairs])
         self._packed_goal = self._goal.pack()
         self._stairs_info = stairs.as_dict()
-        if self._camera is not None:
-            self._camera.camera.azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
+        self._camera_azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
 
     def _evaluate(self, state) -> tuple[np.ndarray, list[float]]:
         """Observation and STEP_RESULTS of one world (one compiled call); records AMP features."""
@@ -358,33 +316,11 @@ class InterLevelEnv(gym.Env):
             "reference_start": self._reference_start,
             **dict.fromkeys(self._term_names + ("reward_success", "reward_failure"), 0.0),
         }
-        self._needs_reset = True
-        gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
         return self._obs.copy(), 0.0, False, True, info
 
     # --- rendering ----------------------------------------------------------
-    def render(self):
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
-            return None
-        if self.render_mode == "human":
-            if self._viewer is None:
-                self._viewer = HumanViewer(self.model, self.data, self._idx.pelvis_id)
-            self._viewer.sync()
-            return None
-        if self._camera is None:
-            self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height, distance=6.0,
-                                        elevation=-20.0)
-            if self.stairs is not None:
-                self._camera.camera.azimuth = math.degrees(self.stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
+    def _render_lines(self) -> tuple:
+        if self.stairs is None:
+            return ()
         hips = self.data.xpos[self._idx.pelvis_id]
-        lines = () if self.stairs is None else ((hips, self._goal.target[0], (0.1, 0.9, 0.2, 1.0)),)
-        return self._camera.render(self.data, lines)
-
-    def close(self) -> None:
-        if self._camera is not None:
-            self._camera.close()
-            self._camera = None
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
+        return ((hips, self._goal.target[0], (0.1, 0.9, 0.2, 1.0)),)

@@ -1,0 +1,108 @@
+"""What every humanoid env shares: the model, the action map, stepping, style features, rendering."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from stairenv.humanoid import NUM_DOFS, HumanoidIndices
+from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
+from stairenv.style.features import FeatureHistory
+from stairenv.validation import check_choice, check_number
+
+
+class HumanoidEnv(gym.Env):
+    """Base class: subclasses build a spec (humanoid + world), call ``_setup`` and implement the task.
+
+    - actions (28,) in [-1, 1] become PD targets ``offset + scale * a`` (the range
+      ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it);
+      wrong shapes and NaN/inf raise ``ValueError``;
+    - ``_simulate`` steps the physics ``frame_skip`` times and reports divergence
+      (MuJoCo resets the data, so the simulation time jumps back);
+    - ``self._amp`` keeps the last ``amp_history`` frames of style features;
+    - ``render()`` follows the pelvis; subclasses may override ``_render_lines``.
+    """
+
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+
+    def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,
+               width: int, height: int) -> None:
+        self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
+        self._amp = FeatureHistory(int(check_number("amp_history", amp_history, 1, 100)))
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, RENDER_MODES)
+        self.render_mode = render_mode
+        self.width = int(check_number("width", width, 16, 4096))
+        self.height = int(check_number("height", height, 16, 4096))
+        spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
+        spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self._idx = HumanoidIndices.from_model(self.model)
+        low, high = self.model.actuator_ctrlrange.T.copy()
+        self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
+        self.dt = self.model.opt.timestep * self.frame_skip
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(NUM_DOFS,), dtype=np.float32)
+        self._needs_reset = True
+        self._camera: FollowCamera | None = None
+        self._viewer: HumanViewer | None = None
+        self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
+
+    def _hold_pose_ctrl(self) -> None:
+        """Servo targets = the current joint angles (an episode starts holding its pose)."""
+        self.data.ctrl[:] = np.clip(self.data.qpos[self._idx.qpos_joints], *self.model.actuator_ctrlrange.T)
+
+    def _simulate(self, action) -> bool:
+        """Apply ``action`` for ``frame_skip`` physics steps; False if the physics diverged."""
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (NUM_DOFS,):
+            raise ValueError(f"action must have shape ({NUM_DOFS},), got {action.shape}")
+        if not np.isfinite(action).all():
+            bad = np.flatnonzero(~np.isfinite(action)).tolist()
+            raise ValueError(f"action must be finite, got NaN or inf at indices {bad}")
+        if self._needs_reset:
+            raise gym.error.ResetNeeded("call reset() before step() (after an unstable-physics truncation too)")
+        data = self.data
+        data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
+        expected_time = data.time + self.frame_skip * self.model.opt.timestep
+        mujoco.mj_step(self.model, data, self.frame_skip)
+        # MuJoCo resets the data (time back to 0) when positions, velocities or
+        # accelerations blow up; otherwise qpos and qvel are finite by its checks.
+        if data.time < expected_time - 1e-9:
+            self._needs_reset = True
+            gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
+            return False
+        # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
+        mujoco.mj_kinematics(self.model, data)
+        return True
+
+    # --- rendering ----------------------------------------------------------
+    def _render_lines(self) -> tuple:
+        """(from, to, rgba) segments drawn over the frame."""
+        return ()
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        if self.render_mode == "human":
+            if self._viewer is None:
+                self._viewer = HumanViewer(self.model, self.data, self._idx.pelvis_id)
+            self._viewer.sync()
+            return None
+        if self._camera is None:
+            self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height,
+                                        distance=self._camera_distance, elevation=self._camera_elevation)
+        self._camera.camera.azimuth = self._camera_azimuth
+        return self._camera.render(self.data, self._render_lines())
+
+    def close(self) -> None:
+        if self._camera is not None:
+            self._camera.close()
+            self._camera = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None

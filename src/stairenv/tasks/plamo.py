@@ -1,0 +1,169 @@
+"""PlaMo path following: random training paths, observation pieces and the reward r^tau.
+
+A path is the head's requested position sampled every ``dt`` seconds:
+``PathSamples.points`` (T, 3) with the head's yaw and pitch along it. Training
+paths come from ``random_head_path``: head heights are sampled first (smooth
+transitions between levels in ``head_range``), then speeds; with
+``coupled=True`` (PlaMo) the speed is uniform in [0, v_max(z)] with
+
+    v_max(z) = min(1 + 4 (z - z_min) / (1.2 - z_min), V_max),  z_min = 0.4 m, V_max = 5 m/s,
+
+so crawling is slow and running is upright; ``coupled=False`` (the paper's naive
+ablation) samples speed uniform in [0, V_max] regardless of height.
+
+Reward (paper Sec. 3.2), with s the head, tau_t the path point due now:
+
+    r^tau = exp(-c_pos |tau^xy - s^xy|^2) + exp(-c_height (tau^z - s^z)^2)
+            + exp(-c_dir |tau^(yaw,pitch) - s^(yaw,pitch)|^2) + c_body (z_head - max_body z)
+
+with c_pos = 2, c_height = 10, c_dir = 20, c_body = 0.1 (yaw difference wrapped).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from stairenv.validation import check_number, check_range
+
+Z_MIN, Z_KNEE, V_MAX = 0.4, 1.2, 5.0
+C_POS, C_HEIGHT, C_DIR, C_BODY = 2.0, 10.0, 20.0, 0.1
+REWARD_TERMS = ("reward_position", "reward_height", "reward_direction", "reward_body")
+
+
+def coupled_max_speed(head_height: np.ndarray, z_min: float = Z_MIN, v_max: float = V_MAX) -> np.ndarray:
+    """PlaMo's v_max(z) = min(1 + 4 (z - z_min) / (1.2 - z_min), V_max), at least 1 m/s."""
+    z = np.asarray(head_height, dtype=np.float64)
+    return np.clip(1.0 + 4.0 * (z - z_min) / (Z_KNEE - z_min), 1.0, v_max)
+
+
+@dataclass(frozen=True)
+class PathConfig:
+    """How random training paths are drawn (lengths in m, times in s, speeds in m/s)."""
+
+    head_range: tuple[float, float] = (0.4, 1.47)
+    speed_range: tuple[float, float] | None = None  # None: [0, v_max(z)] coupled, or [0, V_max] naive
+    coupled: bool = True
+    segment_duration: tuple[float, float] = (2.0, 5.0)
+    transition: float = 1.0          # smooth change of head height and speed between segments
+    max_turn_rate: float = 0.8       # rad/s, a new turn rate per segment
+    dt: float = 0.1
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "head_range", check_range("head_range", self.head_range, 0.2, 2.0))
+        if self.speed_range is not None:
+            object.__setattr__(self, "speed_range", check_range("speed_range", self.speed_range, 0.0, 10.0))
+        object.__setattr__(self, "segment_duration", check_range("segment_duration", self.segment_duration, 0.2, 60))
+        check_number("transition", self.transition, 0.0, 10.0)
+        check_number("max_turn_rate", self.max_turn_rate, 0.0, 10.0)
+        check_number("dt", self.dt, 0.0, 1.0, low_open=True)
+
+
+class PathSamples(NamedTuple):
+    points: np.ndarray  # (T, 3) head positions (z relative to the terrain under it is in ``head``)
+    head: np.ndarray    # (T,) requested head height above the terrain
+    speed: np.ndarray   # (T,) requested horizontal speed
+    yaw: np.ndarray     # (T,) direction of travel
+    pitch: np.ndarray   # (T,) slope of travel (rad)
+    dt: float
+
+    def at(self, t: float | np.ndarray) -> np.ndarray:
+        """Head target at time(s) t (linear between samples, held after the end): (..., 3)."""
+        f = np.clip(np.asarray(t, dtype=np.float64) / self.dt, 0.0, len(self.points) - 1.000001)
+        i = np.floor(f).astype(int)
+        a = (f - i)[..., None]
+        return (1 - a) * self.points[i] + a * self.points[i + 1]
+
+    def index(self, t: float) -> int:
+        return int(min(max(round(t / self.dt), 0), len(self.points) - 1))
+
+
+def _smooth_levels(rng: np.random.Generator, times: np.ndarray, config: PathConfig, draw) -> np.ndarray:
+    """Piecewise-constant levels per random-length segment, blended over ``transition`` seconds."""
+    values = np.empty_like(times)
+    t, current = 0.0, draw(None)
+    starts, levels = [], []
+    while t <= times[-1] + 1e-9:
+        starts.append(t)
+        levels.append(current)
+        t += rng.uniform(*config.segment_duration)
+        current = draw(current)
+    starts, levels = np.array(starts), np.array(levels)
+    seg = np.searchsorted(starts, times, side="right") - 1
+    values[:] = levels[seg]
+    if config.transition > 0:
+        # Cosine blend from the previous level during the first `transition` seconds of a segment.
+        since = times - starts[seg]
+        blend = np.clip(since / config.transition, 0.0, 1.0)
+        previous = levels[np.maximum(seg - 1, 0)]
+        w = 0.5 - 0.5 * np.cos(np.pi * blend)
+        values = np.where(seg > 0, previous + w * (levels[seg] - previous), values)
+    return values
+
+
+def random_head_path(config: PathConfig, rng: np.random.Generator, duration: float, start_xy: np.ndarray,
+                     start_yaw: float, ground_height, arena_half: float | None = None) -> PathSamples:
+    """A random head path of ``duration`` seconds from ``start_xy`` (pure given rng).
+
+    ``ground_height(xy (T, 2)) -> (T,)`` gives the terrain under the path; paths turn back
+    before leaving ``arena_half`` (a square of that half size around the origin).
+    """
+    times = np.arange(int(math.ceil(duration / config.dt)) + 1) * config.dt
+    head = _smooth_levels(rng, times, config, lambda prev: rng.uniform(*config.head_range))
+    if config.speed_range is not None:
+        fraction = _smooth_levels(rng, times, config, lambda prev: rng.uniform())
+        speed = config.speed_range[0] + fraction * (config.speed_range[1] - config.speed_range[0])
+    else:
+        fraction = _smooth_levels(rng, times, config, lambda prev: rng.uniform())
+        cap = coupled_max_speed(head) if config.coupled else np.full_like(head, V_MAX)
+        speed = fraction * cap
+    turn = _smooth_levels(rng, times, config, lambda prev: rng.uniform(-1, 1) * config.max_turn_rate)
+    xy = np.empty((len(times), 2))
+    yaw = np.empty(len(times))
+    xy[0], yaw[0] = start_xy, start_yaw
+    for k in range(1, len(times)):
+        heading = yaw[k - 1] + turn[k - 1] * config.dt
+        if arena_half is not None:
+            # Steer back towards the centre when the next point would leave the arena.
+            ahead = xy[k - 1] + speed[k - 1] * config.dt * np.array([math.cos(heading), math.sin(heading)])
+            if np.any(np.abs(ahead) > arena_half):
+                heading = math.atan2(-xy[k - 1, 1], -xy[k - 1, 0])
+        yaw[k] = heading
+        xy[k] = xy[k - 1] + speed[k - 1] * config.dt * np.array([math.cos(heading), math.sin(heading)])
+    ground = ground_height(xy)
+    points = np.column_stack((xy, ground + head))
+    rise = np.gradient(points[:, 2], config.dt)
+    pitch = np.arctan2(rise, np.maximum(speed, 1e-6))
+    return PathSamples(points, head, speed, yaw, pitch, config.dt)
+
+
+def path_observation(path: PathSamples, t: float, head_pos: np.ndarray, root_yaw: float,
+                     num: int = 10, spacing: float = 0.5) -> np.ndarray:
+    """The next ``num`` head targets every ``spacing`` s from t, relative to the head, heading frame: (num * 3,)."""
+    targets = path.at(t + spacing * np.arange(1, num + 1)) - head_pos
+    c, s = math.cos(root_yaw), math.sin(root_yaw)
+    local = np.column_stack((c * targets[:, 0] + s * targets[:, 1], -s * targets[:, 0] + c * targets[:, 1],
+                             targets[:, 2]))
+    return local.ravel()
+
+
+def heightmap_points(root_xy: np.ndarray, root_yaw: float, size: int, extent: float) -> np.ndarray:
+    """World (x, y) of a size x size grid of ``extent`` metres, centred on the root, turned with its yaw."""
+    offsets = (np.arange(size) + 0.5) / size * extent - extent / 2
+    gx, gy = np.meshgrid(offsets, offsets)
+    c, s = math.cos(root_yaw), math.sin(root_yaw)
+    return np.stack((root_xy[0] + c * gx - s * gy, root_xy[1] + s * gx + c * gy), axis=-1).reshape(-1, 2)
+
+
+def path_reward_terms(target: np.ndarray, head: np.ndarray, target_yaw: float, target_pitch: float,
+                      head_yaw: float, head_pitch: float, max_body_z: float) -> np.ndarray:
+    """The four terms of r^tau (position, height, direction, body) for one world: (4,)."""
+    dxy2 = float(np.sum(np.square(target[:2] - head[:2])))
+    dz2 = float((target[2] - head[2]) ** 2)
+    dyaw = (target_yaw - head_yaw + math.pi) % (2 * math.pi) - math.pi
+    ddir2 = dyaw * dyaw + (target_pitch - head_pitch) ** 2
+    return np.array([math.exp(-C_POS * dxy2), math.exp(-C_HEIGHT * dz2), math.exp(-C_DIR * ddir2),
+                     C_BODY * (head[2] - max_body_z)])
