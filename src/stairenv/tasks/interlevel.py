@@ -50,15 +50,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stairenv.tasks.kernels import (
-    heading_cos_sin,
-    jit,
-    write_heading_vector,
-    write_local_angular_velocity,
-    write_relative_rotation_6d,
-    write_root_rotation_6d,
-)
-from stairenv.tasks.state import HEAD, JOINT_ROWS, LEFT_FOOT, PARENT_ROWS, PELVIS, RIGHT_FOOT, HumanoidState
+from stairenv.tasks.kernels import heading_cos_sin, jit, write_heading_vector, write_proprioception
+from stairenv.tasks.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
 from stairenv.validation import check_number
 from stairenv.world.stairs import Staircase
 
@@ -351,17 +344,9 @@ def _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel,
                         stairs_yaw, out):
     for b in range(body_pos.shape[0]):
         row = out[b]
-        R = body_mat[b, PELVIS]
         p = body_pos[b, PELVIS]
-        yaw, c, s = heading_cos_sin(R)
-        row[0] = p[2]
-        write_root_rotation_6d(row, 1, R, c, s)
-        v = root_lin_vel[b]
-        write_heading_vector(row, 7, v[0], v[1], v[2], c, s)
-        write_local_angular_velocity(row, 10, R, root_ang_vel[b], c, s)
-        for j in range(JOINT_ROWS.shape[0]):
-            write_relative_rotation_6d(row, 13 + 6 * j, body_mat[b, PARENT_ROWS[j]], body_mat[b, JOINT_ROWS[j]])
-        row[85:113] = dof_vel[b]
+        yaw, c, s = heading_cos_sin(body_mat[b, PELVIS])
+        write_proprioception(row, body_mat[b], root_lin_vel[b], root_ang_vel[b], dof_vel[b], p[2], c, s)
         write_heading_vector(row, 113, target[b, 0] - p[0], target[b, 1] - p[1], target[b, 2] - p[2], c, s)
         row[116] = marker_distance[b]
         row[117] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi

@@ -12,6 +12,8 @@ import math
 
 from numba import njit
 
+from stairenv.tasks.state import JOINT_ROWS, PARENT_ROWS, PELVIS
+
 jit = njit(cache=True, nogil=True)
 
 
@@ -52,3 +54,30 @@ def write_relative_rotation_6d(out, at, P, C):
     for col in range(2):
         for i in range(3):
             out[at + 3 * col + i] = P[0, i] * C[0, col] + P[1, i] * C[1, col] + P[2, i] * C[2, col]
+
+
+PROPRIOCEPTION_SIZE = 113
+
+
+@jit
+def write_proprioception(row, body_mat, root_lin_vel, root_ang_vel, dof_vel, root_height, c, s):
+    """The character's own state, 113 numbers at row[0:113]: root height, root rotation (6-D),
+    root linear and angular velocity (heading frame), 12 joint rotations relative to their
+    parents (6-D), 28 joint velocities. ``body_mat`` is one world's (15, 3, 3)."""
+    R = body_mat[PELVIS]
+    row[0] = root_height
+    write_root_rotation_6d(row, 1, R, c, s)
+    write_heading_vector(row, 7, root_lin_vel[0], root_lin_vel[1], root_lin_vel[2], c, s)
+    write_local_angular_velocity(row, 10, R, root_ang_vel, c, s)
+    for j in range(JOINT_ROWS.shape[0]):
+        write_relative_rotation_6d(row, 13 + 6 * j, body_mat[PARENT_ROWS[j]], body_mat[JOINT_ROWS[j]])
+    row[85:113] = dof_vel
+
+
+@jit
+def proprioception(body_mat, root_lin_vel, root_ang_vel, dof_vel, root_height, out):
+    """Batched ``write_proprioception``: (B, 113) with the root height given per world."""
+    for b in range(body_mat.shape[0]):
+        _, c, s = heading_cos_sin(body_mat[b, PELVIS])
+        write_proprioception(out[b], body_mat[b], root_lin_vel[b], root_ang_vel[b], dof_vel[b], root_height[b], c, s)
+    return out
