@@ -410,3 +410,16 @@ def test_progress_counts_treads_not_hops():
     assert progress_at(1.5 * stairs.step_depth, 1.0) == pytest.approx(2 / stairs.num_steps)
     assert progress_at(stairs.landing_start + 0.5, 2.0) == 1.0
     assert progress_at(stairs.landing_start + stairs.landing_depth + 0.1, 2.0) == 0.0
+
+
+def test_physics_blow_up_on_the_first_step_is_caught():
+    """At t = 0 MuJoCo's reset leaves the clock where a normal step would: the warnings tell."""
+    env = gym.make("InterLevel-v0")
+    env.reset(seed=0)
+    env.unwrapped.data.qvel[:] = 1e12
+    with pytest.warns(UserWarning, match="unstable"):
+        obs, _, terminated, truncated, info = env.step(np.zeros(28))
+    assert truncated and not terminated and info["physics_unstable"] and np.isfinite(obs).all()
+    env.reset(seed=1)  # a new episode starts clean
+    _, _, _, truncated, info = env.step(np.zeros(28))
+    assert not info["physics_unstable"]

@@ -12,6 +12,9 @@ from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.style.features import FeatureHistory
 from stairenv.validation import check_choice, check_number
 
+_BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
+    mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
+
 
 class HumanoidEnv(gym.Env):
     """Base class: subclasses build a spec (humanoid + world), call ``_setup`` and implement the task.
@@ -69,9 +72,12 @@ class HumanoidEnv(gym.Env):
         data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
         expected_time = data.time + self.frame_skip * self.model.opt.timestep
         mujoco.mj_step(self.model, data, self.frame_skip)
-        # MuJoCo resets the data (time back to 0) when positions, velocities or
-        # accelerations blow up; otherwise qpos and qvel are finite by its checks.
-        if data.time < expected_time - 1e-9:
+        # MuJoCo resets the data when positions, velocities or accelerations blow up:
+        # the time jumps back and the warning counts (zeroed at every episode reset by
+        # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.
+        warnings = data.warning
+        if (data.time < expected_time - 1e-9 or warnings[_BADQACC].number or warnings[_BADQVEL].number
+                or warnings[_BADQPOS].number):
             self._needs_reset = True
             gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
             return False

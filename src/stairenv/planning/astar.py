@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy import ndimage
 
 from .costmap import Costmap
 from .errors import PlanningError
@@ -333,8 +334,6 @@ def goal_cells(mask: np.ndarray, target: np.ndarray, reach_cells: float) -> np.n
     H, W = mask.shape
     i0, i1 = max(target[:, 0].min() - r, 0), min(target[:, 0].max() + r + 1, H)
     j0, j1 = max(target[:, 1].min() - r, 0), min(target[:, 1].max() + r + 1, W)
-    from scipy import ndimage
-
     local = np.ones((i1 - i0, j1 - j0), bool)
     local[target[:, 0] - i0, target[:, 1] - j0] = False
     near = ndimage.distance_transform_edt(local) <= reach_cells

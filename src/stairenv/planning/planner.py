@@ -33,7 +33,7 @@ class PlannerSettings:
 
     Costmap (``build_costmap``): body_radius, ceiling_margin, head_radius, max_slope, max_step,
     slope_window, height_cost, slope_preference. A* (``astar``): reach, max_expansions.
-    Refiner (``refine_path``): ds, smoothing, head_slope, head_smoothing. Speed
+    Refiner (``refine_path``): ds, smoothing, comfort, curvature_scale, head_slope, head_smoothing. Speed
     (``speed_limits``, ``speed_profile``): a_max, a_min, a_lat, uphill_gain, downhill_gain,
     min_speed_fraction, knot_spacing, max_knots.
     """
@@ -50,6 +50,8 @@ class PlannerSettings:
     max_expansions: int | None = None
     ds: float = 0.05
     smoothing: float = 0.75
+    comfort: float = 0.25
+    curvature_scale: float = 0.25
     head_slope: float = 0.5
     head_smoothing: float = 0.5
     a_max: float = A_MAX
@@ -62,11 +64,15 @@ class PlannerSettings:
     max_knots: int = 400
 
     def __post_init__(self) -> None:
-        check_range("reach", self.reach, 0.0)
+        for name in ("body_radius", "ceiling_margin", "head_radius", "max_slope", "max_step", "slope_window",
+                     "reach", "head_smoothing", "curvature_scale"):
+            check_range(name, getattr(self, name), 0.0)
+        for name in ("height_cost", "smoothing", "comfort", "uphill_gain", "downhill_gain"):
+            check_range(name, getattr(self, name), 0.0, math.inf, high_open=True)
+        check_range("slope_preference", self.slope_preference, 0.0, 50.0)
+        check_range("min_speed_fraction", self.min_speed_fraction, 0.0, 1.0, low_open=True)
         check_range("ds", self.ds, 0.0, math.inf, low_open=True, high_open=True)
-        check_range("smoothing", self.smoothing, 0.0, math.inf, high_open=True)
         check_range("head_slope", self.head_slope, 0.0, math.inf, low_open=True)
-        check_range("head_smoothing", self.head_smoothing, 0.0)
         check_range("a_max", self.a_max, 0.0, math.inf, low_open=True, high_open=True)
         check_range("a_min", self.a_min, -math.inf, 0.0, low_open=True, high_open=True)
         check_range("a_lat", self.a_lat, 0.0, math.inf, low_open=True)
@@ -141,8 +147,8 @@ def plan_path(
     search = astar(costmap, start, target, reach=settings.reach, extra_blocked=extra_blocked,
                    max_expansions=settings.max_expansions)
     path = refine_path(costmap, search.cells, passable=search.passable, start_xy=start_xy, ds=settings.ds,
-                       smoothing=settings.smoothing, head_slope=settings.head_slope,
-                       head_smoothing=settings.head_smoothing)
+                       smoothing=settings.smoothing, comfort=settings.comfort, head_slope=settings.head_slope,
+                       head_smoothing=settings.head_smoothing, curvature_scale=settings.curvature_scale)
     return _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment)
 
 

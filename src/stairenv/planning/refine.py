@@ -325,14 +325,14 @@ def curvature(xy: np.ndarray, scale: float = 0.0) -> np.ndarray:
 
 # ----------------------------------------------------------------------------------------------
 # 3. head height
-def _lipschitz_below(u: np.ndarray, s: np.ndarray, slope: float) -> np.ndarray:
+@jit
+def _lipschitz_below(u, s, slope):
     """Largest h <= u with |h_{k+1} - h_k| <= slope (s_{k+1} - s_k)."""
-    h = np.array(u, dtype=np.float64)
-    step = slope * np.diff(s)
+    h = u.copy()
     for k in range(1, len(h)):
-        h[k] = min(h[k], h[k - 1] + step[k - 1])
+        h[k] = min(h[k], h[k - 1] + slope * (s[k] - s[k - 1]))
     for k in range(len(h) - 2, -1, -1):
-        h[k] = min(h[k], h[k + 1] + step[k])
+        h[k] = min(h[k], h[k + 1] + slope * (s[k + 1] - s[k]))
     return h
 
 
@@ -349,6 +349,7 @@ def head_profile(s: np.ndarray, ground: np.ndarray, ceiling: np.ndarray, nominal
     head_smoothing = check_range("head_smoothing", head_smoothing, 0.0)
     s = np.asarray(s, dtype=np.float64)
     u = np.minimum(float(nominal), np.asarray(ceiling, dtype=np.float64) - margin - np.asarray(ground, dtype=np.float64))
+    u = np.ascontiguousarray(np.broadcast_to(u, s.shape), dtype=np.float64)
     h = _lipschitz_below(u, s, head_slope)
     if len(s) > 2 and head_smoothing > 0:
         w = int(round(head_smoothing / max(s[-1] / (len(s) - 1), 1e-9)))
@@ -417,11 +418,13 @@ def refine_path(
     comfort: float = 0.25,
     head_slope: float = 0.5,
     head_smoothing: float = 0.5,
+    curvature_scale: float = 0.25,
 ) -> RefinedPath:
     """A* cells -> smooth samples with ground and head heights (string pull, smooth, head profile).
 
     start_xy: the exact start position (inside the first cell); the first sample is put there.
-    ds, smoothing, comfort: see ``smooth_path``; head_slope, head_smoothing: see ``head_profile``.
+    ds, smoothing, comfort: see ``smooth_path``; head_slope, head_smoothing: see ``head_profile``;
+    curvature_scale (m): see ``curvature``.
     """
     passable = costmap.passable if passable is None else passable
     vertices_cells = string_pull(costmap, cells, passable)
@@ -430,5 +433,6 @@ def refine_path(
         start_xy = np.asarray(start_xy, dtype=np.float64).reshape(2)
         vertices = np.vstack((start_xy, vertices))
     xy = smooth_path(costmap, vertices, passable=passable, ds=ds, smoothing=smoothing, comfort=comfort)
-    path = profile_along(costmap, xy, head_slope=head_slope, head_smoothing=head_smoothing)
+    path = profile_along(costmap, xy, head_slope=head_slope, head_smoothing=head_smoothing,
+                         curvature_scale=curvature_scale)
     return RefinedPath(path.xy, path.s, path.ground, path.head, path.curvature, vertices)

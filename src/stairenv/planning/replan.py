@@ -201,10 +201,11 @@ def replan(
         poly = [start_xy[None, :], vertices]
         if rejoin_idx is not None:
             poly.append(old_xy[rejoin_idx + 1:])
-        xy = smooth_path(cm, np.vstack(poly), passable=search.passable, ds=plan.settings.ds,
-                         smoothing=plan.settings.smoothing)
-        path = profile_along(cm, xy, head_slope=plan.settings.head_slope,
-                             head_smoothing=plan.settings.head_smoothing)
+        st = plan.settings
+        xy = smooth_path(cm, np.vstack(poly), passable=search.passable, ds=st.ds, smoothing=st.smoothing,
+                         comfort=st.comfort)
+        path = profile_along(cm, xy, head_slope=st.head_slope, head_smoothing=st.head_smoothing,
+                             curvature_scale=st.curvature_scale)
         path = replace(path, vertices=vertices)
         v_start = float(v_now)
         v_end = float(plan.trajectory.v[-1])

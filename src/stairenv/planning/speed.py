@@ -101,8 +101,8 @@ def speed_limits(
 
 def _knots(s: np.ndarray, knot_spacing: float, max_knots: int) -> np.ndarray:
     length = float(s[-1])
-    m = int(min(max(math.ceil(length / knot_spacing), 1) + 1, max_knots))
-    return np.linspace(0.0, length, max(m, 2))
+    m = int(min(max(math.ceil(length / knot_spacing), 2) + 1, max(max_knots, 3)))
+    return np.linspace(0.0, length, m)  # >= 3 knots: a short path can start and stop at rest
 
 
 def _knot_bounds(s: np.ndarray, ub_samples: np.ndarray, knots: np.ndarray) -> np.ndarray:

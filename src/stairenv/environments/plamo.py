@@ -1,0 +1,248 @@
+"""PlaMo path following: the humanoid's head tracks a random 3-D path over flat, sloped, rough or stair terrain."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from stairenv.environments.base import HumanoidEnv
+from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
+from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z
+from stairenv.planning.locomotion import get_locomotion
+from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.tasks import plamo as task
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.state import HEAD, PELVIS, read_state
+from stairenv.validation import check_choice, check_number
+from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
+
+PATH_GENERATORS = ("coupled", "naive")
+# The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
+HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
+NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
+
+
+class PlaMoEnv(HumanoidEnv):
+    r"""Path following (PlaMo, Sec. 3.2): the head tracks a timed 3-D path over generated terrain.
+
+    Every reset draws a terrain (``terrain``: flat, slope, rough, stairs or mixed
+    patches of 4 m, written into a height field) and a random head path from the
+    character's start: head heights first (smooth changes within ``head_range``),
+    then speeds, coupled to the height as in PlaMo (``path_generator="coupled"``,
+    v_max(z) = min(1 + 4 (z - 0.4) / 0.8, 5) m/s) or not (``"naive"``, the paper's
+    ablation). ``locomotion`` ("crawl", "crouch-walk", "walk", "run", "sprint")
+    restricts heights and speeds to that row of ``stairenv.planning.locomotion``.
+
+    **Observation** (113 + heightmap_size^2 + 30): proprioception (root height above
+    the terrain, root rotation, velocities, joint rotations and velocities, as in
+    InterLevel), an egocentric heightmap (``heightmap_size`` x ``heightmap_size``
+    samples over ``heightmap_extent`` metres, turned with the root's heading, terrain
+    height minus root height), and the next 10 head targets over 5 s (every 0.5 s),
+    relative to the head, in the heading frame. ``observation_structure`` names the slices.
+
+    **Reward** r^tau (``stairenv.tasks.plamo``): exp(-2 |dxy|^2) + exp(-10 dz^2) +
+    exp(-20 |d(yaw, pitch)|^2) + 0.1 (z_head - max body z), each term in ``info`` as
+    ``reward_*``; the head is the centre of the head sphere and its direction the
+    head's forward axis; max body z includes the head, so the body term is <= 0.
+
+    **Episode**: terminated when the head is more than ``max_xy_error`` from its
+    target on the ground plane or within ``min_head_height`` of the terrain;
+    truncated by the TimeLimit (300 steps = 10 s in the preset) or on diverging
+    physics (``info["physics_unstable"]``). ``info`` has ``xy_error``, ``z_error``,
+    the reward terms, ``terrain`` and ``amp_obs``.
+
+    | keyword | default | meaning |
+    |---|---|---|
+    | terrain | "mixed" | "flat", "slope", "rough", "stairs" or "mixed" |
+    | locomotion | None | restrict paths to one locomotion; None = any height 0.4-1.47 m |
+    | path_generator | "coupled" | "coupled" (PlaMo) or "naive" (speed independent of height) |
+    | episode_seconds | 10.0 | path length in time (the preset's time limit matches) |
+    | terrain_size, terrain_cell_size | 16.0, 0.1 | height field size and resolution (m) |
+    | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
+    | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
+    | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
+    | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
+    | render_mode, width, height | None, 640, 480 | as InterLevel |
+    """
+
+    def __init__(
+        self,
+        terrain: str = "mixed",
+        locomotion: str | None = None,
+        path_generator: str = "coupled",
+        episode_seconds: float = 10.0,
+        terrain_size: float = 16.0,
+        terrain_cell_size: float = 0.1,
+        heightmap_size: int = 16,
+        heightmap_extent: float = 2.0,
+        max_xy_error: float = 2.0,
+        min_head_height: float = 0.15,
+        pd_gains: str = "soft",
+        frame_skip: int = 4,
+        amp_history: int = 2,
+        render_mode: str | None = None,
+        width: int = 640,
+        height: int = 480,
+    ) -> None:
+        self.terrain = check_choice("terrain", terrain, TERRAIN_KINDS)
+        self.path_generator = check_choice("path_generator", path_generator, PATH_GENERATORS)
+        self.locomotion = None if locomotion is None else get_locomotion(locomotion)
+        self.episode_seconds = check_number("episode_seconds", episode_seconds, 1.0, 600.0)
+        self.heightmap_size = int(check_number("heightmap_size", heightmap_size, 1, 128))
+        self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
+        self.max_xy_error = check_number("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
+        self.min_head_height = check_number("min_head_height", min_head_height, 0.0, 1.0)
+        if self.locomotion is not None:
+            self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
+                                               speed_range=self.locomotion.speed_range)
+        else:
+            self.path_config = task.PathConfig(coupled=self.path_generator == "coupled")
+
+        spec = load_humanoid_spec(pd_gains)
+        self._terrain_slot = HeightfieldSlot(spec, terrain_size, terrain_cell_size)
+        self._setup(spec, frame_skip, amp_history, render_mode, width, height)
+        self._terrain_slot.bind(self.model)
+        self._geoms = humanoid_geoms(self.model, self._idx)
+        self._heights = np.zeros((self._terrain_slot.n, self._terrain_slot.n))
+        self._terrain_dirty = False
+
+        hm = self.heightmap_size ** 2
+        size = PROPRIOCEPTION_SIZE + hm + 3 * NUM_WAYPOINTS
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        self.observation_structure = {
+            "proprioception": slice(0, PROPRIOCEPTION_SIZE),
+            "heightmap": slice(PROPRIOCEPTION_SIZE, PROPRIOCEPTION_SIZE + hm),
+            "path": slice(PROPRIOCEPTION_SIZE + hm, size),
+        }
+        self.path: task.PathSamples | None = None
+
+    # --- terrain --------------------------------------------------------------
+    def ground_height(self, xy: np.ndarray) -> np.ndarray:
+        return bilinear_height(self._heights, self._terrain_slot.size, xy)
+
+    # --- episode ------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        self._heights = terrain_heights(self.terrain, rng, self._terrain_slot.size, self._terrain_slot.cell_size)
+        self._terrain_slot.write(self.model, self._heights)
+        self._terrain_dirty = True
+
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        start = rng.uniform(-1.0, 1.0, 2)
+        heading = rng.uniform(-math.pi, math.pi)
+        data.qpos[self._idx.qpos_root] = (*start, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+        mujoco.mj_kinematics(model, data)
+        # Stand on the highest ground under the body so no foot starts inside a slope or a step.
+        around = start + 0.35 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
+        floor = float(np.max(self.ground_height(np.vstack((start, around)))))
+        data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
+
+        self.path = task.random_head_path(
+            self.path_config, rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
+            self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
+        )
+        self._needs_reset = False
+        self._steps = 0
+        state = read_state(data, self._idx)
+        self._amp.fill(state)
+        obs, results = self._evaluate(state)
+        self._obs = obs
+        return obs, self._info(results, terms=None)
+
+    def step(self, action):
+        stable = self._simulate(action)
+        self._steps += 1
+        if not stable:
+            info = self._info(self._last_results, terms=np.zeros(len(task.REWARD_TERMS)))
+            info["physics_unstable"] = True
+            return self._obs.copy(), 0.0, False, True, info
+        state = read_state(self.data, self._idx)
+        self._amp.push(state)
+        obs, results = self._evaluate(state)
+        terms = results["terms"]
+        info = self._info(results, terms)
+        terminated = results["xy_error"] > self.max_xy_error or results["head_clearance"] < self.min_head_height
+        self._obs = obs
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(terms.sum()), bool(terminated), False, info
+
+    # --- pieces -------------------------------------------------------------
+    def _head(self) -> tuple[np.ndarray, np.ndarray]:
+        head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
+        return self.data.xpos[self._idx.head_id] + head_mat @ HEAD_CENTRE_OFFSET, head_mat
+
+    def _evaluate(self, state) -> tuple[np.ndarray, dict[str, Any]]:
+        t = self._steps * self.dt
+        root = state.body_pos[0, PELVIS]
+        root_mat = state.body_mat[0, PELVIS]
+        root_yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
+        ground = self.ground_height(np.vstack((root[:2], state.body_pos[0, HEAD, :2])))
+        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                                 np.array([root[2] - ground[0]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
+        points = task.heightmap_points(root[:2], root_yaw, self.heightmap_size, self.heightmap_extent)
+        heightmap = self.ground_height(points) - root[2]
+        head, head_mat = self._head()
+        path_obs = task.path_observation(self.path, t, head, root_yaw, NUM_WAYPOINTS, WAYPOINT_SPACING)
+        obs = np.concatenate((proprio, heightmap, path_obs))
+
+        k = self.path.index(t)
+        target = self.path.at(t)
+        forward = head_mat[:, 0]
+        head_yaw = math.atan2(forward[1], forward[0])
+        head_pitch = math.atan2(forward[2], math.hypot(forward[0], forward[1]))
+        max_body_z = max(float(state.body_pos[0, :, 2].max()), float(head[2]))
+        terms = task.path_reward_terms(target, head, self.path.yaw[k], self.path.pitch[k], head_yaw, head_pitch,
+                                       max_body_z)
+        results = {
+            "terms": terms,
+            "xy_error": float(np.hypot(*(target[:2] - head[:2]))),
+            "z_error": float(abs(target[2] - head[2])),
+            "head_clearance": float(head[2] - self.ground_height(head[:2])),
+        }
+        self._last_results = results
+        return obs, results
+
+    def _info(self, results: dict[str, Any], terms: np.ndarray | None) -> dict[str, Any]:
+        info = {
+            "xy_error": results["xy_error"],
+            "z_error": results["z_error"],
+            "time": self._steps * self.dt,
+            "terrain": self.terrain,
+            "locomotion": None if self.locomotion is None else self.locomotion.name,
+            "physics_unstable": False,
+            "amp_obs": self._amp.flat(),
+        }
+        if terms is not None:
+            info.update(zip(task.REWARD_TERMS, terms.tolist()))
+        return info
+
+    # --- rendering ----------------------------------------------------------
+    def render(self):
+        if self._terrain_dirty and self._camera is not None:
+            mujoco.mjr_uploadHField(self.model, self._camera.renderer._mjr_context,
+                                    self.model.hfield(self._terrain_slot.name).id)
+        frame = super().render()
+        if self._camera is not None:
+            if self._terrain_dirty:
+                # The first frame after a new terrain was drawn with the old one: draw again.
+                mujoco.mjr_uploadHField(self.model, self._camera.renderer._mjr_context,
+                                        self.model.hfield(self._terrain_slot.name).id)
+                frame = super().render()
+            self._terrain_dirty = False
+        return frame
+
+    def _render_lines(self) -> tuple:
+        if self.path is None:
+            return ()
+        t = self._steps * self.dt
+        points = self.path.at(t + WAYPOINT_SPACING * np.arange(0, NUM_WAYPOINTS + 1))
+        return tuple((a, b, (0.1, 0.9, 0.2, 1.0)) for a, b in zip(points[:-1], points[1:]))

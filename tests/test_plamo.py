@@ -1,0 +1,174 @@
+"""PlaMo-v0: terrain height field, random path generator, observation layout, reward r^tau, episode logic."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import stairenv  # noqa: F401
+from stairenv.environments.plamo import PlaMoEnv
+from stairenv.tasks import plamo as task
+from stairenv.world.terrain import HeightfieldSlot, bilinear_height, terrain_heights
+
+
+@pytest.mark.parametrize("env_id", ["PlaMo-v0", "PlaMoNaivePaths-v0"])
+def test_check_env_and_determinism(env_id):
+    env = gym.make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+    runs = []
+    for _ in range(2):
+        obs, _ = env.reset(seed=5)
+        trace = [obs]
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            obs, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 28))
+            trace.append(np.r_[obs, reward])
+            if terminated or truncated:
+                trace.append(env.reset()[0])
+        runs.append(np.concatenate(trace))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_observation_layout_on_flat_ground():
+    env = gym.make("PlaMo-v0", terrain="flat").unwrapped
+    obs, _ = env.reset(seed=1)
+    s = env.observation_structure
+    assert [v.stop - v.start for v in s.values()] == [113, 256, 30]
+    root = env.data.xpos[env._idx.pelvis_id]
+    np.testing.assert_allclose(obs[s["heightmap"]], -root[2])  # flat: every sample is the floor
+    assert obs[0] == pytest.approx(root[2])  # root height above the (zero) terrain
+    head, _ = env._head()
+    first = env.path.at(0.5) - head
+    yaw = math.atan2(env.data.xmat[env._idx.pelvis_id][3], env.data.xmat[env._idx.pelvis_id][0])
+    c, sn = math.cos(yaw), math.sin(yaw)
+    np.testing.assert_allclose(obs[s["path"]][:3], [c * first[0] + sn * first[1], -sn * first[0] + c * first[1],
+                                                    first[2]], atol=1e-9)
+
+
+def _path(config, seed=0, duration=30.0):
+    return task.random_head_path(config, np.random.default_rng(seed), duration, np.zeros(2), 0.3,
+                                 lambda xy: np.zeros(len(xy)), arena_half=7.0)
+
+
+def test_coupled_paths_respect_the_height_speed_envelope():
+    for seed in range(5):
+        path = _path(task.PathConfig(coupled=True), seed)
+        assert np.all(path.speed <= task.coupled_max_speed(path.head) + 1e-9)
+        assert path.head.min() >= 0.4 - 1e-9 and path.head.max() <= 1.47 + 1e-9
+        assert np.all(np.abs(path.points[:, :2]) <= 7.0 + 5.0 * path.dt)
+        # Smooth: head height changes by bounded amounts per sample.
+        assert np.abs(np.diff(path.head)).max() < 0.2
+        # Consecutive points are as far apart as the requested speed says.
+        step = np.linalg.norm(np.diff(path.points[:, :2], axis=0), axis=1)
+        np.testing.assert_allclose(step, path.speed[:-1] * path.dt, atol=1e-9)
+
+
+def test_naive_paths_break_the_envelope():
+    over = [np.any(p.speed > task.coupled_max_speed(p.head) + 0.5)
+            for p in (_path(task.PathConfig(coupled=False), s) for s in range(5))]
+    assert any(over)
+
+
+def test_coupled_max_speed_formula():
+    np.testing.assert_allclose(task.coupled_max_speed([0.4, 0.8, 1.2, 1.47]), [1.0, 3.0, 5.0, 5.0])
+
+
+def test_locomotion_restricts_paths():
+    env = gym.make("PlaMo-v0", locomotion="crawl").unwrapped
+    env.reset(seed=0)
+    assert env.path.head.min() >= 0.3 - 1e-9 and env.path.head.max() <= 0.5 + 1e-9
+    assert env.path.speed.max() <= 1.0 + 1e-9
+    with pytest.raises(ValueError, match="locomotion"):
+        PlaMoEnv(locomotion="moonwalk")
+
+
+def test_path_reward_terms_by_hand():
+    target = np.array([1.0, 2.0, 1.0])
+    head = np.array([1.3, 1.6, 0.8])
+    terms = task.path_reward_terms(target, head, target_yaw=0.5, target_pitch=0.1, head_yaw=0.2,
+                                   head_pitch=-0.1, max_body_z=1.0)
+    expected = [math.exp(-2 * (0.09 + 0.16)), math.exp(-10 * 0.04), math.exp(-20 * (0.09 + 0.04)), 0.1 * (0.8 - 1.0)]
+    np.testing.assert_allclose(terms, expected)
+    # Yaw differences wrap around.
+    wrapped = task.path_reward_terms(target, head, math.pi - 0.05, 0.0, -math.pi + 0.05, 0.0, 0.8)
+    assert wrapped[2] == pytest.approx(math.exp(-20 * 0.01))
+
+
+def test_reward_terms_in_info_sum_to_the_reward():
+    env = gym.make("PlaMo-v0")
+    env.reset(seed=2)
+    for _ in range(10):
+        _, reward, terminated, truncated, info = env.step(np.zeros(28))
+        assert reward == pytest.approx(sum(info[k] for k in task.REWARD_TERMS))
+        assert info["reward_body"] <= 0.0
+        if terminated or truncated:
+            break
+
+
+def test_losing_the_path_terminates():
+    env = gym.make("PlaMo-v0", terrain="flat", max_xy_error=0.5)
+    env.reset(seed=0)
+    u = env.unwrapped
+    u.data.qpos[:2] += 3.0  # teleport away from the path
+    mujoco.mj_forward(u.model, u.data)
+    _, _, terminated, _, info = env.step(np.zeros(28))
+    assert terminated and info["xy_error"] > 0.5
+
+
+def test_unstable_physics_truncates():
+    env = gym.make("PlaMo-v0")
+    env.reset(seed=0)
+    env.unwrapped.data.qvel[:] = 1e12
+    with pytest.warns(UserWarning, match="unstable"):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(28))
+    assert truncated and not terminated and info["physics_unstable"] and np.isfinite(obs).all()
+
+
+@pytest.mark.parametrize("kind", ["stairs", "slope", "mixed"])
+def test_height_field_matches_the_height_array(kind):
+    """A sphere dropped on the written height field rests at the array's height there."""
+    spec = mujoco.MjSpec()
+    slot = HeightfieldSlot(spec, 16.0, 0.1)
+    body = spec.worldbody.add_body(name="ball", pos=[0, 0, 3])
+    body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    slot.bind(model)
+    rng = np.random.default_rng(4)
+    heights = terrain_heights(kind, rng)
+    slot.write(model, heights)
+    # Probe flat spots (treads, plateaus, floor): where the 3x3 neighbourhood is level.
+    n = heights.shape[0]
+    checked = 0
+    for i, j in rng.integers(2, n - 2, (400, 2)):
+        if np.ptp(heights[i - 1:i + 2, j - 1:j + 2]) > 1e-9 or checked >= 5:
+            continue
+        xy = np.array([-8.0 + 0.1 * j, -8.0 + 0.1 * i])
+        mujoco.mj_resetData(model, data)
+        data.qpos[:3] = [*xy, heights[i, j] + 0.3]
+        for _ in range(300):
+            mujoco.mj_step(model, data)
+        assert data.qpos[2] - 0.05 == pytest.approx(bilinear_height(heights, 16.0, xy), abs=0.01)
+        checked += 1
+    assert checked >= 3
+
+
+def test_bad_keywords():
+    for kwargs, name in [({"terrain": "lava"}, "terrain"), ({"path_generator": "smart"}, "path_generator"),
+                         ({"heightmap_size": 0}, "heightmap_size"), ({"max_xy_error": 0}, "max_xy_error")]:
+        with pytest.raises(ValueError, match=name):
+            PlaMoEnv(**kwargs)
+
+
+def test_rgb_render_shows_the_terrain():
+    env = gym.make("PlaMo-v0", render_mode="rgb_array", width=160, height=120)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.std() > 5
+    env.close()

@@ -1,0 +1,453 @@
+"""The PlaMo planner (``stairenv.planning``): parser, A*, refiner, speed QP, waypoints, replanning.
+
+References are independent of the code under test where possible: networkx's Dijkstra on
+the same graph for A*, ``scipy.ndimage.distance_transform_edt`` for clearance, the
+analytic trapezoidal profile for the speed QP, and explicit geometry for replanning.
+"""
+
+from __future__ import annotations
+
+import math
+
+import networkx as nx
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from stairenv.planning.astar import astar, edge_list, edge_weights
+from stairenv.planning.costmap import build_costmap
+from stairenv.planning.errors import InstructionError, PlanningError
+from stairenv.planning.grid import PlanningGrid
+from stairenv.planning.instructions import Segment, parse_instructions
+from stairenv.planning.locomotion import LOCOMOTIONS, get_locomotion
+from stairenv.planning.planner import Planner, PlannerSettings
+from stairenv.planning.refine import head_profile
+from stairenv.planning.replan import ClosedLoopObstacle, ConstantVelocityObstacle, predict_collision, replan
+from stairenv.planning.speed import speed_limits, speed_profile, time_optimal_reference, travel_time
+from stairenv.planning.waypoints import Trajectory, timed_waypoints
+
+LANDMARKS = ["car", "swing", "bench", "tree", "park_bench"]
+DI = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
+DJ = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
+
+
+def flat_grid(h: int, w: int, cell: float = 0.1, landmarks: dict | None = None) -> PlanningGrid:
+    return PlanningGrid(np.zeros((h, w)), np.zeros((h, w), bool), np.full((h, w), np.inf), cell, (0.0, 0.0),
+                        landmarks or {})
+
+
+def square(i: int, j: int, r: int = 1) -> np.ndarray:
+    ii, jj = np.mgrid[i - r:i + r + 1, j - r:j + r + 1]
+    return np.stack((ii.ravel(), jj.ravel()), axis=1)
+
+
+def path_cost(weights: np.ndarray, cells: np.ndarray) -> float:
+    """Sum of edge weights along consecutive cells (inf if a step is not an edge)."""
+    total = 0.0
+    for (i, j), (ni, nj) in zip(cells[:-1], cells[1:]):
+        d = np.nonzero((DI == ni - i) & (DJ == nj - j))[0]
+        if len(d) != 1:
+            return math.inf
+        total += weights[i, j, d[0]]
+    return total
+
+
+# ------------------------------------------------------------------------------------ parser
+def test_parse_paper_sentences():
+    assert parse_instructions("Run to the car, then crawl from the car to the swing", LANDMARKS) == [
+        Segment(None, "car", "run"), Segment("car", "swing", "crawl")]
+    assert parse_instructions("Walk crouching to the bench", LANDMARKS) == [Segment(None, "bench", "crouch-walk")]
+    # Fig. 9 (c): a list of sentences; missing sources chain from the previous target
+    segs = parse_instructions(["Crawl to the bench", "crawl to the tree", "walk crouching to the bench",
+                               "sprint to the car"], LANDMARKS)
+    assert segs == [Segment(None, "bench", "crawl"), Segment("bench", "tree", "crawl"),
+                    Segment("tree", "bench", "crouch-walk"), Segment("bench", "car", "sprint")]
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("jog to the tree", "run"),
+    ("Crouch-walk to the tree", "crouch-walk"),
+    ("crouch walk to the tree", "crouch-walk"),
+    ("go crawling to the tree", "crawl"),
+    ("dash to the tree", "sprint"),
+    ("stroll to the tree", "walk"),
+    ("please walk back to the tree", "walk"),
+])
+def test_parse_synonyms(text, expected):
+    assert parse_instructions(text, LANDMARKS)[0].locomotion == expected
+
+
+def test_parse_sources_landmark_names_and_separators():
+    segs = parse_instructions("walk from the tree to the Park Bench and run to the car; crawl to the swing. "
+                              "Walk to the tree from the swing", LANDMARKS)
+    assert segs == [Segment("tree", "park_bench", "walk"), Segment("park_bench", "car", "run"),
+                    Segment("car", "swing", "crawl"), Segment("swing", "tree", "walk")]
+
+
+def test_parse_errors_list_what_is_known():
+    with pytest.raises(InstructionError, match="unknown landmark 'lake'") as err:
+        parse_instructions("Run from the tree to the lake", LANDMARKS)
+    assert all(name in str(err.value) for name in LANDMARKS)
+    with pytest.raises(InstructionError, match="unknown locomotion verb 'fly'") as err:
+        parse_instructions("Fly to the car", LANDMARKS)
+    assert all(name in str(err.value) for name in LOCOMOTIONS)
+    assert isinstance(err.value, ValueError)
+    with pytest.raises(InstructionError, match="expected"):
+        parse_instructions("walk the car", LANDMARKS)
+    with pytest.raises(InstructionError, match="ambiguous"):
+        parse_instructions("run crawling to the car", LANDMARKS)
+
+
+def test_locomotion_table():
+    heads = {name: loc.head_height for name, loc in LOCOMOTIONS.items()}
+    assert heads == {"crawl": 0.4, "crouch-walk": 0.8, "walk": 1.47, "run": 1.47, "sprint": 1.47}
+    assert LOCOMOTIONS["crawl"].speed_max == 1.0 and LOCOMOTIONS["crouch-walk"].speed_max == 2.0
+    assert LOCOMOTIONS["run"].speed_max == 4.0 and LOCOMOTIONS["sprint"].speed_max == 5.0
+    for loc in LOCOMOTIONS.values():
+        assert 0 < loc.head_min <= loc.head_height and 0 < loc.speed_min < loc.speed_max
+    assert get_locomotion("Crouching").name == "crouch-walk"
+    with pytest.raises(ValueError, match="locomotion must be one of"):
+        get_locomotion("swim")
+
+
+# ------------------------------------------------------------------------------------ A*
+def random_grid(rng, h=18, w=22):
+    heights = np.cumsum(rng.normal(0.0, 0.03, (h, w)), axis=1) + np.cumsum(rng.normal(0.0, 0.03, (h, w)), axis=0)
+    blocked = rng.random((h, w)) < 0.15
+    ceiling = np.where(rng.random((h, w)) < 0.08, heights + rng.uniform(0.5, 2.0, (h, w)), np.inf)
+    return PlanningGrid(heights, blocked, ceiling, 0.1)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_astar_is_optimal_against_networkx_dijkstra(seed):
+    rng = np.random.default_rng(seed)
+    grid = random_grid(rng)
+    cm = build_costmap(grid, ["crawl", "crouch-walk", "walk"][seed % 3], body_radius=[0.0, 0.1][seed % 2],
+                       head_radius=0.0, slope_window=[0.0, 0.3][seed % 2], max_slope=1.5, max_step=0.12,
+                       height_cost=rng.uniform(0.0, 3.0), slope_preference=rng.uniform(0.0, 4.0))
+    u, v, w = edge_list(cm)
+    graph = nx.Graph()
+    graph.add_weighted_edges_from(zip(u.tolist(), v.tolist(), w.tolist()))
+    weights = edge_weights(cm)
+    free = np.argwhere(cm.passable)
+    W = grid.shape[1]
+    checked = 0
+    for _ in range(6):
+        start = tuple(free[rng.integers(len(free))])
+        goals = free[rng.choice(len(free), size=int(rng.integers(1, 5)), replace=False)]
+        g = graph.copy()
+        g.add_node(start[0] * W + start[1])
+        for gi, gj in goals:
+            g.add_edge(int(gi * W + gj), "goal", weight=0.0)
+        try:
+            expected = nx.dijkstra_path_length(g, start[0] * W + start[1], "goal")
+        except nx.NetworkXNoPath:
+            expected = None
+        if expected is None:
+            with pytest.raises(PlanningError):
+                astar(cm, start, goals, reach=0.0)
+            continue
+        result = astar(cm, start, goals, reach=0.0)
+        assert result.cost == pytest.approx(expected, rel=1e-9, abs=1e-12)
+        assert tuple(result.cells[0]) == start and any((result.cells[-1] == goals).all(axis=1))
+        assert path_cost(weights, result.cells) == pytest.approx(result.cost, rel=1e-9)
+        checked += 1
+    assert checked >= 2
+
+
+def door_scene(door_ceiling: float, second_door: bool = False) -> PlanningGrid:
+    """A wall across x = 5 m with a door (y 4.5..5.5 m) under a ceiling; optionally an open door at y 0..1 m."""
+    h, w = 100, 100
+    grid = flat_grid(h, w, landmarks={"a": square(50, 20), "b": square(50, 80)})
+    grid.blocked[:, 49:51] = True
+    grid.blocked[45:55, 49:51] = False
+    grid.ceiling[40:60, 45:55] = door_ceiling
+    if second_door:
+        grid.blocked[0:12, 49:51] = False
+    return grid
+
+
+def test_removed_edges_are_respected_and_crawl_passes_where_walk_cannot():
+    grid = door_scene(0.6, second_door=True)
+    planner = Planner(grid)
+    crawl = planner.plan("b", "crawl", start="a")
+    walk = planner.plan("b", "walk", start="a")
+    for plan in (crawl, walk):
+        cm = plan.costmap
+        cells = plan.search.cells
+        assert not grid.blocked[cells[:, 0], cells[:, 1]].any()
+        assert (cm.headroom[cells[:, 0], cells[:, 1]] >= cm.required_headroom).all()
+        assert np.isfinite(path_cost(edge_weights(cm, plan.search.passable), cells))
+    # crawl goes through the low door, walk around through the open one
+    assert (crawl.search.cells[:, 0] >= 40).all()
+    assert walk.search.cells[:, 0].min() < 12
+    assert walk.length > crawl.length + 3.0
+    # the ceiling is under the crawl's head all the way
+    cells = grid.cell_of(crawl.path.xy)
+    assert (crawl.path.z_head <= grid.ceiling[cells[:, 0], cells[:, 1]] - 0.1 + 1e-9).all()
+
+
+def test_slope_preference_goes_around_the_hill():
+    h, w = 80, 140
+    y, x = (np.mgrid[0:h, 0:w] + 0.5) * 0.1
+    heights = 2.0 * np.exp(-((x - 7.0) ** 2 + (y - 4.0) ** 2) / (2 * 1.5 ** 2))
+    grid = PlanningGrid(heights, np.zeros((h, w), bool), np.full((h, w), np.inf), 0.1, (0.0, 0.0),
+                        {"goal": np.array([[40, 130]])})
+    max_height, length = [], []
+    for c in (0.0, 2.0, 5.0, 10.0):
+        cm = build_costmap(grid, "walk", height_cost=0.0, slope_preference=c, max_slope=5.0, max_step=1.0)
+        cells = astar(cm, (40, 10), grid.landmarks["goal"]).cells
+        max_height.append(heights[cells[:, 0], cells[:, 1]].max())
+        length.append(float(np.sum(np.linalg.norm(np.diff(cells, axis=0), axis=1))) * 0.1)
+    assert max_height[0] > 1.9  # straight over the top
+    assert all(a >= b - 1e-12 for a, b in zip(max_height, max_height[1:]))
+    assert all(a <= b + 1e-12 for a, b in zip(length, length[1:]))
+    assert max_height[-1] < 0.5 * max_height[0] and length[-1] > length[0] + 0.5
+
+
+def test_unreachable_goals_say_why():
+    # blocked: the goal is walled in
+    grid = flat_grid(60, 60, landmarks={"a": square(10, 10), "b": square(40, 40)})
+    grid.blocked[30:51, 30] = grid.blocked[30:51, 50] = grid.blocked[30, 30:51] = grid.blocked[50, 30:51] = True
+    with pytest.raises(PlanningError, match="obstacles block") as err:
+        Planner(grid).plan("b", "walk", start="a")
+    assert err.value.reason == "blocked"
+    # ceiling: the only door is too low for walking; crawling fits
+    grid = door_scene(0.6)
+    with pytest.raises(PlanningError, match="too low for walk") as err:
+        Planner(grid).plan("b", "walk", start="a")
+    assert err.value.reason == "ceiling" and "crawl would fit" in str(err.value)
+    assert Planner(grid).plan("b", "crawl", start="a").length > 5.0
+    # slope: the goal stands on a 1 m plateau with cliff edges
+    grid = flat_grid(60, 60, landmarks={"a": square(10, 10), "b": square(40, 40)})
+    grid.heights[30:51, 30:51] = 1.0
+    with pytest.raises(PlanningError, match="too steep") as err:
+        Planner(grid).plan("b", "walk", start="a")
+    assert err.value.reason == "slope"
+    # both: a low roof over the plateau
+    grid.ceiling[28:53, 28:53] = 1.6
+    with pytest.raises(PlanningError) as err:
+        Planner(grid).plan("b", "walk", start="a")
+    assert err.value.reason == "ceiling+slope"
+    # the search is bounded
+    with pytest.raises(PlanningError, match="max_expansions") as err:
+        Planner(flat_grid(60, 60, landmarks={"a": square(5, 5), "b": square(55, 55)}),
+                PlannerSettings(max_expansions=10)).plan("b", "walk", start="a")
+    assert err.value.reason == "budget"
+    # the start inside a wall
+    grid = flat_grid(60, 60, landmarks={"b": square(40, 40)})
+    grid.blocked[5:15, 5:15] = True
+    with pytest.raises(PlanningError, match="inside an obstacle"):
+        Planner(grid).plan("b", "walk", start=(1.0, 1.0))
+
+
+# ------------------------------------------------------------------------------------ refiner
+def walls_scene(seed: int) -> PlanningGrid:
+    rng = np.random.default_rng(seed)
+    h = w = 150
+    grid = flat_grid(h, w, landmarks={"a": square(8, 8), "b": square(141, 141)})
+    for _ in range(14):
+        i, j = rng.integers(20, 130, 2)
+        if rng.random() < 0.5:
+            grid.blocked[i:i + 3, max(j - 25, 0):j + 25] = True
+        else:
+            grid.blocked[max(i - 25, 0):i + 25, j:j + 3] = True
+    return grid
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refiner_keeps_clearance(seed):
+    grid = walls_scene(seed)
+    settings = PlannerSettings(body_radius=0.3)
+    plan = Planner(grid, settings).plan("b", "walk", start="a")
+    clearance = ndimage.distance_transform_edt(~grid.blocked) * grid.cell_size
+    cells = grid.cell_of(plan.path.xy)
+    assert clearance[cells[:, 0], cells[:, 1]].min() >= settings.body_radius - 1e-9
+    # smooth where there is room: the refined path is no longer than the A* path and turns gently
+    astar_length = float(np.sum(np.linalg.norm(np.diff(plan.search.cells, axis=0), axis=1))) * grid.cell_size
+    assert plan.length <= astar_length
+    assert np.median(plan.path.curvature) < 0.05
+    assert np.allclose(plan.path.xy[0], plan.trajectory.xyz[0, :2])
+
+
+def test_head_ducks_under_a_ceiling_with_bounded_slope():
+    grid = flat_grid(40, 200, landmarks={"a": square(20, 5), "b": square(20, 194)})
+    grid.heights[:] = np.linspace(0.0, 1.5, 200)[None, :]  # a gentle ramp
+    grid.ceiling[:, 80:120] = grid.heights[:, 80:120] + 1.4  # walk ducks to 1.3 m
+    settings = PlannerSettings(head_slope=0.4)
+    plan = Planner(grid, settings).plan("b", "walk", start="a")
+    p = plan.path
+    cells = grid.cell_of(p.xy)
+    assert (p.z_head <= grid.ceiling[cells[:, 0], cells[:, 1]] - settings.ceiling_margin + 1e-9).all()
+    assert (p.head <= LOCOMOTIONS["walk"].head_height + 1e-12).all()
+    assert p.head.min() < 1.31 and p.head.min() >= LOCOMOTIONS["walk"].head_min
+    assert p.head[0] == pytest.approx(1.47) and p.head[-1] == pytest.approx(1.47)
+    assert np.all(np.abs(np.diff(p.head)) <= settings.head_slope * np.diff(p.s) + 1e-12)
+
+
+def test_head_profile_envelope_properties():
+    rng = np.random.default_rng(3)
+    s = np.cumsum(rng.uniform(0.02, 0.06, 600))
+    ground = np.cumsum(rng.normal(0, 0.01, 600))
+    ceiling = ground + np.where(rng.random(600) < 0.02, rng.uniform(0.5, 1.5, 600), np.inf)
+    ceiling = ndimage.minimum_filter1d(ceiling, 15)
+    h = head_profile(s, ground, ceiling, 1.47, margin=0.1, head_slope=0.5, head_smoothing=0.5)
+    assert (ground + h <= ceiling - 0.1 + 1e-12).all() and (h <= 1.47).all()
+    assert np.all(np.abs(np.diff(h)) <= 0.5 * np.diff(s) + 1e-12)
+    open_sky = ndimage.minimum_filter1d(np.isinf(ceiling), 200)
+    assert np.allclose(h[open_sky], 1.47)  # far from any ceiling the head is at its nominal height
+    with pytest.raises(ValueError, match="head_slope"):
+        head_profile(s, ground, ceiling, 1.47, head_slope=0.0)
+
+
+# ------------------------------------------------------------------------------------ speed QP
+def trapezoid_time(length: float, v_max: float, a_max: float, decel: float) -> float:
+    d1, d2 = v_max ** 2 / (2 * a_max), v_max ** 2 / (2 * decel)
+    if d1 + d2 <= length:
+        return v_max / a_max + v_max / decel + (length - d1 - d2) / v_max
+    vp = math.sqrt(2 * length * a_max * decel / (a_max + decel))
+    return vp / a_max + vp / decel
+
+
+@pytest.mark.parametrize("length, v_max", [(10.0, 2.0), (60.0, 2.0), (150.0, 4.0), (30.0, 1.0)])
+def test_speed_qp_straight_line_matches_the_trapezoid(length, v_max):
+    s = np.linspace(0.0, length, int(length / 0.05) + 1)
+    prof = speed_profile(s, np.full_like(s, v_max))
+    optimum = trapezoid_time(length, v_max, 0.5, 0.1)
+    assert optimum <= prof.travel_time <= 1.10 * optimum
+    assert prof.travel_time == pytest.approx(optimum, rel=0.01)
+
+
+def check_bounds(prof, v_upper, a_max, a_min, v_start, v_end, tol=1e-6):
+    assert (prof.v <= v_upper + tol).all() and (prof.b >= -tol).all()
+    delta = np.diff(prof.knots)
+    accel = np.diff(prof.b) / (2 * delta)
+    assert (accel <= a_max + tol).all() and (accel >= a_min - tol).all()
+    assert prof.v[0] == pytest.approx(v_start, abs=1e-6) and prof.v[-1] == pytest.approx(v_end, abs=1e-6)
+    # and between samples (b is linear in s between knots)
+    sample_accel = np.diff(prof.v ** 2) / (2 * np.diff(prof.s))
+    assert (sample_accel <= a_max + tol).all() and (sample_accel >= a_min - tol).all()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_speed_qp_satisfies_every_bound_and_is_near_optimal(seed):
+    rng = np.random.default_rng(seed)
+    s = np.r_[0.0, np.cumsum(rng.uniform(0.03, 0.05, 2000))]
+    kappa = np.abs(ndimage.gaussian_filter1d(rng.normal(0, 3.0, len(s)), 20))
+    ground = np.cumsum(rng.normal(0, 0.004, len(s)))
+    a_lat, a_max, a_min = rng.uniform(0.5, 2.0), rng.uniform(0.3, 1.0), -rng.uniform(0.1, 0.5)
+    v_start, v_end = [(0.0, 0.0), (1.0, 0.0), (0.5, 0.8), (1.0, 0.3)][seed]
+    kappa[:100] = 0.0  # room to brake from v_start
+    v_upper = speed_limits(s, kappa, ground, 4.0, a_lat=a_lat)
+    assert (v_upper ** 2 * kappa <= a_lat + 1e-9).all()
+    prof = speed_profile(s, v_upper, a_max=a_max, a_min=a_min, v_start=v_start, v_end=v_end)
+    check_bounds(prof, v_upper, a_max, a_min, v_start, v_end)
+    assert (prof.v ** 2 * kappa <= a_lat + 1e-6).all()  # lateral acceleration
+    best = travel_time(s, time_optimal_reference(s, v_upper, a_max=a_max, a_min=a_min, v_start=v_start,
+                                                 v_end=v_end))
+    # knots every 0.5 m with one bound each (the lowest of both neighbouring intervals) cost a few percent
+    assert best <= prof.travel_time + 1e-9 and prof.travel_time <= 1.10 * best
+
+
+def test_speed_limits_slope_and_keyword_errors():
+    s = np.linspace(0, 10, 101)
+    flat = speed_limits(s, np.zeros_like(s), np.zeros_like(s), 2.0)
+    uphill = speed_limits(s, np.zeros_like(s), 0.3 * s, 2.0)
+    downhill = speed_limits(s, np.zeros_like(s), -0.3 * s, 2.0)
+    assert np.allclose(flat, 2.0) and np.allclose(uphill, 2.0 * 0.7) and np.allclose(downhill, 2.0 * 0.85)
+    with pytest.raises(ValueError, match=r"a_max must be a number in \(0.0, inf\)"):
+        speed_profile(s, flat, a_max=0.0)
+    with pytest.raises(ValueError, match="a_min"):
+        speed_profile(s, flat, a_min=0.1)
+    with pytest.raises(ValueError, match="a_lat"):
+        speed_limits(s, s, s, 2.0, a_lat=-1)
+    with pytest.raises(ValueError, match="slope_preference"):
+        build_costmap(flat_grid(5, 5), slope_preference=-1.0)
+    with pytest.raises(ValueError, match="body_radius"):
+        build_costmap(flat_grid(5, 5), body_radius=-0.1)
+    with pytest.raises(ValueError, match=r"body_radius must be a number in \[0.0, inf\]"):
+        PlannerSettings(body_radius=-0.1)
+    with pytest.raises(ValueError, match="min_speed_fraction"):
+        PlannerSettings(min_speed_fraction=0.0)
+    with pytest.raises(PlanningError) as err:  # cannot stop from 3 m/s within 1 m at -0.1 m/s^2
+        speed_profile(np.linspace(0, 1, 21), np.full(21, 4.0), v_start=3.0, v_end=0.0)
+    assert err.value.reason == "speed"
+
+
+# ------------------------------------------------------------------------------------ waypoints
+def test_waypoints_reproduce_the_planned_speed():
+    grid = walls_scene(1)
+    plan = Planner(grid).plan("b", "run", start="a")
+    wp = plan.waypoints(dt=0.1)
+    assert np.allclose(np.diff(wp.t)[:-1], 0.1) and 0 < wp.t[-1] - wp.t[-2] <= 0.1 + 1e-9
+    assert wp.t[-1] == pytest.approx(plan.travel_time)
+    assert np.allclose(wp.xyz[0], plan.trajectory.xyz[0]) and np.allclose(wp.xyz[-1], plan.trajectory.xyz[-1])
+    step = np.linalg.norm(np.diff(wp.xyz[:, :2], axis=0), axis=1)[:-1] / 0.1
+    mean_v = 0.5 * (wp.v[1:] + wp.v[:-1])[:-1]
+    assert np.allclose(step, mean_v, rtol=0.02, atol=0.02)
+    assert wp.v.max() <= LOCOMOTIONS["run"].speed_max + 1e-6
+    # a hand-made trajectory: uniform acceleration from rest, s = a t^2 / 2
+    s = np.linspace(0, 8, 81)
+    v = np.sqrt(2 * 0.5 * s)
+    traj = Trajectory.from_profile(s, np.column_stack((s, 0 * s, 0 * s)), v)
+    wp = timed_waypoints(traj, dt=0.5)
+    assert np.allclose(wp.xyz[:, 0], 0.25 * wp.t ** 2, atol=1e-9)
+    assert np.allclose(wp.v, 0.5 * wp.t, atol=1e-9)
+    with pytest.raises(ValueError, match="dt"):
+        timed_waypoints(traj, dt=0)
+
+
+# ------------------------------------------------------------------------------------ replanning
+def test_replanning_avoids_a_ball_crossing_the_path():
+    grid = flat_grid(200, 200, landmarks={"a": square(100, 10), "b": square(100, 190)})
+    plan = Planner(grid).plan("b", "walk", start="a")
+    t_cross = 12.0
+    cross = plan.trajectory.position(t_cross)[:2]
+    ball = ConstantVelocityObstacle(cross - np.array([0.0, 1.5]), (0.0, 0.5), radius=0.3, t0=t_cross - 3.0)
+    body = plan.costmap.body_radius
+    assert predict_collision(plan.trajectory, [ball], t_now=t_cross - 3.0) is None  # more than 1.5 s ahead
+    t_now = t_cross - 1.2
+    assert replan(plan, [], t_now=t_now) is None
+    hit = predict_collision(plan.trajectory, [ball], t_now=t_now)
+    assert hit is not None and hit.time <= t_now + 1.5
+    result = replan(plan, [ball], t_now=t_now)
+    assert result is not None
+    new = result.trajectory
+    # the same past, the same present
+    assert np.allclose(new.position(t_now - 2.0), plan.trajectory.position(t_now - 2.0))
+    assert np.allclose(new.position(t_now), plan.trajectory.position(t_now))
+    assert result.plan.speed.v[0] == pytest.approx(float(plan.trajectory.sample(t_now)[1]), abs=1e-6)
+    # clear of the ball at every time from now until the ball is far away
+    times = np.linspace(t_now, t_now + 8.0, 1601)
+    gap = np.linalg.norm(new.position(times)[:, :2] - ball.position(times), axis=1)
+    assert gap.min() >= ball.radius + body
+    # and clear of the predicted position that triggered the replan
+    assert np.linalg.norm(result.plan.path.xy - hit.obstacle_xy, axis=1).min() >= ball.radius + body - 0.1
+    assert predict_collision(new, [ball], t_now=t_now) is None
+    # it still arrives
+    assert np.linalg.norm(new.xyz[-1, :2] - plan.trajectory.xyz[-1, :2]) < 0.5
+
+
+def test_closed_loop_obstacle():
+    loop = ClosedLoopObstacle([(0, 0), (4, 0), (4, 2), (0, 2)], speed=2.0, radius=0.4)
+    assert np.allclose(loop.position(0.0), (0, 0)) and np.allclose(loop.position(1.0), (2, 0))
+    assert np.allclose(loop.position(2.5), (4, 1)) and np.allclose(loop.position(6.0), loop.position(0.0))
+    assert loop.position(np.array([0.0, 1.0])).shape == (2, 2)
+
+
+# ------------------------------------------------------------------------------------ routes
+def test_route_from_instructions():
+    grid = door_scene(0.6, second_door=True)
+    grid.landmarks["swing"] = square(90, 90)
+    plans = Planner(grid).route("Run to the b, then crawl from the b to the a. Walk to the swing",
+                                start=(2.05, 5.05))
+    assert [p.segment.locomotion for p in plans] == ["run", "crawl", "walk"]
+    assert np.allclose(plans[0].trajectory.xyz[0, :2], (2.05, 5.05))
+    for prev, nxt in zip(plans, plans[1:]):
+        assert np.allclose(prev.end_xy, nxt.path.xy[0])
+        assert nxt.trajectory.start_time == pytest.approx(prev.trajectory.end_time)
+    assert plans[1].path.head.max() == pytest.approx(0.4)
+    for plan in plans:
+        assert plan.speed.v.max() <= plan.locomotion.speed_max + 1e-6 and plan.speed.v[-1] == 0.0
+    with pytest.raises(InstructionError, match="start"):
+        Planner(grid).route("walk to the b")
