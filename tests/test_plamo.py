@@ -172,3 +172,18 @@ def test_rgb_render_shows_the_terrain():
     frame = env.render()
     assert frame.shape == (120, 160, 3) and frame.std() > 5
     env.close()
+
+
+def test_tracking_error_table(tmp_path):
+    from stairenv.evaluation import ZeroPolicy
+    from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
+
+    env = gym.make("PlaMo-v0")
+    rows = tracking_errors(ZeroPolicy(env.action_space), terrains=("flat", "stairs"), locomotions=("walk",),
+                           episodes=1, max_episode_steps=20)
+    assert [(r["terrain"], r["locomotion"]) for r in rows] == [("flat", "walk"), ("stairs", "walk")]
+    assert all(r["steps"] > 0 and r["xy_error_m"] >= 0 and r["z_error_m"] >= 0 for r in rows)
+    assert rows[1]["paper_xy_error_m"] == 0.39
+    assert "stairs" in format_rows(rows)
+    write_rows(rows, tmp_path / "t.csv", tmp_path / "t.json")
+    assert (tmp_path / "t.csv").read_text().startswith("terrain,locomotion")

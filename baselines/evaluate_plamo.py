@@ -1,0 +1,41 @@
+"""PlaMo Table 2: mean XY and Z head-tracking error per terrain x locomotion for a policy.
+
+    python baselines/evaluate_plamo.py --policy random --episodes 5
+    python baselines/evaluate_plamo.py --policy runs/PlaMo-v0/seed0/final_model.zip --csv plamo.csv
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import gymnasium as gym
+
+from stairenv.evaluation import load_policy
+from stairenv.plamo_evaluation import LOCOMOTIONS, TERRAINS, format_rows, tracking_errors, write_rows
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--policy", required=True, help="'random', 'zero' or a Stable-Baselines3 model .zip")
+    parser.add_argument("--env", default="PlaMo-v0")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes per terrain x locomotion")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--terrains", nargs="+", default=list(TERRAINS), choices=TERRAINS)
+    parser.add_argument("--locomotions", nargs="+", default=list(LOCOMOTIONS), choices=LOCOMOTIONS)
+    parser.add_argument("--max-episode-steps", type=int, default=None)
+    parser.add_argument("--csv")
+    parser.add_argument("--json")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error("--episodes must be >= 1")
+    probe = gym.make(args.env)
+    policy = load_policy(args.policy, probe, seed=args.seed)
+    probe.close()
+    rows = tracking_errors(policy, args.terrains, args.locomotions, args.episodes, args.seed, args.env,
+                           args.max_episode_steps)
+    print(format_rows(rows))
+    write_rows(rows, args.csv, args.json)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,92 @@
+"""Tracking errors of a path-following policy, as in PlaMo's Table 2.
+
+For every terrain (flat, slope, rough, stairs) and locomotion (crawl,
+crouch-walk, walk, run), ``tracking_errors`` runs ``episodes`` episodes of
+``PlaMo-v0`` with that terrain and paths restricted to that locomotion, and
+reports the mean horizontal (XY) and vertical (Z) distance between the head and
+the path point due at each step, over all steps of all episodes. Published
+numbers (PlaMo Table 2, e.g. walk on stairs 0.39 / 0.27 m) are in ``PAPER_TABLE2``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import stairenv  # noqa: F401  (registers the envs)
+
+TERRAINS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
+LOCOMOTIONS: tuple[str, ...] = ("crawl", "crouch-walk", "walk", "run")
+# The one published cell the brief quotes; the paper's Table 2 holds the rest.
+PAPER_TABLE2: dict[tuple[str, str], tuple[float, float]] = {("stairs", "walk"): (0.39, 0.27)}
+
+
+def tracking_errors(
+    policy: Callable[[np.ndarray], Any],
+    terrains: Sequence[str] = TERRAINS,
+    locomotions: Sequence[str] = LOCOMOTIONS,
+    episodes: int = 10,
+    seed: int = 0,
+    env_id: str = "PlaMo-v0",
+    max_episode_steps: int | None = None,
+) -> list[dict[str, Any]]:
+    """One row per (terrain, locomotion): mean XY and Z error (m), steps, early terminations."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    rows = []
+    for terrain in terrains:
+        for locomotion in locomotions:
+            kwargs: dict[str, Any] = {"terrain": terrain, "locomotion": locomotion}
+            if max_episode_steps is not None:
+                kwargs["max_episode_steps"] = max_episode_steps
+            env = gym.make(env_id, **kwargs)
+            xy, z, terminated_count = [], [], 0
+            for episode in range(episodes):
+                if callable(getattr(policy, "reset", None)):
+                    policy.reset(seed + episode)
+                obs, _ = env.reset(seed=seed + episode)
+                while True:
+                    obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+                    if not info["physics_unstable"]:
+                        xy.append(info["xy_error"])
+                        z.append(info["z_error"])
+                    if terminated or truncated:
+                        terminated_count += bool(terminated)
+                        break
+            env.close()
+            paper = PAPER_TABLE2.get((terrain, locomotion))
+            rows.append({
+                "terrain": terrain, "locomotion": locomotion, "episodes": episodes, "steps": len(xy),
+                "xy_error_m": float(np.mean(xy)), "z_error_m": float(np.mean(z)),
+                "early_termination_pct": 100.0 * terminated_count / episodes,
+                "paper_xy_error_m": None if paper is None else paper[0],
+                "paper_z_error_m": None if paper is None else paper[1],
+            })
+    return rows
+
+
+def format_rows(rows: Sequence[dict[str, Any]]) -> str:
+    header = f"{'terrain':8s} {'locomotion':12s} {'XY err (m)':>10s} {'Z err (m)':>10s} {'ET (%)':>7s} {'paper XY/Z':>12s}"
+    lines = [header, "-" * len(header)]
+    for r in rows:
+        paper = "-" if r["paper_xy_error_m"] is None else f"{r['paper_xy_error_m']:.2f}/{r['paper_z_error_m']:.2f}"
+        lines.append(f"{r['terrain']:8s} {r['locomotion']:12s} {r['xy_error_m']:10.3f} {r['z_error_m']:10.3f} "
+                     f"{r['early_termination_pct']:7.1f} {paper:>12s}")
+    return "\n".join(lines)
+
+
+def write_rows(rows: Sequence[dict[str, Any]], csv_path: str | Path | None = None,
+               json_path: str | Path | None = None) -> None:
+    if csv_path is not None:
+        with open(csv_path, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    if json_path is not None:
+        Path(json_path).write_text(json.dumps(list(rows), indent=2))
