@@ -347,7 +347,7 @@ def head_profile(s: np.ndarray, ground: np.ndarray, ceiling: np.ndarray, nominal
     margin = check_range("margin", margin, 0.0)
     head_slope = check_range("head_slope", head_slope, 0.0, math.inf, low_open=True)
     head_smoothing = check_range("head_smoothing", head_smoothing, 0.0)
-    s = np.asarray(s, dtype=np.float64)
+    s = np.ascontiguousarray(s, dtype=np.float64)
     u = np.minimum(float(nominal), np.asarray(ceiling, dtype=np.float64) - margin - np.asarray(ground, dtype=np.float64))
     u = np.ascontiguousarray(np.broadcast_to(u, s.shape), dtype=np.float64)
     h = _lipschitz_below(u, s, head_slope)
