@@ -36,7 +36,9 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
+from stairenv.environments.plamo import PlaMoEnv
 from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy
+from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows
@@ -208,14 +210,21 @@ def main(argv: list[str] | None = None) -> Path:
     if args.eval_episodes > 0:
         eval_env = gym.make(args.env, **env_kwargs)
         policy = load_policy(str(model_path), eval_env)
+        is_plamo = isinstance(eval_env.unwrapped, PlaMoEnv)
         eval_env.close()
-        eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
-        report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
-                          env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
-                          progress_bar=not args.no_progress_bar)
-        print(report.format_table())
-        report.to_csv(run_dir / "evaluation.csv")
-        report.to_json(run_dir / "evaluation.json")
+        if is_plamo:  # PlaMo's Table 2: head tracking errors per terrain x locomotion
+            rows = tracking_errors(policy, episodes=args.eval_episodes, seed=10_000 + args.seed, env_id=args.env,
+                                   max_episode_steps=args.eval_max_episode_steps)
+            print(format_rows(rows))
+            write_rows(rows, run_dir / "evaluation.csv", run_dir / "evaluation.json")
+        else:  # InterLevel's Tables 1-3
+            eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
+            report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
+                              env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
+                              progress_bar=not args.no_progress_bar)
+            print(report.format_table())
+            report.to_csv(run_dir / "evaluation.csv")
+            report.to_json(run_dir / "evaluation.json")
     return model_path
 
 

@@ -187,3 +187,19 @@ def test_tracking_error_table(tmp_path):
     assert "stairs" in format_rows(rows)
     write_rows(rows, tmp_path / "t.csv", tmp_path / "t.json")
     assert (tmp_path / "t.csv").read_text().startswith("terrain,locomotion")
+
+
+def test_reference_init_on_terrain():
+    env = gym.make("PlaMo-v0", terrain="stairs", init="reference")
+    u = env.unwrapped
+    from stairenv.motion.rsi import humanoid_geoms
+
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        assert info["reference_start"]
+        mujoco.mj_forward(u.model, u.data)
+        # Nothing of the body starts inside the terrain.
+        geoms = set(humanoid_geoms(u.model, u._idx).tolist())
+        for contact in u.data.contact[: u.data.ncon]:
+            if {int(contact.geom1), int(contact.geom2)} & geoms:
+                assert contact.dist > -0.005

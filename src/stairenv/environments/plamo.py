@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv
 from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z
+from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z, load_reference_library, place_reference_state
 from stairenv.planning.locomotion import get_locomotion
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
@@ -21,6 +21,7 @@ from stairenv.validation import check_choice, check_number
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 
 PATH_GENERATORS = ("coupled", "naive")
+INITS = ("default", "reference", "hybrid")
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
@@ -65,6 +66,7 @@ class PlaMoEnv(HumanoidEnv):
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
+    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose, as InterLevel |
     | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
@@ -81,6 +83,9 @@ class PlaMoEnv(HumanoidEnv):
         heightmap_extent: float = 2.0,
         max_xy_error: float = 2.0,
         min_head_height: float = 0.15,
+        init: str = "default",
+        reference_motion: str | None = None,
+        hybrid_fraction: float = 0.5,
         pd_gains: str = "soft",
         frame_skip: int = 4,
         amp_history: int = 2,
@@ -96,6 +101,9 @@ class PlaMoEnv(HumanoidEnv):
         self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
         self.max_xy_error = check_number("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
         self.min_head_height = check_number("min_head_height", min_head_height, 0.0, 1.0)
+        self.init = check_choice("init", init, INITS)
+        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self._library = None if self.init == "default" else load_reference_library(reference_motion)
         if self.locomotion is not None:
             self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                                speed_range=self.locomotion.speed_range)
@@ -136,12 +144,19 @@ class PlaMoEnv(HumanoidEnv):
         mujoco.mj_resetData(model, data)
         start = rng.uniform(-1.0, 1.0, 2)
         heading = rng.uniform(-math.pi, math.pi)
-        data.qpos[self._idx.qpos_root] = (*start, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-        mujoco.mj_kinematics(model, data)
-        # Stand on the highest ground under the body so no foot starts inside a slope or a step.
-        around = start + 0.35 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
+        # Stand on the highest ground under the body so nothing starts inside a slope or a step.
+        around = start + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
         floor = float(np.max(self.ground_height(np.vstack((start, around)))))
-        data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._reference_start = self.init == "reference" or (
+            self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
+        if self._reference_start:
+            clip_ids, times = self._library.sample(1, rng)
+            ref_qpos, ref_qvel = self._library.states(clip_ids, times)
+            place_reference_state(model, data, self._idx, ref_qpos[0], ref_qvel[0], start, heading, floor)
+        else:
+            data.qpos[self._idx.qpos_root] = (*start, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+            mujoco.mj_kinematics(model, data)
+            data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
 
@@ -220,6 +235,7 @@ class PlaMoEnv(HumanoidEnv):
             "locomotion": None if self.locomotion is None else self.locomotion.name,
             "physics_unstable": False,
             "amp_obs": self._amp.flat(),
+            "reference_start": self._reference_start,
         }
         if terms is not None:
             info.update(zip(task.REWARD_TERMS, terms.tolist()))
