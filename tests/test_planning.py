@@ -7,6 +7,7 @@ analytic trapezoidal profile for the speed QP, and explicit geometry for replann
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import networkx as nx
@@ -44,7 +45,7 @@ def square(i: int, j: int, r: int = 1) -> np.ndarray:
 def path_cost(weights: np.ndarray, cells: np.ndarray) -> float:
     """Sum of edge weights along consecutive cells (inf if a step is not an edge)."""
     total = 0.0
-    for (i, j), (ni, nj) in zip(cells[:-1], cells[1:]):
+    for (i, j), (ni, nj) in itertools.pairwise(cells):
         d = np.nonzero((DI == ni - i) & (DJ == nj - j))[0]
         if len(d) != 1:
             return math.inf
@@ -200,8 +201,8 @@ def test_slope_preference_goes_around_the_hill():
         max_height.append(heights[cells[:, 0], cells[:, 1]].max())
         length.append(float(np.sum(np.linalg.norm(np.diff(cells, axis=0), axis=1))) * 0.1)
     assert max_height[0] > 1.9  # straight over the top
-    assert all(a >= b - 1e-12 for a, b in zip(max_height, max_height[1:]))
-    assert all(a <= b + 1e-12 for a, b in zip(length, length[1:]))
+    assert all(a >= b - 1e-12 for a, b in itertools.pairwise(max_height))
+    assert all(a <= b + 1e-12 for a, b in itertools.pairwise(length))
     assert max_height[-1] < 0.5 * max_height[0] and length[-1] > length[0] + 0.5
 
 
@@ -443,7 +444,7 @@ def test_route_from_instructions():
                                 start=(2.05, 5.05))
     assert [p.segment.locomotion for p in plans] == ["run", "crawl", "walk"]
     assert np.allclose(plans[0].trajectory.xyz[0, :2], (2.05, 5.05))
-    for prev, nxt in zip(plans, plans[1:]):
+    for prev, nxt in itertools.pairwise(plans):
         assert np.allclose(prev.end_xy, nxt.path.xy[0])
         assert nxt.trajectory.start_time == pytest.approx(prev.trajectory.end_time)
     assert plans[1].path.head.max() == pytest.approx(0.4)

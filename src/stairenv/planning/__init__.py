@@ -39,7 +39,7 @@ _EXPORTS = {
     "plan_path": "planner",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = tuple(sorted(_EXPORTS))
 
 
 def __getattr__(name: str):

@@ -51,14 +51,11 @@ def edge_ok(passable, terrain, raw, i, j, ni, nj, length, max_slope, max_step):
         return False
     if not passable[ni, nj]:
         return False
-    if ni != i and nj != j:
-        if not passable[i, nj] or not passable[ni, j]:
-            return False
+    if ni != i and nj != j and (not passable[i, nj] or not passable[ni, j]):
+        return False
     if abs(raw[ni, nj] - raw[i, j]) > max_step:
         return False
-    if abs(terrain[ni, nj] - terrain[i, j]) > max_slope * length:
-        return False
-    return True
+    return abs(terrain[ni, nj] - terrain[i, j]) <= max_slope * length
 
 
 @jit
@@ -81,8 +78,7 @@ def _heuristic(i, j, goal_cells, use_list, bi0, bi1, bj0, bj1, cell):
         best = np.inf
         for k in range(goal_cells.shape[0]):
             h = _octile(abs(i - goal_cells[k, 0]), abs(j - goal_cells[k, 1]), cell)
-            if h < best:
-                best = h
+            best = min(best, h)
         return best
     di = max(bi0 - i, 0, i - bi1)
     dj = max(bj0 - j, 0, j - bj1)
@@ -283,7 +279,7 @@ def edge_weights(costmap: Costmap, passable: np.ndarray | None = None) -> np.nda
 def edge_list(costmap: Costmap, passable: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The graph as undirected edges (u, v, w) with flat node ids u = i W + j, u < v."""
     w = edge_weights(costmap, passable)
-    H, W = costmap.grid.shape
+    W = costmap.grid.shape[1]
     ii, jj, dd = np.nonzero(np.isfinite(w))
     u = ii * W + jj
     v = (ii + _DI[dd]) * W + (jj + _DJ[dd])
@@ -294,7 +290,7 @@ def edge_list(costmap: Costmap, passable: np.ndarray | None = None) -> tuple[np.
 def disc_cells(shape: tuple[int, int], center: tuple[float, float], radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
     """Indices (ii, jj) of the cells whose centres lie within ``radius_cells`` of the fractional cell ``center``."""
     ci, cj = center
-    r = int(math.ceil(radius_cells)) + 1
+    r = math.ceil(radius_cells) + 1
     i0, i1 = max(int(ci) - r, 0), min(int(ci) + r + 1, shape[0])
     j0, j1 = max(int(cj) - r, 0), min(int(cj) + r + 1, shape[1])
     ii, jj = np.mgrid[i0:i1, j0:j1]
@@ -330,7 +326,7 @@ def goal_cells(mask: np.ndarray, target: np.ndarray, reach_cells: float) -> np.n
     ok = mask[target[:, 0], target[:, 1]]
     if ok.any():
         return target[ok]
-    r = int(math.ceil(reach_cells))
+    r = math.ceil(reach_cells)
     H, W = mask.shape
     i0, i1 = max(target[:, 0].min() - r, 0), min(target[:, 0].max() + r + 1, H)
     j0, j1 = max(target[:, 1].min() - r, 0), min(target[:, 1].max() + r + 1, W)

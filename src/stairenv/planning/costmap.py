@@ -77,7 +77,7 @@ class Costmap:
 
 
 def _disc(radius_cells: float) -> np.ndarray:
-    r = int(math.floor(radius_cells))
+    r = math.floor(radius_cells)
     ii, jj = np.mgrid[-r:r + 1, -r:r + 1]
     return ii * ii + jj * jj <= radius_cells * radius_cells + 1e-9
 
@@ -117,7 +117,7 @@ def build_costmap(
     slope_preference = check_range("slope_preference", slope_preference, 0.0, 50.0)
     c = grid.cell_size
     heights = grid.heights
-    n = int(round(slope_window / c))
+    n = round(slope_window / c)
     n += 1 - n % 2  # odd window
     terrain = ndimage.uniform_filter(heights, size=n, mode="nearest") if n > 1 else heights.copy()
     free = ~grid.blocked

@@ -173,7 +173,7 @@ class Planner:
 
     def __init__(self, grid: PlanningGrid, settings: PlannerSettings = PlannerSettings()) -> None:
         if not isinstance(grid, PlanningGrid):
-            raise ValueError(f"grid must be a PlanningGrid, got {type(grid).__name__}")
+            raise TypeError(f"grid must be a PlanningGrid, got {type(grid).__name__}")
         self.grid = grid
         self.settings = settings
         self._costmaps: dict[str, Costmap] = {}

@@ -11,13 +11,16 @@ beneath top obstacles". Three stages, each a function:
    its cost, sum_k w(L / n, dh_k) over its n steps (L its length), is at most the cost of
    the A* sub-path it replaces: with the slope preference the path still goes around hills.
    Galloping then binary search for the farthest such b keeps it O(n log n) line walks.
-2. ``smooth_path``: the polyline is resampled every ``ds`` (<= half a cell) and blended
-   with its Gaussian smoothing (sigma = ``smoothing``):
-       q_k = p_k + alpha_k (g_sigma * p)_k,
-   alpha ramping 0 -> 1 over 2 sigma at both ends (the endpoints stay put) and lowered
-   (smoothly) around every sample whose cell is not passable or whose step from the
-   previous sample is not a graph move, until none is. Passable cells are at least
-   ``body_radius`` from a wall centre (distance transform), so the path keeps that clearance.
+2. ``smooth_path``: the polyline p is resampled every ``ds`` (<= half a cell), then
+   ``rounds`` times smoothed and pushed away from walls:
+       q <- q + alpha (g_s * q - q)            (Gaussian, s = smoothing / sqrt(rounds))
+       q <- q + (d* - d(q)) grad d(q)  where d(q) < d* = body_radius + comfort
+   (d the clearance, a distance transform, so |grad d| = 1 and this projects onto
+   d >= d*); alpha ramps 0 -> 1 over 2 sigma at both ends (the endpoints stay put).
+   Finally q_k = p_k + beta_k (q_k - p_k), beta lowered (smoothly) around every sample
+   whose cell is not passable or whose step from the previous sample is not a graph move,
+   until none is. Passable cells are at least ``body_radius`` from a wall centre
+   (``scipy.ndimage.distance_transform_edt``), so the path keeps that clearance.
 3. ``head_profile``: head height above the ground h(s) under the envelope
        u(s) = min(h_nominal, ceiling_low(s) - margin - ground(s)),
    h = the largest function below u with |dh/ds| <= head_slope, i.e. the lower
@@ -118,9 +121,7 @@ def _string_pull_kernel(passable, terrain, raw, ci, cj, cum, cell, max_slope, ma
         bad = -1
         step = 1
         while True:
-            b = a + 1 + step
-            if b >= n - 1:
-                b = n - 1
+            b = min(a + 1 + step, n - 1)
             if b <= best:
                 break
             if _shortcut_ok(passable, terrain, raw, ci, cj, cum, a, b, cell, max_slope, max_step, height_cost,
@@ -183,7 +184,7 @@ def resample_polyline(points: np.ndarray, ds: float) -> np.ndarray:
     if len(points) < 2:
         return points.copy()
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
-    n = max(int(math.ceil(s[-1] / ds)), 1) + 1
+    n = max(math.ceil(s[-1] / ds), 1) + 1
     t = np.linspace(0.0, s[-1], n)
     return np.stack((np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])), axis=1)
 
@@ -286,7 +287,7 @@ def smooth_path(costmap: Costmap, points: np.ndarray, *, passable: np.ndarray | 
             norm = np.linalg.norm(grad, axis=1)
             push = (d < target) & (norm > 1e-6) & (alpha > 0)
             g[push] += ((target - d[push]) / norm[push])[:, None] * grad[push] * alpha[push, None]
-    reach = int(math.ceil(3.0 * sigma))
+    reach = math.ceil(3.0 * sigma)
     beta = np.ones(len(p))
     for it in range(max_iterations):
         q = p + beta[:, None] * (g - p)
@@ -352,7 +353,7 @@ def head_profile(s: np.ndarray, ground: np.ndarray, ceiling: np.ndarray, nominal
     u = np.ascontiguousarray(np.broadcast_to(u, s.shape), dtype=np.float64)
     h = _lipschitz_below(u, s, head_slope)
     if len(s) > 2 and head_smoothing > 0:
-        w = int(round(head_smoothing / max(s[-1] / (len(s) - 1), 1e-9)))
+        w = round(head_smoothing / max(s[-1] / (len(s) - 1), 1e-9))
         if w >= 2:
             w += 1 - w % 2
             m = ndimage.minimum_filter1d(h, w, mode="nearest")

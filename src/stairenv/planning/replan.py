@@ -168,7 +168,7 @@ def replan(
     if first is None:
         return None
     grid = cm.grid
-    xyz_now, v_now, s_now = traj.sample(float(t_now))
+    xyz_now, v_now, _ = traj.sample(float(t_now))
     start_xy = xyz_now[:2]
     start = tuple(int(x) for x in grid.cell_of(start_xy))
     # the old path from the current position on (as world points with arc length)
@@ -178,7 +178,7 @@ def replan(
     collision = first
     for rounds in range(1, int(max_rounds) + 1):
         obstacle = obstacles[collision.obstacle]
-        times = collision.time + np.linspace(0.0, sweep, max(int(math.ceil(sweep / dt)), 0) + 1)
+        times = collision.time + np.linspace(0.0, sweep, math.ceil(sweep / dt) + 1)
         for xy in np.asarray(obstacle.position(times), dtype=np.float64).reshape(-1, 2):
             discs.append((xy, obstacle.radius + body_radius))
         extra = _blocked_mask(grid.shape, grid, discs)

@@ -160,14 +160,15 @@ def speed_profile(
     v_end: float = 0.0,
     knot_spacing: float = 0.5,
     max_knots: int = 400,
-    eps: float = 1e-6,
+    eps: float = 1e-4,
     max_iter: int = 20000,
 ) -> SpeedProfile:
     """Fastest speed along samples ``s`` under ``v_upper`` (from ``speed_limits``) by the QP above.
 
     a_max (> 0) and a_min (< 0): longitudinal acceleration bounds (m/s^2, PlaMo 0.5 and -0.1).
     v_start, v_end (>= 0): speeds at the ends. knot_spacing (m, > 0) and max_knots (>= 2):
-    QP resolution (longer paths get wider knots). eps: OSQP's absolute/relative tolerance.
+    QP resolution (longer paths get wider knots). eps: OSQP's absolute/relative tolerance
+    (its solution polishing usually makes the result exact; the two passes remove the rest).
     A start speed above the first bound is allowed (the profile brakes from it).
     Raises ``PlanningError("speed")`` if no profile satisfies the bounds.
     """
@@ -213,7 +214,7 @@ def speed_profile(
         raise PlanningError("speed", f"the speed QP failed: OSQP says {status}")
     # remove solver-tolerance violations (only lowers b)
     b = _forward_backward(np.clip(x, lo, ub), delta, a_max, a_min)
-    tol = max(1e-6, 1e3 * eps) * max(1.0, float(ub.max()))
+    tol = 10.0 * eps * max(1.0, float(ub.max()))
     if b[0] < v_start ** 2 - tol or b[-1] < v_end ** 2 - tol:
         raise PlanningError("speed", f"no speed profile satisfies the bounds (start {v_start} m/s, end {v_end} m/s, "
                             f"a_min {a_min} m/s^2): OSQP says {status}")

@@ -98,7 +98,7 @@ def timed_waypoints(trajectory: Trajectory, *, dt: float = 0.1, t_start: float |
     if t0 > t_end:
         t = np.array([t0])
     else:
-        steps = int(math.floor((t_end - t0) / dt + 1e-9))
+        steps = math.floor((t_end - t0) / dt + 1e-9)
         t = t0 + dt * np.arange(steps + 1)
         if t_end - t[-1] > 1e-9:
             t = np.r_[t, t_end]
