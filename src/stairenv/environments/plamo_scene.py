@@ -1,0 +1,237 @@
+"""PlaMo in a scene: instructions are planned into a path online and the humanoid follows it to the last landmark."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
+from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
+from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z
+from stairenv.planning.errors import PlanningError
+from stairenv.planning.planner import Plan, Planner
+from stairenv.planning.replan import predict_collision, replan
+from stairenv.planning.waypoints import Trajectory
+from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.tasks import plamo as task
+from stairenv.tasks.state import read_state
+from stairenv.validation import check_number
+from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene
+
+LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
+PATH_DT = 0.1  # the followed path is sampled every 0.1 s
+
+
+def random_instructions(landmarks: list[str], rng: np.random.Generator, segments: int = 2) -> tuple[str, str]:
+    """A start landmark and instructions visiting ``segments`` other landmarks with random locomotions."""
+    order = list(rng.permutation(landmarks))
+    start, stops = order[0], order[1:segments + 1]
+    verbs = [LOCOMOTION_VERBS[k] for k in rng.choice(["crouch-walk", "walk", "walk", "run"], size=len(stops))]
+    parts = [f"{verbs[0].capitalize()} to the {stops[0]}"]
+    parts += [f"{verb} from the {a} to the {b}" for verb, a, b in zip(verbs[1:], stops[:-1], stops[1:])]
+    return start, ", then ".join(parts)
+
+
+def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float) -> task.PathSamples:
+    """Sample a planned trajectory every PATH_DT seconds (held at the end) as the env's PathSamples."""
+    times = trajectory.start_time + np.arange(int(math.ceil(duration / PATH_DT)) + 1) * PATH_DT
+    xyz, v, _ = trajectory.sample(times)
+    step = np.diff(xyz, axis=0, append=xyz[-1:] + (xyz[-1:] - xyz[-2:-1] if len(xyz) > 1 else 0))
+    moving = np.hypot(step[:, 0], step[:, 1]) > 1e-6
+    yaw = np.where(moving, np.arctan2(step[:, 1], step[:, 0]), np.nan)
+    # Hold the last direction of travel while standing still.
+    valid = np.flatnonzero(~np.isnan(yaw))
+    yaw = np.interp(np.arange(len(yaw)), valid, yaw[valid]) if len(valid) else np.zeros(len(yaw))
+    pitch = np.where(moving, np.arctan2(step[:, 2], np.maximum(np.hypot(step[:, 0], step[:, 1]), 1e-9)), 0.0)
+    head = xyz[:, 2] - ground_height(xyz[:, :2])
+    return task.PathSamples(xyz, head, v, yaw, pitch, PATH_DT)
+
+
+class PlaMoSceneEnv(PlaMoEnv):
+    r"""A generated scene (terrain patches, walls, low ceilings, a moving ball, 4 landmarks) and
+    instructions such as "Walk to the tree, then crawl from the tree to the swing".
+
+    Every reset builds a new scene (``stairenv.world.scenes.generate_scene``), parses the
+    instructions (random ones over the scene's landmarks if ``instructions`` is None),
+    plans them with ``stairenv.planning.Planner`` (A*, refiner, speed QP) from a start
+    landmark, and samples the timed head path. While the episode runs, every
+    ``replan_every`` seconds the planner predicts collisions with the ball over
+    ``replan_horizon`` seconds and replans around it. Observation and reward are
+    PlaMo-v0's; the episode succeeds (``info["success"]``, terminated) when the head
+    is within ``success_radius`` of the last landmark's centre after its planned
+    arrival time. ``info`` also carries ``instructions``, ``replans`` and ``planned_time``.
+
+    | keyword | default | meaning |
+    |---|---|---|
+    | instructions | None | instruction text; None = random over the scene's landmarks |
+    | scene | None | keyword arguments of ``SceneConfig`` |
+    | replan_horizon, replan_every | 1.5, 0.5 | collision look-ahead and check period (s) |
+    | success_radius | 0.75 | head distance to the last landmark that counts as arrived (m) |
+    | max_xy_error | 3.0 | head-target distance that ends the episode (m) |
+    | (others) | | as ``PlaMoEnv`` |
+    """
+
+    def __init__(
+        self,
+        instructions: str | None = None,
+        scene: dict[str, Any] | None = None,
+        replan_horizon: float = 1.5,
+        replan_every: float = 0.5,
+        success_radius: float = 0.75,
+        max_xy_error: float = 3.0,
+        heightmap_size: int = 16,
+        heightmap_extent: float = 2.0,
+        pd_gains: str = "soft",
+        frame_skip: int = 4,
+        amp_history: int = 2,
+        render_mode: str | None = None,
+        width: int = 640,
+        height: int = 480,
+    ) -> None:
+        super().__init__(terrain="flat", heightmap_size=heightmap_size, heightmap_extent=heightmap_extent,
+                         max_xy_error=max_xy_error, pd_gains=pd_gains, frame_skip=frame_skip,
+                         amp_history=amp_history, render_mode=render_mode, width=width, height=height)
+        self.instructions = instructions
+        self.scene_config = SceneConfig(**(scene or {}))
+        self.replan_horizon = check_number("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
+        self.replan_every = check_number("replan_every", replan_every, 0.0, 10.0, low_open=True)
+        self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
+        self._pd_gains = pd_gains
+        self._build_args = (frame_skip, amp_history, render_mode, width, height)
+        self.scene = None
+
+    def ground_height(self, xy: np.ndarray) -> np.ndarray:
+        if getattr(self, "scene", None) is None:
+            return super().ground_height(xy)
+        return self.scene.height_at(xy)
+
+    # --- episode ------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super(PlaMoEnv, self).reset(seed=seed)  # gymnasium's seeding only: this env builds its own world
+        rng = self.np_random
+        self.close()
+        self.scene = generate_scene(self.scene_config, rng)
+        spec = load_humanoid_spec(self._pd_gains)
+        self._scene_handles = add_scene_to_spec(spec, self.scene)
+        self._setup(spec, *self._build_args)
+        self._scene_handles.bind(self.model)
+        self._geoms = humanoid_geoms(self.model, self._idx)
+        self._camera_distance, self._camera_elevation = 7.0, -30.0
+
+        self._planner = Planner(self.scene.planning_grid(cell_size=0.1))
+        # Random instructions are redrawn if the planner finds them impossible in this scene;
+        # the user's own instructions raise the PlanningError (it says why).
+        for attempt in range(10):
+            start_name, text = (None, self.instructions)
+            if text is None:
+                start_name, text = random_instructions(self.scene.landmark_names, rng)
+            start_xy = (self._planner.landmark_point(start_name) if start_name is not None
+                        else np.asarray(self.scene.landmark(self.scene.landmark_names[0]).center, dtype=float))
+            try:
+                self._plans: list[Plan] = self._planner.route(text, start=start_xy)
+                break
+            except PlanningError:
+                if self.instructions is not None or attempt == 9:
+                    raise
+        self._trajectory = _concatenate([p.trajectory for p in self._plans])
+        self.instructions_text = text
+        self._replans = 0
+        self._replan_failures = 0
+        self._refresh_path()
+        goal = self.scene.landmark(self._plans[-1].segment.target)
+        self._goal_xy = np.asarray(goal.center, dtype=float)
+
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        heading = float(self.path.yaw[0])
+        data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+        mujoco.mj_kinematics(model, data)
+        around = start_xy + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
+        floor = float(np.max(self.ground_height(np.vstack((start_xy, around)))))
+        data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._reference_start = False
+        self._hold_pose_ctrl()
+        self._scene_handles.update(model, data, 0.0)
+        mujoco.mj_forward(model, data)
+        self._needs_reset = False
+        self._steps = 0
+        state = read_state(data, self._idx)
+        self._amp.fill(state)
+        obs, results = self._evaluate(state)
+        self._obs = obs
+        return obs, self._scene_info(self._info(results, terms=None), success=False)
+
+    def step(self, action):
+        self._scene_handles.update(self.model, self.data, self.data.time)
+        t = (self._steps + 1) * self.dt
+        if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
+            self._maybe_replan(self._steps * self.dt)
+        obs, reward, terminated, truncated, info = super().step(action)
+        head, _ = self._head()
+        success = t >= self._trajectory.end_time - 1e-9 and \
+            float(np.hypot(*(head[:2] - self._goal_xy))) < self.success_radius
+        return obs, reward, bool(terminated or success), truncated, self._scene_info(info, success)
+
+    # --- pieces -------------------------------------------------------------
+    def _refresh_path(self) -> None:
+        duration = self._trajectory.end_time + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0
+        self.path = path_from_trajectory(self._trajectory, self.ground_height, duration)
+        self.episode_seconds = self._trajectory.end_time
+
+    def _maybe_replan(self, t_now: float) -> None:
+        obstacles = [_GroundTrack(o) for o in self.scene.dynamic_obstacles]
+        if not obstacles or predict_collision(self._trajectory, obstacles, t_now=t_now,
+                                              horizon=self.replan_horizon) is None:
+            return
+        # Replan the segment being followed now; later segments shift in time with it.
+        index = next((k for k, p in enumerate(self._plans) if p.trajectory.end_time >= t_now), len(self._plans) - 1)
+        try:
+            result = replan(self._plans[index], obstacles, t_now=t_now, trajectory=self._trajectory,
+                            horizon=self.replan_horizon)
+        except PlanningError:
+            # No detour from here (e.g. the ball already sweeps over the character): keep the plan.
+            self._replan_failures += 1
+            return
+        if result is None:
+            return
+        shift = result.plan.trajectory.end_time - self._plans[index].trajectory.end_time
+        later = [_shifted(p.trajectory, shift) for p in self._plans[index + 1:]]
+        self._plans[index] = result.plan
+        self._trajectory = _concatenate([result.trajectory] + later)
+        self._replans += 1
+        self._refresh_path()
+
+    def _scene_info(self, info: dict[str, Any], success: bool) -> dict[str, Any]:
+        info.update(success=bool(success), instructions=self.instructions_text, replans=self._replans,
+                    replan_failures=self._replan_failures, planned_time=self._trajectory.end_time)
+        return info
+
+
+class _GroundTrack:
+    """A scene obstacle as the planner sees it: its (x, y) over time and its radius."""
+
+    def __init__(self, obstacle) -> None:
+        self.obstacle = obstacle
+        self.radius = obstacle.radius
+
+    def position(self, t):
+        return np.asarray(self.obstacle.position(t))[..., :2]
+
+
+def _shifted(trajectory: Trajectory, dt: float) -> Trajectory:
+    return Trajectory(trajectory.t + dt, trajectory.s, trajectory.xyz, trajectory.v)
+
+
+def _concatenate(trajectories: list[Trajectory]) -> Trajectory:
+    """One trajectory through consecutive ones (arc length runs on; duplicate joints dropped)."""
+    t, s, xyz, v = [trajectories[0].t], [trajectories[0].s], [trajectories[0].xyz], [trajectories[0].v]
+    for traj in trajectories[1:]:
+        keep = traj.t > t[-1][-1] + 1e-9
+        t.append(traj.t[keep])
+        s.append(s[-1][-1] + traj.s[keep] - traj.s[0])
+        xyz.append(traj.xyz[keep])
+        v.append(traj.v[keep])
+    return Trajectory(np.concatenate(t), np.concatenate(s), np.vstack(xyz), np.concatenate(v))
