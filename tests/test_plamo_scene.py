@@ -59,3 +59,25 @@ def test_success_when_the_head_arrives_after_the_planned_time():
     mujoco.mj_forward(env.model, data)
     _, _, terminated, _, info = env.step(np.zeros(28))
     assert info["success"] and terminated
+
+
+def test_slalom_speed_profiles_and_scene_evaluation(tmp_path):
+    from stairenv.evaluation import ZeroPolicy
+    from stairenv.plamo_evaluation import format_scene_rows, plot_planned_path, scene_episodes
+
+    planned = gym.make("PlaMoScene-v0", scene_kind="slalom").unwrapped
+    planned.reset(seed=0)
+    constant = gym.make("PlaMoScene-v0", scene_kind="slalom", speed_profile="constant", constant_speed=2.0).unwrapped
+    constant.reset(seed=0)
+    assert planned.instructions_text == "Run to the goal"
+    np.testing.assert_allclose(constant.path.speed[:-20], 2.0)  # the same path at one speed
+    length = constant._plans[0].path.length
+    assert constant._trajectory.end_time == pytest.approx(length / 2.0, rel=1e-6)
+    assert planned._trajectory.end_time > constant._trajectory.end_time  # the QP slows down for the turns
+
+    env = gym.make("PlaMoScene-v0")
+    row = scene_episodes(ZeroPolicy(env.action_space), episodes=2, max_episode_steps=10, label="zero")
+    assert row["episodes"] == 2 and 0.0 <= row["success_pct"] <= 100.0
+    assert "zero" in format_scene_rows([row])
+    out = plot_planned_path({}, seed=1, path=tmp_path / "plan.png")
+    assert out.stat().st_size > 10_000

@@ -90,3 +90,94 @@ def write_rows(rows: Sequence[dict[str, Any]], csv_path: str | Path | None = Non
             writer.writerows(rows)
     if json_path is not None:
         Path(json_path).write_text(json.dumps(list(rows), indent=2))
+
+
+def scene_episodes(
+    policy: Callable[[np.ndarray], Any],
+    episodes: int = 20,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    max_episode_steps: int | None = None,
+    label: str = "",
+) -> dict[str, Any]:
+    """Run ``PlaMoScene-v0`` episodes: success rate, mean completion time of successes, replans."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    make_kwargs = dict(env_kwargs or {})
+    if max_episode_steps is not None:
+        make_kwargs["max_episode_steps"] = max_episode_steps
+    env = gym.make("PlaMoScene-v0", **make_kwargs)
+    successes, times, replans, planned = 0, [], [], []
+    for episode in range(episodes):
+        if callable(getattr(policy, "reset", None)):
+            policy.reset(seed + episode)
+        obs, info = env.reset(seed=seed + episode)
+        planned.append(info["planned_time"])
+        while True:
+            obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+            if terminated or truncated:
+                break
+        successes += bool(info["success"])
+        if info["success"]:
+            times.append(info["time"])
+        replans.append(info["replans"])
+    env.close()
+    return {
+        "label": label, "episodes": episodes, "success_pct": 100.0 * successes / episodes,
+        "completion_time_s": float(np.mean(times)) if times else None,
+        "planned_time_s": float(np.mean(planned)), "replans_per_episode": float(np.mean(replans)),
+    }
+
+
+def slalom_comparison(policy: Callable[[np.ndarray], Any], episodes: int = 10, seed: int = 0,
+                      constant_speeds: Sequence[float] = (1.0, 2.0, 3.0, 4.0),
+                      max_episode_steps: int | None = None) -> list[dict[str, Any]]:
+    """PlaMo's slalom test: the planned (QP) speed profile against constant speeds along the same path."""
+    rows = [scene_episodes(policy, episodes, seed, {"scene_kind": "slalom"}, max_episode_steps, "planned speed")]
+    for speed in constant_speeds:
+        rows.append(scene_episodes(policy, episodes, seed,
+                                   {"scene_kind": "slalom", "speed_profile": "constant", "constant_speed": speed},
+                                   max_episode_steps, f"constant {speed:g} m/s"))
+    return rows
+
+
+def format_scene_rows(rows: Sequence[dict[str, Any]]) -> str:
+    header = f"{'run':22s} {'n':>4s} {'success (%)':>11s} {'time (s)':>9s} {'planned (s)':>11s} {'replans':>8s}"
+    lines = [header, "-" * len(header)]
+    for r in rows:
+        time_s = "-" if r["completion_time_s"] is None else f"{r['completion_time_s']:.2f}"
+        lines.append(f"{r['label']:22s} {r['episodes']:4d} {r['success_pct']:11.1f} {time_s:>9s} "
+                     f"{r['planned_time_s']:11.2f} {r['replans_per_episode']:8.2f}")
+    return "\n".join(lines)
+
+
+def plot_planned_path(env_kwargs: dict[str, Any] | None = None, seed: int = 0, path: str | Path = "plamo_plan.png"):
+    """A top view of a scene with the planned head path coloured by speed (as PlaMo's Fig. 8); returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    env = gym.make("PlaMoScene-v0", **(env_kwargs or {})).unwrapped
+    env.reset(seed=seed)
+    scene, traj = env.scene, env._trajectory
+    xmin, xmax, ymin, ymax = scene.bounds
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.imshow(scene.heights, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="Greys", alpha=0.6)
+    for wall in scene.walls:
+        corners = wall.corners_xy()
+        ax.fill(corners[:, 0], corners[:, 1], color="saddlebrown")
+    for ceiling in scene.ceilings:
+        corners = ceiling.corners_xy()
+        ax.fill(corners[:, 0], corners[:, 1], color="tab:blue", alpha=0.25)
+    for landmark in scene.landmarks:
+        ax.add_patch(plt.Circle(landmark.center, landmark.radius, color="tab:green", alpha=0.5))
+        ax.annotate(landmark.name, landmark.center, ha="center")
+    sc = ax.scatter(traj.xyz[:, 0], traj.xyz[:, 1], c=traj.v, cmap="viridis", s=6)
+    fig.colorbar(sc, ax=ax, label="planned speed (m/s)")
+    ax.set_title(env.instructions_text, fontsize=9)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return Path(path)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -18,9 +19,11 @@ from stairenv.planning.waypoints import Trajectory
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
 from stairenv.tasks.state import read_state
-from stairenv.validation import check_number
-from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene
+from stairenv.validation import check_choice, check_number
+from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene, slalom_scene
 
+SCENE_KINDS = ("random", "slalom")
+SPEED_PROFILES = ("planned", "constant")
 LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
 PATH_DT = 0.1  # the followed path is sampled every 0.1 s
 
@@ -68,6 +71,8 @@ class PlaMoSceneEnv(PlaMoEnv):
     |---|---|---|
     | instructions | None | instruction text; None = random over the scene's landmarks |
     | scene | None | keyword arguments of ``SceneConfig`` |
+    | scene_kind | "random" | "random" (generated each reset) or "slalom" (the paper's test, "Run to the goal") |
+    | speed_profile | "planned" | "planned" (the QP) or "constant" (``constant_speed`` along the same path) |
     | replan_horizon, replan_every | 1.5, 0.5 | collision look-ahead and check period (s) |
     | success_radius | 0.75 | head distance to the last landmark that counts as arrived (m) |
     | max_xy_error | 3.0 | head-target distance that ends the episode (m) |
@@ -78,6 +83,9 @@ class PlaMoSceneEnv(PlaMoEnv):
         self,
         instructions: str | None = None,
         scene: dict[str, Any] | None = None,
+        scene_kind: str = "random",
+        speed_profile: str = "planned",
+        constant_speed: float = 1.5,
         replan_horizon: float = 1.5,
         replan_every: float = 0.5,
         success_radius: float = 0.75,
@@ -95,6 +103,9 @@ class PlaMoSceneEnv(PlaMoEnv):
                          max_xy_error=max_xy_error, pd_gains=pd_gains, frame_skip=frame_skip,
                          amp_history=amp_history, render_mode=render_mode, width=width, height=height)
         self.instructions = instructions
+        self.scene_kind = check_choice("scene_kind", scene_kind, SCENE_KINDS)
+        self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
+        self.constant_speed = check_number("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
         self.scene_config = SceneConfig(**(scene or {}))
         self.replan_horizon = check_number("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
         self.replan_every = check_number("replan_every", replan_every, 0.0, 10.0, low_open=True)
@@ -113,7 +124,7 @@ class PlaMoSceneEnv(PlaMoEnv):
         super(PlaMoEnv, self).reset(seed=seed)  # gymnasium's seeding only: this env builds its own world
         rng = self.np_random
         self.close()
-        self.scene = generate_scene(self.scene_config, rng)
+        self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
         spec = load_humanoid_spec(self._pd_gains)
         self._scene_handles = add_scene_to_spec(spec, self.scene)
         self._setup(spec, *self._build_args)
@@ -126,7 +137,9 @@ class PlaMoSceneEnv(PlaMoEnv):
         # the user's own instructions raise the PlanningError (it says why).
         for attempt in range(10):
             start_name, text = (None, self.instructions)
-            if text is None:
+            if self.scene_kind == "slalom":
+                start_name, text = "start", text or "Run to the goal"
+            elif text is None:
                 start_name, text = random_instructions(self.scene.landmark_names, rng)
             start_xy = (self._planner.landmark_point(start_name) if start_name is not None
                         else np.asarray(self.scene.landmark(self.scene.landmark_names[0]).center, dtype=float))
@@ -136,6 +149,8 @@ class PlaMoSceneEnv(PlaMoEnv):
             except PlanningError:
                 if self.instructions is not None or attempt == 9:
                     raise
+        if self.speed_profile == "constant":
+            self._plans = _constant_speed(self._plans, self.constant_speed)
         self._trajectory = _concatenate([p.trajectory for p in self._plans])
         self.instructions_text = text
         self._replans = 0
@@ -219,6 +234,18 @@ class _GroundTrack:
 
     def position(self, t):
         return np.asarray(self.obstacle.position(t))[..., :2]
+
+
+def _constant_speed(plans: list[Plan], speed: float) -> list[Plan]:
+    """The same paths travelled at one constant speed (the slalom baseline), chained in time."""
+    out, t0 = [], 0.0
+    for plan in plans:
+        path = plan.path
+        xyz = np.column_stack((path.xy, path.z_head))
+        trajectory = Trajectory.from_profile(path.s, xyz, np.full(len(path.s), speed), t0=t0)
+        out.append(dataclasses.replace(plan, trajectory=trajectory))
+        t0 = trajectory.end_time
+    return out
 
 
 def _shifted(trajectory: Trajectory, dt: float) -> Trajectory:

@@ -1,0 +1,50 @@
+"""PlaMo scene evaluations: random-scene success rate, the slalom test, and plan plots.
+
+    python baselines/evaluate_plamo_scenes.py scenes --policy PATH --episodes 50     # paper: 81% solved
+    python baselines/evaluate_plamo_scenes.py slalom --policy PATH --episodes 20     # planned vs constant speed
+    python baselines/evaluate_plamo_scenes.py plot --seed 3 --out plan.png           # path coloured by speed
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import gymnasium as gym
+
+from stairenv.evaluation import load_policy
+from stairenv.plamo_evaluation import format_scene_rows, plot_planned_path, scene_episodes, slalom_comparison
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("what", choices=("scenes", "slalom", "plot"))
+    parser.add_argument("--policy", default="zero", help="'random', 'zero' or a Stable-Baselines3 model .zip")
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--max-episode-steps", type=int, default=None)
+    parser.add_argument("--slalom", action="store_true", help="plot the slalom scene")
+    parser.add_argument("--json")
+    parser.add_argument("--out", default="plamo_plan.png")
+    args = parser.parse_args(argv)
+    if args.what == "plot":
+        kwargs = {"scene_kind": "slalom"} if args.slalom else {}
+        print(f"wrote {plot_planned_path(kwargs, args.seed, args.out)}")
+        return
+    if args.episodes < 1:
+        parser.error("--episodes must be >= 1")
+    probe = gym.make("PlaMoScene-v0")
+    policy = load_policy(args.policy, probe, seed=args.seed)
+    probe.close()
+    if args.what == "scenes":
+        rows = [scene_episodes(policy, args.episodes, args.seed, None, args.max_episode_steps, args.policy)]
+    else:
+        rows = slalom_comparison(policy, args.episodes, args.seed, max_episode_steps=args.max_episode_steps)
+    print(format_scene_rows(rows))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
