@@ -1,0 +1,143 @@
+"""SIMS script planning: short scripts, long-story assembly and room retrieval.
+
+* :mod:`~stairenv.scripts.schema` - the short-script JSON Schema, a validator whose errors
+  name the bad field, and the pose rules a keyframe sequence must follow;
+* :mod:`~stairenv.scripts.database` - :class:`Script`/:class:`Keyframe` and the shipped
+  database of 48 short scripts (``data/*.json``; 8 styles x 6, all 5 skills, all three
+  difficulty buckets);
+* :mod:`~stairenv.scripts.embeddings` - offline text encoders (packaged MiniLM, hashing,
+  any callable such as CLIP), reduction to a configurable size, a disk + memory cache;
+* :mod:`~stairenv.scripts.story` - :func:`assemble_story` (theme -> ordered scripts), the
+  optional :class:`LLMBackend`;
+* :mod:`~stairenv.scripts.retrieval` - layout graphs, :func:`required_furniture`,
+  :func:`retrieve_room` by graph edit distance with substitutions and a fallback builder.
+
+Example::
+
+    from stairenv.scripts import load_database, get_encoder, assemble_story, retrieve_room
+    db = load_database()
+    story = assemble_story("a tired evening at home", db, get_encoder("auto"), length=3)
+    match = retrieve_room(story, rooms, fallback=lambda cats: generate_room(cfg, rng, categories=cats))
+    for keyframe, room_node in bind_keyframes(story.keyframes, match): ...
+
+Importing this package does not import torch or sentence-transformers; the MiniLM model
+loads on first use.
+"""
+
+from stairenv.scripts.database import (
+    DATA_DIR,
+    DIFFICULTIES,
+    Keyframe,
+    Script,
+    ScriptDatabase,
+    difficulty_of,
+    load_database,
+)
+from stairenv.scripts.embeddings import (
+    CachedEncoder,
+    CallableEncoder,
+    EncoderUnavailableError,
+    HashingEncoder,
+    MiniLMEncoder,
+    RandomProjection,
+    ReducedEncoder,
+    SubspaceProjection,
+    TextEncoder,
+    cosine_similarity,
+    default_cache_dir,
+    fit_reduction,
+    get_encoder,
+    minilm_available,
+    reduction_corpus,
+)
+from stairenv.scripts.retrieval import (
+    DEFAULT_SUBSTITUTIONS,
+    GEDCosts,
+    NoRoomFoundError,
+    RoomIndex,
+    RoomMatch,
+    bind_keyframes,
+    layout_graph_of,
+    merge_layout_graphs,
+    random_layout_graph,
+    required_furniture,
+    retrieve_room,
+    script_layout_graph,
+    world_room_builder,
+)
+from stairenv.scripts.schema import (
+    FURNITURE,
+    INTERACTIONS,
+    SCRIPT_SCHEMA,
+    SKILLS,
+    STYLES,
+    ScriptValidationError,
+    schema_errors,
+    script_errors,
+    semantic_errors,
+    validate_script,
+)
+from stairenv.scripts.story import (
+    CompletionLLM,
+    LLMBackend,
+    NoLLM,
+    Story,
+    assemble_story,
+    chain_scripts,
+    transition,
+)
+
+__all__ = [
+    "DATA_DIR",
+    "DEFAULT_SUBSTITUTIONS",
+    "DIFFICULTIES",
+    "FURNITURE",
+    "INTERACTIONS",
+    "SCRIPT_SCHEMA",
+    "SKILLS",
+    "STYLES",
+    "CachedEncoder",
+    "CallableEncoder",
+    "CompletionLLM",
+    "EncoderUnavailableError",
+    "GEDCosts",
+    "HashingEncoder",
+    "Keyframe",
+    "LLMBackend",
+    "MiniLMEncoder",
+    "NoLLM",
+    "NoRoomFoundError",
+    "RandomProjection",
+    "ReducedEncoder",
+    "RoomIndex",
+    "RoomMatch",
+    "Script",
+    "ScriptDatabase",
+    "ScriptValidationError",
+    "Story",
+    "SubspaceProjection",
+    "TextEncoder",
+    "assemble_story",
+    "bind_keyframes",
+    "chain_scripts",
+    "cosine_similarity",
+    "default_cache_dir",
+    "difficulty_of",
+    "fit_reduction",
+    "get_encoder",
+    "layout_graph_of",
+    "load_database",
+    "merge_layout_graphs",
+    "minilm_available",
+    "random_layout_graph",
+    "reduction_corpus",
+    "required_furniture",
+    "retrieve_room",
+    "schema_errors",
+    "script_errors",
+    "script_layout_graph",
+    "semantic_errors",
+    "transition",
+    "validate_script",
+    "world_room_builder",
+]
