@@ -25,6 +25,7 @@ def test_wheel_installs_and_makes_env(tmp_path):
     (wheel,) = dist.glob("stairenv-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "stairenv/xml/humanoid.xml" in names
+    assert "stairenv/scripts/data/happy.json" in names  # SIMS script database
     presets = {n for n in names if n.startswith("stairenv/envs/") and n.endswith(".toml")}
     assert {"stairenv/envs/InterLevel-v0.toml", "stairenv/envs/InterLevel2D-v0.toml"} <= presets
 
