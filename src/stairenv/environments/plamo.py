@@ -144,21 +144,10 @@ class PlaMoEnv(HumanoidEnv):
         mujoco.mj_resetData(model, data)
         start = rng.uniform(-1.0, 1.0, 2)
         heading = rng.uniform(-math.pi, math.pi)
-        # Stand on the highest ground under the body so nothing starts inside a slope or a step.
-        around = start + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
-        floor = float(np.max(self.ground_height(np.vstack((start, around)))))
         self._reference_start = self.init == "reference" or (
             self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
-        if self._reference_start:
-            clip_ids, times = self._library.sample(1, rng)
-            ref_qpos, ref_qvel = self._library.states(clip_ids, times)
-            place_reference_state(model, data, self._idx, ref_qpos[0], ref_qvel[0], start, heading, floor)
-        else:
-            data.qpos[self._idx.qpos_root] = (*start, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-            mujoco.mj_kinematics(model, data)
-            data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
-        self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
+        reference = self._library.states(*self._library.sample(1, rng)) if self._reference_start else None
+        self._place_character(start, heading, reference)
 
         self.path = task.random_head_path(
             self.path_config, rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
@@ -191,6 +180,22 @@ class PlaMoEnv(HumanoidEnv):
         return obs, float(terms.sum()), bool(terminated), False, info
 
     # --- pieces -------------------------------------------------------------
+    def _place_character(self, xy: np.ndarray, heading: float, reference=None) -> None:
+        """Put the character at ``xy`` facing ``heading`` on the highest ground under its body
+        (so nothing starts inside a slope or a step): standing, or in a reference state
+        ``(qpos (1, 35), qvel (1, 34))``. Servos hold the pose; runs mj_forward."""
+        model, data = self.model, self.data
+        around = xy + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
+        floor = float(np.max(self.ground_height(np.vstack((xy, around)))))
+        if reference is not None:
+            place_reference_state(model, data, self._idx, reference[0][0], reference[1][0], xy, heading, floor)
+        else:
+            data.qpos[self._idx.qpos_root] = (*xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+            mujoco.mj_kinematics(model, data)
+            data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
+
     def _head(self) -> tuple[np.ndarray, np.ndarray]:
         head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
         return self.data.xpos[self._idx.head_id] + head_mat @ HEAD_CENTRE_OFFSET, head_mat

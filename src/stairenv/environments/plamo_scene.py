@@ -10,13 +10,12 @@ import mujoco
 import numpy as np
 
 from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
-from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid import load_humanoid_spec
+from stairenv.motion.rsi import humanoid_geoms
 from stairenv.planning.errors import PlanningError
 from stairenv.planning.planner import Plan, Planner
 from stairenv.planning.replan import predict_collision, replan
 from stairenv.planning.waypoints import Trajectory
-from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
 from stairenv.tasks.state import read_state
 from stairenv.validation import check_choice, check_number
@@ -161,16 +160,9 @@ class PlaMoSceneEnv(PlaMoEnv):
 
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
-        heading = float(self.path.yaw[0])
-        data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-        mujoco.mj_kinematics(model, data)
-        around = start_xy + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
-        floor = float(np.max(self.ground_height(np.vstack((start_xy, around)))))
-        data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
         self._reference_start = False
-        self._hold_pose_ctrl()
         self._scene_handles.update(model, data, 0.0)
-        mujoco.mj_forward(model, data)
+        self._place_character(np.asarray(start_xy, dtype=float), float(self.path.yaw[0]))
         self._needs_reset = False
         self._steps = 0
         state = read_state(data, self._idx)
