@@ -248,18 +248,13 @@ class PlaMoEnv(HumanoidEnv):
 
     # --- rendering ----------------------------------------------------------
     def render(self):
+        # A renderer made now uploads the current height field itself; an existing one
+        # still holds the previous episode's terrain.
         if self._terrain_dirty and self._camera is not None:
             mujoco.mjr_uploadHField(self.model, self._camera.renderer._mjr_context,
                                     self.model.hfield(self._terrain_slot.name).id)
-        frame = super().render()
-        if self._camera is not None:
-            if self._terrain_dirty:
-                # The first frame after a new terrain was drawn with the old one: draw again.
-                mujoco.mjr_uploadHField(self.model, self._camera.renderer._mjr_context,
-                                        self.model.hfield(self._terrain_slot.name).id)
-                frame = super().render()
-            self._terrain_dirty = False
-        return frame
+        self._terrain_dirty = False
+        return super().render()
 
     def _render_lines(self) -> tuple:
         if self.path is None:
