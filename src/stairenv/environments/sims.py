@@ -1,0 +1,534 @@
+"""SIMS interaction skills: walk, sit, lie, reach and get up with generated furniture."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from functools import cache
+from typing import Any
+
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from stairenv.environments.base import HumanoidEnv
+from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT, load_humanoid_spec
+from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z, load_reference_library, place_reference_state
+from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.tasks import sims as task
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.plamo import heightmap_points
+from stairenv.tasks.state import HEAD, PELVIS, read_state
+from stairenv.validation import check_choice, check_number, check_range
+from stairenv.world.furniture import (
+    FAMILIES,
+    LYING_FAMILIES,
+    SEATING_FAMILIES,
+    PlacedFurniture,
+    add_furniture_to_spec,
+    make_furniture,
+)
+from stairenv.world.rooms import Room, RoomConfig, add_room_to_spec, generate_room
+
+SCENES = ("object", "room")
+INITS = ("default", "reference", "hybrid")
+GETUP_FROM = ("sit", "lie", "any")
+# Families each skill trains on by default (SIMS trains sit/lie/reach on single objects).
+SKILL_FAMILIES: dict[str, tuple[str, ...]] = {
+    "walk": FAMILIES,
+    "sit": (*SEATING_FAMILIES, "bed", "double_bed"),
+    "lie": LYING_FAMILIES,
+    "reach": FAMILIES,
+    "getup": (*SEATING_FAMILIES, "bed", "double_bed"),
+}
+GOAL_SIZE = 4 * task.NUM_CONTACT_JOINTS  # 15 target offsets (3) + 15 mask bits
+_DOF = {name: k for k, name in enumerate(DOF_NAMES)}
+
+
+@cache
+def skill_captions(skill: str) -> tuple[tuple[str, str], ...]:
+    """(style, caption) pairs of the shipped script database's keyframes of ``skill``."""
+    from stairenv.scripts import load_database
+
+    pairs = {(kf.style, kf.caption) for script in load_database() for kf in script.keyframes if kf.skill == skill}
+    return tuple(sorted(pairs))
+
+
+def seated_joint_angles() -> np.ndarray:
+    """(28,) a sitting pose: hips flexed 90 deg, knees 90 deg, elbows slightly bent."""
+    q = np.zeros(len(DOF_NAMES))
+    for side in ("right", "left"):
+        q[_DOF[f"{side}_hip_y"]] = -math.pi / 2
+        q[_DOF[f"{side}_knee"]] = math.pi / 2
+        q[_DOF[f"{side}_elbow"]] = -0.4
+    return q
+
+
+class SIMSEnv(HumanoidEnv):
+    r"""A SIMS interaction skill (Sec. 3.3 and supplement): walk, sit, lie, reach or get up.
+
+    Every reset places the character in a scene (``scene="object"``: one generated piece of
+    furniture of the skill's families, as SIMS trains its skills; ``"room"``: a generated
+    furnished room; or a fixed ``room``), picks the furniture to interact with, a contact
+    goal (``stairenv.tasks.sims.contact_goal``), a caption of the skill from the shipped
+    script database and its text embedding z. The scene is rebuilt (a new MuJoCo model)
+    every ``scene_resample_every`` resets; in between the character's start and the goal change.
+
+    **Observation** (113 + heightmap_size^2 + 60 + text_dim): proprioception as in
+    InterLevel (root height above the floor), an egocentric heightmap of the surrounding
+    objects (``heightmap_size``^2 samples over ``heightmap_extent`` m turned with the root's
+    heading: the highest surface minus the root height; SIMS' pre-generated object heights),
+    the contact goal (for each of the 15 bodies its target g_j minus the root, heading frame,
+    zeros where masked out; then the 15-bit mask) and z (zeros when ``text_conditioned`` is
+    False: SIMS does not condition reach and get up on text). ``observation_structure`` names the slices.
+
+    **Reward** (supplement Eq. 7-13, ``stairenv.tasks.sims``): walk
+    r = 0.4 near + 0.5 far (|x* - x|^2 > 0.5 m^2) or 0.4 near + 0.5 + 0.1 still;
+    sit, lie, reach and get up: r = 0.6 near + 0.4 far or 0.6 near + 0.4, with
+    near = exp(-10 sum_j m_j |g_j - x_j|^2). Terms in ``info`` as ``reward_near``,
+    ``reward_far`` (and ``reward_still``) sum to the reward. The style reward comes from the
+    AMP wrapper: ``info["amp_obs"]`` and, for a text-conditioned discriminator, ``info["amp_condition"]`` (z).
+
+    **Episode**: success when the primary contact (the pelvis; the hand for reach) is within
+    20 cm (sit, reach, walk on the ground, get up) or 30 cm (lie) of its target (``info["success"]``,
+    ``info["success_once"]``, ``info["contact_error"]``); terminated when the head falls below
+    ``fall_height`` (or on success with ``terminate_on_success``); truncated by the TimeLimit or on
+    diverging physics (``info["physics_unstable"]``). Get up starts seated or lying on the piece.
+
+    | keyword | default | meaning |
+    |---|---|---|
+    | skill | "sit" | walk, sit, lie, reach, getup |
+    | scene | "object" | "object" (one piece) or "room" (a generated room); ignored with ``room`` |
+    | room | None | a fixed ``stairenv.world.rooms.Room`` (the state machine's scene) |
+    | families | None | furniture families to draw from (default: those the skill affords) |
+    | scene_resample_every | 10 | resets between scene rebuilds (>= 1) |
+    | details | True | sit: torso at the backrest, hands on armrests; lie: head on the pillow |
+    | text_conditioned | True | put z in the observation (False: zeros) |
+    | text_encoder, text_dim | "auto", 64 | ``stairenv.scripts.get_encoder`` name (or an encoder) and size |
+    | captions | None | (style, caption) pairs to draw from (default: the database's for the skill) |
+    | start_distance | (1.0, 4.0) | start distance from the furniture centre (m), object scenes |
+    | walk_distance | (1.0, 5.0) | walk target distance from the start (m) |
+    | target_speed | (0.8, 1.5) | v* per episode (m/s) |
+    | getup_from | "any" | get up from "sit", "lie" (on lying families) or "any" |
+    | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
+    | fall_height | 0.25 | head height (m) below which the episode ends |
+    | terminate_on_success | False | end the episode at the first success |
+    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states, as InterLevel |
+    | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
+    | render_mode, width, height | None, 640, 480 | as InterLevel |
+    """
+
+    def __init__(
+        self,
+        skill: str = "sit",
+        scene: str = "object",
+        room: Room | None = None,
+        families: Sequence[str] | None = None,
+        scene_resample_every: int = 10,
+        details: bool = True,
+        text_conditioned: bool = True,
+        text_encoder: Any = "auto",
+        text_dim: int = 64,
+        captions: Sequence[tuple[str, str]] | None = None,
+        start_distance: tuple[float, float] = (1.0, 4.0),
+        walk_distance: tuple[float, float] = (1.0, 5.0),
+        target_speed: tuple[float, float] = (0.8, 1.5),
+        getup_from: str = "any",
+        heightmap_size: int = 16,
+        heightmap_extent: float = 2.0,
+        fall_height: float = 0.25,
+        terminate_on_success: bool = False,
+        init: str = "default",
+        reference_motion: str | None = None,
+        hybrid_fraction: float = 0.5,
+        pd_gains: str = "soft",
+        frame_skip: int = 4,
+        amp_history: int = 2,
+        render_mode: str | None = None,
+        width: int = 640,
+        height: int = 480,
+    ) -> None:
+        self.skill = check_choice("skill", skill, task.SKILLS)
+        self.scene = check_choice("scene", scene, SCENES)
+        if room is not None and not isinstance(room, Room):
+            raise ValueError(f"room must be a stairenv.world.rooms.Room, got {type(room).__name__}")
+        self.fixed_room = room
+        self.families = tuple(SKILL_FAMILIES[self.skill] if families is None else families)
+        for family in self.families:
+            check_choice("families", family, FAMILIES)
+        if not self.families:
+            raise ValueError(f"families must name at least one of {list(FAMILIES)}")
+        self.scene_resample_every = int(check_number("scene_resample_every", scene_resample_every, 1, 10**9))
+        self.details = bool(details)
+        self.text_conditioned = bool(text_conditioned)
+        self.text_dim = int(check_number("text_dim", text_dim, 1, 4096))
+        self._encoder_spec = text_encoder
+        self._encoder = None
+        self.captions = tuple(captions) if captions is not None else skill_captions(self.skill)
+        if not self.captions:
+            raise ValueError(f"captions must hold at least one (style, caption) pair for {self.skill}")
+        self.start_distance = check_range("start_distance", start_distance, 0.0, 50.0)
+        self.walk_distance = check_range("walk_distance", walk_distance, 0.0, 50.0)
+        self.target_speed = check_range("target_speed", target_speed, 0.0, 10.0)
+        self.getup_from = check_choice("getup_from", getup_from, GETUP_FROM)
+        self.heightmap_size = int(check_number("heightmap_size", heightmap_size, 1, 128))
+        self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
+        self.fall_height = check_number("fall_height", fall_height, 0.0, 1.5)
+        self.terminate_on_success = bool(terminate_on_success)
+        self.init = check_choice("init", init, INITS)
+        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self._library = None if self.init == "default" else load_reference_library(reference_motion)
+        self._pd_gains = pd_gains
+        self._frame_skip, self._amp_history = frame_skip, amp_history
+        self._render_args = (render_mode, width, height)
+        self._resets = 0
+        self.furniture: dict[str, PlacedFurniture] = {}
+        self.room: Room | None = None
+
+        # A first scene (any rng: reset rebuilds it with the episode's rng) gives the spaces.
+        self._build_scene(np.random.default_rng(0))
+        hm = self.heightmap_size ** 2
+        size = PROPRIOCEPTION_SIZE + hm + GOAL_SIZE + self.text_dim
+        self.observation_space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float64)
+        g0 = PROPRIOCEPTION_SIZE + hm
+        self.observation_structure = {
+            "proprioception": slice(0, PROPRIOCEPTION_SIZE),
+            "heightmap": slice(PROPRIOCEPTION_SIZE, g0),
+            "goal_positions": slice(g0, g0 + 3 * task.NUM_CONTACT_JOINTS),
+            "goal_mask": slice(g0 + 3 * task.NUM_CONTACT_JOINTS, g0 + GOAL_SIZE),
+            "text": slice(g0 + GOAL_SIZE, size),
+        }
+        self.goal: task.ContactGoal | None = None
+
+    # --- scene --------------------------------------------------------------------------------
+    def _build_scene(self, rng: np.random.Generator) -> None:
+        """Generate furniture (or a room) and compile the model with it."""
+        if getattr(self, "_camera", None) is not None:
+            self._camera.close()
+        spec = load_humanoid_spec(self._pd_gains)
+        if self.fixed_room is not None or self.scene == "room":
+            room = self.fixed_room if self.fixed_room is not None else self._random_room(rng)
+            add_room_to_spec(spec, room)
+            self.room = room
+            placed = list(room.furniture)
+            walls = room.walls
+            self._heights = task.SceneHeights.build(placed, walls, bounds=room.bounds)
+            free = room.free_space()
+            ii, jj = np.nonzero(free.free)
+            self._free_xy = np.column_stack((free.origin[0] + (jj + 0.5) * free.cell_size,
+                                             free.origin[1] + (ii + 0.5) * free.cell_size))
+        else:
+            family = self.families[int(rng.integers(0, len(self.families)))]
+            piece = PlacedFurniture(family, make_furniture(family, rng), (0.0, 0.0, float(rng.uniform(-math.pi, math.pi))))
+            add_furniture_to_spec(spec, piece.furniture, piece.pose, piece.name)
+            self.room = None
+            placed = [piece]
+            self._heights = task.SceneHeights.build(placed, margin=self.heightmap_extent + max(self.start_distance[1], 1.0))
+            self._free_xy = None
+        self.furniture = {p.name: p for p in placed}
+        self._setup(spec, self._frame_skip, self._amp_history, *self._render_args)
+        self._geoms = humanoid_geoms(self.model, self._idx)
+        self._humanoid_geom_mask = np.zeros(self.model.ngeom, dtype=bool)
+        self._humanoid_geom_mask[self._geoms] = True
+
+    def _random_room(self, rng: np.random.Generator) -> Room:
+        config = RoomConfig()
+        for _ in range(10):
+            room = generate_room(config, rng)
+            if self.skill == "walk" or any(p.family in self.families for p in room.furniture):
+                return room
+        return generate_room(config, rng, categories=[self.families[int(rng.integers(0, len(self.families)))]])
+
+    def _candidates(self, skill: str) -> list[PlacedFurniture]:
+        families = set(self.families) & set(SKILL_FAMILIES[skill])
+        if skill == "getup" and self.getup_from == "lie":
+            families &= set(LYING_FAMILIES)
+        return [p for p in self.furniture.values() if p.family in families]
+
+    # --- episode ------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        # a fixed room is built once; generated scenes change every scene_resample_every resets
+        if self.fixed_room is None and (seed is not None or self._resets % self.scene_resample_every == 0):
+            self._build_scene(rng)
+        self._resets += 1
+        mujoco.mj_resetData(self.model, self.data)
+
+        candidates = self._candidates(self.skill)
+        target = candidates[int(rng.integers(0, len(candidates)))] if candidates else None
+        if self.skill != "walk" and target is None:
+            raise RuntimeError(f"the scene has no furniture to {self.skill} on among {sorted(self.furniture)}")
+        self._reference_start = False
+        if self.skill == "getup":
+            pose = self.getup_from
+            if pose == "any":
+                pose = "lie" if target.family in LYING_FAMILIES and rng.uniform() < 0.5 else "sit"
+            self._place_on(target, pose)
+            goal = task.contact_goal("getup", target, rng, details=self.details)
+        else:
+            start = self._random_start(rng, target)
+            heading = float(rng.uniform(-math.pi, math.pi))
+            self._reference_start = self.init == "reference" or (
+                self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
+            self._place_standing(start, heading, rng)
+            walk_target = self._random_walk_target(rng, start) if self.skill == "walk" else None
+            goal = task.contact_goal(self.skill, target, rng, walk_target=walk_target, details=self.details)
+        self._needs_reset = False
+        style, caption = self.captions[int(rng.integers(0, len(self.captions)))]
+        return self._begin(goal, caption, style, float(rng.uniform(*self.target_speed)))
+
+    def set_task(self, skill: str, furniture: str | None = None, *, part: str | None = None,
+                 hand: str | None = None, caption: str | None = None, style: str = "neutral",
+                 walk_target: Sequence[float] | None = None, target_speed: float | None = None,
+                 rng: np.random.Generator | None = None):
+        """Switch to a new goal without touching the physics (the state machine's transition).
+
+        ``furniture``: an instance name of ``self.furniture``; ``walk_target`` (x, y) for walk
+        (default: in front of ``furniture``). Returns ``(obs, info)`` like ``reset``.
+        """
+        if self._needs_reset:
+            raise RuntimeError("call reset() before set_task()")
+        check_choice("skill", skill, task.SKILLS)
+        rng = self.np_random if rng is None else rng
+        placed = None
+        if furniture is not None:
+            if furniture not in self.furniture:
+                raise KeyError(f"no furniture named {furniture!r}; the scene has {sorted(self.furniture)}")
+            placed = self.furniture[furniture]
+        if skill == "walk" and walk_target is None:
+            if placed is None:
+                raise ValueError("a walk needs walk_target or furniture")
+            walk_target = self.approach_point(placed)
+        goal = task.contact_goal(skill, placed, rng, part=part, hand=hand, walk_target=walk_target,
+                                 details=self.details)
+        self.skill = skill
+        speed = float(np.mean(self.target_speed)) if target_speed is None else float(target_speed)
+        return self._begin(goal, caption if caption is not None else skill, style, speed)
+
+    def approach_point(self, placed: PlacedFurniture, distance: float = 0.45) -> np.ndarray:
+        """(x, y) where a character stands to use ``placed``: in front of it, on free floor if known."""
+        point = task.standing_point(placed, task.resolve_part(placed.family, None, "reach"), distance)[:2]
+        if self._free_xy is not None and len(self._free_xy):
+            d = np.sum(np.square(self._free_xy - point), axis=1)
+            point = self._free_xy[int(np.argmin(d))]
+        return np.asarray(point, dtype=float)
+
+    def _begin(self, goal: task.ContactGoal, caption: str, style: str, speed: float):
+        self.goal = goal
+        self.caption, self.style = caption, style
+        self._z = self._embed(f"{caption}") if self.text_conditioned else np.zeros(self.text_dim)
+        self._target_speed = speed
+        self._steps = 0
+        self._success_once = False
+        state = read_state(self.data, self._idx)
+        self._prev_root_vel = state.root_lin_vel[0, :2].copy()
+        self._amp.fill(state)
+        obs, results = self._evaluate(state)
+        self._obs = obs
+        self._success_once = results["success"]
+        return obs, self._info(results, None)
+
+    def _embed(self, text: str) -> np.ndarray:
+        if self._encoder is None:
+            if isinstance(self._encoder_spec, str):
+                from stairenv.scripts.embeddings import get_encoder
+
+                self._encoder = get_encoder(self._encoder_spec, dim=self.text_dim)
+            else:
+                self._encoder = self._encoder_spec
+            if self._encoder.dim != self.text_dim:
+                raise ValueError(f"text_encoder gives {self._encoder.dim}-d vectors, text_dim is {self.text_dim}")
+        return np.asarray(self._encoder.encode([text])[0], dtype=np.float64)
+
+    def step(self, action):
+        stable = self._simulate(action)
+        self._steps += 1
+        if not stable:
+            info = self._info(self._last_results, np.zeros(len(self._terms_names())))
+            info["physics_unstable"] = True
+            return self._obs.copy(), 0.0, False, True, info
+        state = read_state(self.data, self._idx)
+        self._amp.push(state)
+        obs, results = self._evaluate(state)
+        self._prev_root_vel = state.root_lin_vel[0, :2].copy()
+        self._success_once |= results["success"]
+        terms = results["terms"]
+        info = self._info(results, terms)
+        terminated = results["fell"] or (self.terminate_on_success and results["success"])
+        self._obs = obs
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(terms.sum()), bool(terminated), False, info
+
+    # --- placement ----------------------------------------------------------------------------
+    def _random_start(self, rng: np.random.Generator, target: PlacedFurniture | None) -> np.ndarray:
+        if self._free_xy is not None and len(self._free_xy):
+            return self._free_xy[int(rng.integers(0, len(self._free_xy)))].copy()
+        centre = target.position if target is not None else np.zeros(2)
+        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
+        for _ in range(100):
+            angle = rng.uniform(-math.pi, math.pi)
+            xy = centre + rng.uniform(*self.start_distance) * np.array([math.cos(angle), math.sin(angle)])
+            if not any(b.contains_xy(xy[None])[0] for b in boxes):
+                return xy
+        radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
+        return centre + np.array([radius, 0.0])
+
+    def _random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
+        if self._free_xy is not None and len(self._free_xy):
+            d = np.linalg.norm(self._free_xy - start, axis=1)
+            ok = np.flatnonzero((d >= self.walk_distance[0]) & (d <= self.walk_distance[1]))
+            pool = ok if len(ok) else np.arange(len(self._free_xy))
+            return self._free_xy[int(rng.choice(pool))].copy()
+        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
+        for _ in range(100):
+            angle = rng.uniform(-math.pi, math.pi)
+            xy = start + rng.uniform(*self.walk_distance) * np.array([math.cos(angle), math.sin(angle)])
+            if not any(b.contains_xy(xy[None])[0] for b in boxes):
+                return xy
+        return start.copy()
+
+    def _place_standing(self, xy: np.ndarray, heading: float, rng: np.random.Generator) -> None:
+        model, data = self.model, self.data
+        if self._reference_start:
+            qpos, qvel = self._library.states(*self._library.sample(1, rng))
+            place_reference_state(model, data, self._idx, qpos[0], qvel[0], xy, heading, 0.0)
+        else:
+            data.qpos[self._idx.qpos_root] = (*xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+            mujoco.mj_kinematics(model, data)
+            data.qpos[self._idx.qpos_root.start + 2] += 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
+
+    def _place_on(self, placed: PlacedFurniture, pose: str) -> None:
+        """Seat the character on (``pose="sit"``) or lay it on (``"lie"``) ``placed``, resting on it."""
+        model, data = self.model, self.data
+        label = task.resolve_part(placed.family, None, "lie" if pose == "lie" else "sit")
+        surface = placed.contact_surface(label)
+        centre_local = placed.to_local(surface.center[None])[0]
+        joints = np.zeros(len(DOF_NAMES))
+        if pose == "sit":
+            joints = seated_joint_angles()
+            bed = placed.family in ("bed", "double_bed")
+            # sit 0.3 m inside the front edge (beds: the long side), facing out
+            if bed:
+                local = np.array([centre_local[0], surface_hi(surface, placed)[1] - 0.3, 0.0])
+                facing_local = np.array([0.0, 1.0, 0.0])
+            else:
+                local = np.array([surface_hi(surface, placed)[0] - 0.3, centre_local[1], 0.0])
+                facing_local = np.array([1.0, 0.0, 0.0])
+            facing = placed.rotation @ facing_local
+            rot = Rotation.from_euler("z", math.atan2(facing[1], facing[0]))
+        else:
+            # head towards the pillow (beds) or along the longer side of the surface (sofas: +y)
+            if "pillow" in placed.furniture.labels:
+                pillow = placed.furniture.contact_surface("pillow", index=0).center
+                head_local = pillow - centre_local
+                head_local[2] = 0.0
+                head_local /= max(np.linalg.norm(head_local), 1e-9)
+            else:
+                head_local = np.array([0.0, 1.0, 0.0])
+            local = centre_local - 0.1 * head_local
+            h = placed.rotation @ head_local
+            up = np.array([0.0, 0.0, 1.0])
+            rot = Rotation.from_matrix(np.column_stack((up, np.cross(h, up), h)))
+        world = placed.to_world(local[None])[0]
+        data.qpos[self._idx.qpos_root] = (world[0], world[1], surface.center[2] + 0.12, *rot.as_quat(scalar_first=True))
+        data.qpos[self._idx.qpos_joints] = joints
+        self._rest_on_contacts()
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
+
+    def _rest_on_contacts(self, iterations: int = 20) -> None:
+        """Raise the character until it no longer penetrates anything (then 2 mm of clearance)."""
+        model, data = self.model, self.data
+        for _ in range(iterations):
+            mujoco.mj_forward(model, data)
+            depth = 0.0
+            for c in data.contact[:data.ncon]:
+                if self._humanoid_geom_mask[c.geom1] != self._humanoid_geom_mask[c.geom2]:
+                    depth = max(depth, -c.dist)
+            if depth <= 0.0:
+                break
+            data.qpos[self._idx.qpos_root.start + 2] += depth + 0.002
+        lowest = humanoid_lowest_z(model, data, self._geoms)
+        if lowest < 0.002:
+            data.qpos[self._idx.qpos_root.start + 2] += 0.002 - lowest
+
+    # --- observation and reward ---------------------------------------------------------------
+    def _terms_names(self) -> tuple[str, ...]:
+        return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
+
+    def _evaluate(self, state) -> tuple[np.ndarray, dict[str, Any]]:
+        goal = self.goal
+        root = state.body_pos[0, PELVIS]
+        root_mat = state.body_mat[0, PELVIS]
+        yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
+        c, s = math.cos(yaw), math.sin(yaw)
+        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                                 np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
+        points = heightmap_points(root[:2], yaw, self.heightmap_size, self.heightmap_extent)
+        heightmap = self._heights.sample(points) - root[2]
+        joints = state.body_pos[0]
+        targets = goal.targets(joints)
+        mask = goal.mask
+        rel = (targets - root) * mask[:, None]
+        rel_heading = np.column_stack((c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1], rel[:, 2]))
+        obs = np.concatenate((proprio, heightmap, rel_heading.ravel(), mask.astype(float), self._z))
+
+        vel = state.root_lin_vel[0, :2]
+        facing = np.array([c, s])
+        if goal.skill == "walk":
+            terms = task.walk_reward_terms(goal.root_target, root, vel, self._prev_root_vel, facing,
+                                           self._target_speed)
+            error = float(np.hypot(*(goal.root_target[:2] - root[:2])))
+        else:
+            terms = task.contact_reward_terms(goal.root_target, root, vel, facing, self._target_speed,
+                                              targets, joints, mask)
+            error = goal.contact_error(joints)
+        results = {
+            "terms": terms,
+            "contact_error": error,
+            "success": bool(error < task.SUCCESS_DISTANCE[goal.skill]),
+            "fell": bool(state.body_pos[0, HEAD, 2] < self.fall_height),
+            "targets": targets,
+        }
+        self._last_results = results
+        return obs, results
+
+    def _info(self, results: dict[str, Any], terms: np.ndarray | None) -> dict[str, Any]:
+        goal = self.goal
+        info = {
+            "skill": goal.skill,
+            "furniture": goal.furniture,
+            "part": goal.part,
+            "caption": self.caption,
+            "style": self.style,
+            "contact_error": results["contact_error"],
+            "success": results["success"],
+            "success_once": self._success_once,
+            "fell": results["fell"],
+            "time": self._steps * self.dt,
+            "physics_unstable": False,
+            "amp_obs": self._amp.flat(),
+            "amp_condition": self._z.astype(np.float32),
+            "reference_start": self._reference_start,
+        }
+        if terms is not None:
+            info.update(zip(self._terms_names(), terms.tolist()))
+        return info
+
+    # --- rendering ----------------------------------------------------------------------------
+    def _render_lines(self) -> tuple:
+        if self.goal is None or not hasattr(self, "_last_results"):
+            return ()
+        joints = self.data.xpos[self._idx.body_ids]
+        targets = self._last_results["targets"]
+        return tuple((joints[j], targets[j], (1.0, 0.5, 0.1, 1.0)) for j in np.flatnonzero(self.goal.mask))
+
+
+def surface_hi(surface, placed: PlacedFurniture) -> np.ndarray:
+    """Largest furniture-frame (x, y) of a world contact surface's corners."""
+    return placed.to_local(surface.corners()).max(axis=0)

@@ -1,0 +1,303 @@
+r"""SIMS interaction skills as pure functions: contact goals, rewards, scene heights.
+
+The five skills (walk, sit, lie, reach, get up) share one goal format (SIMS Sec. 3.3,
+after UniHSI): a target point set for each of the humanoid's 15 bodies (joints) and a
+mask of the bodies that have one. The target of body j is the point of its set nearest
+to it, g_j = argmin_{p in P_j} |p - x_j| (supplement Eq. 13), so "the pelvis on the seat"
+is any point of the seat's top surface (lifted by the body's radius).
+
+Rewards (supplement Eq. 7-13), with x the root (pelvis) position, x* the root target,
+d* the unit direction from x to x* on the ground, v* the target speed, f the facing
+direction on the ground, all distances on the ground (x, y) unless stated:
+
+* walk: far = 0.6 exp(-0.5 |x* - x|^2) + 0.2 exp(-2 (v* - d*.xdot)^2) + 0.2 max(0, d*.f)^2,
+  near = exp(-10 |x* - x|^2), still = exp(-2 |xdot_t - xdot_{t-1}|^2);
+  r = 0.4 near + 0.5 far if |x* - x|^2 > 0.5, else 0.4 near + 0.5 + 0.1 still.
+* contact (sit, lie, reach, get up): far = 0.5 exp(-0.5 |x* - x|^2) + 0.4 exp(-2 (v* - d*.xdot)^2)
+  + 0.1 max(0, d*.f)^2, near = exp(-10 sum_j m_j |g_j - x_j|^2) (3-D);
+  r = 0.6 near + 0.4 far if |x* - x|^2 > 0.5, else 0.6 near + 0.4.
+
+The paper writes the facing term as |d*.f|^2; the public implementations clamp the dot
+product at 0 so that walking backwards earns nothing, and so do we (the two agree when
+the character faces the target's half-plane). The get-up reward is the contact reward
+with the pelvis target at standing height in front of the furniture.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
+from stairenv.world.furniture import PlacedFurniture
+
+SKILLS: tuple[str, ...] = ("walk", "sit", "lie", "reach", "getup")
+CONTACT_JOINTS: tuple[str, ...] = BODY_NAMES
+NUM_CONTACT_JOINTS = len(CONTACT_JOINTS)
+JOINT = {name: k for k, name in enumerate(CONTACT_JOINTS)}
+
+# Success: the primary contact within this distance (m). SIMS: 20 cm sit and reach, 30 cm lie;
+# walk and get up (not in the paper's Table 1) use 20 cm on the pelvis target too.
+SUCCESS_DISTANCE: dict[str, float] = {"walk": 0.2, "sit": 0.2, "lie": 0.3, "reach": 0.2, "getup": 0.2}
+# |x* - x|^2 (m^2) below which the far term is replaced by its maximum (supplement Eq. 7, 11).
+NEAR_SQUARED_DISTANCE = 0.5
+# How far above a surface each body's origin rests when it touches it (its collision radius, m):
+# pelvis capsule 0.09, chest 0.11 (the torso origin sits behind it), head sphere 0.095, hands 0.04.
+CONTACT_CLEARANCE: dict[str, float] = {"pelvis": 0.10, "torso": 0.12, "head": 0.10,
+                                       "right_hand": 0.04, "left_hand": 0.04}
+
+WALK_REWARD_TERMS = ("reward_near", "reward_far", "reward_still")
+CONTACT_REWARD_TERMS = ("reward_near", "reward_far")
+
+# Which part each skill targets by default, per family (schema parts map here too).
+SIT_PART = {"chair": "seat", "armchair": "seat", "stool": "seat", "sofa": "seat",
+            "bed": "bed_surface", "double_bed": "bed_surface"}
+LIE_PART = {"sofa": "seat", "bed": "bed_surface", "double_bed": "bed_surface"}
+REACH_PARTS = {"chair": ("backrest", "seat"), "armchair": ("armrest", "backrest"), "stool": ("seat",),
+               "sofa": ("armrest", "backrest"), "bed": ("bed_surface", "pillow"), "double_bed": ("bed_surface", "pillow"),
+               "table": ("table_top",), "cabinet": ("top", "handle"), "wardrobe": ("handle", "door"),
+               "bookshelf": ("shelf",), "lamp": ("lamp_shade", "pole")}
+# Script part names (stairenv.scripts.schema.PARTS) that are spelt differently on a family.
+PART_ALIASES = {("cabinet", "table_top"): "top", ("lamp", "switch"): "pole", ("wardrobe", "shelf"): "door"}
+REACH_HEIGHT = (0.3, 1.7)  # a standing character's hand reaches targets at these heights (m)
+
+
+# --- rewards -----------------------------------------------------------------------------------
+def _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed):
+    """(|x* - x|^2, velocity term, facing term) on the ground."""
+    delta = np.asarray(target_xy, dtype=float)[:2] - np.asarray(root_xy, dtype=float)[:2]
+    dist2 = float(delta @ delta)
+    norm = math.sqrt(dist2)
+    direction = delta / norm if norm > 1e-9 else np.zeros(2)
+    speed_along = float(direction @ np.asarray(root_vel_xy, dtype=float)[:2])
+    velocity = math.exp(-2.0 * (target_speed - speed_along) ** 2)
+    facing = max(0.0, float(direction @ np.asarray(facing_xy, dtype=float)[:2])) ** 2
+    return dist2, velocity, facing
+
+
+def walk_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
+                      prev_root_vel_xy: np.ndarray, facing_xy: np.ndarray, target_speed: float) -> np.ndarray:
+    """The walk reward's weighted terms (near, far, still), summing to r (supplement Eq. 7-10)."""
+    dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
+    near = math.exp(-10.0 * dist2)
+    if dist2 > NEAR_SQUARED_DISTANCE:
+        far = 0.6 * math.exp(-0.5 * dist2) + 0.2 * velocity + 0.2 * facing
+        return np.array([0.4 * near, 0.5 * far, 0.0])
+    dv = np.asarray(root_vel_xy, dtype=float)[:2] - np.asarray(prev_root_vel_xy, dtype=float)[:2]
+    still = math.exp(-2.0 * float(dv @ dv))
+    return np.array([0.4 * near, 0.5, 0.1 * still])
+
+
+def contact_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
+                         facing_xy: np.ndarray, target_speed: float, goals: np.ndarray, joints: np.ndarray,
+                         mask: np.ndarray) -> np.ndarray:
+    """The contact reward's weighted terms (near, far), summing to r (supplement Eq. 11-13).
+
+    ``goals`` and ``joints`` (15, 3): targets g_j and body positions x_j; ``mask`` (15,).
+    """
+    dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
+    err = np.sum(np.square(goals - joints), axis=-1)
+    near = math.exp(-10.0 * float(np.sum(err * np.asarray(mask, dtype=float))))
+    if dist2 > NEAR_SQUARED_DISTANCE:
+        far = 0.5 * math.exp(-0.5 * dist2) + 0.4 * velocity + 0.1 * facing
+        return np.array([0.6 * near, 0.4 * far])
+    return np.array([0.6 * near, 0.4])
+
+
+# --- contact goals -----------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class ContactGoal:
+    """Target point sets for some of the 15 bodies.
+
+    ``points[j]`` (P_j, 3) world points for the bodies with ``mask[j]``; ``primary`` the body
+    whose distance decides success and the contact error; ``root_target`` x* (3,) for the
+    far / walk terms; ``furniture`` and ``part`` what is touched (None for walk).
+    """
+
+    skill: str
+    points: tuple[np.ndarray | None, ...]
+    primary: int
+    root_target: np.ndarray
+    furniture: str | None = None
+    part: str | None = None
+
+    @property
+    def mask(self) -> np.ndarray:
+        return np.array([p is not None for p in self.points])
+
+    def targets(self, joints: np.ndarray) -> np.ndarray:
+        """g_j (15, 3): the nearest target point of each masked body; unmasked bodies: themselves."""
+        out = np.array(joints, dtype=float, copy=True)
+        for j, pts in enumerate(self.points):
+            if pts is not None:
+                out[j] = pts[int(np.argmin(np.sum(np.square(pts - joints[j]), axis=-1)))]
+        return out
+
+    def contact_error(self, joints: np.ndarray) -> float:
+        """Distance (m) of the primary body to its target set."""
+        pts = self.points[self.primary]
+        return float(np.sqrt(np.min(np.sum(np.square(pts - joints[self.primary]), axis=-1))))
+
+
+def _joint_points(**by_joint: np.ndarray) -> tuple[np.ndarray | None, ...]:
+    points: list[np.ndarray | None] = [None] * NUM_CONTACT_JOINTS
+    for name, pts in by_joint.items():
+        points[JOINT[name]] = np.atleast_2d(np.asarray(pts, dtype=float))
+    return tuple(points)
+
+
+def _surface_points(placed: PlacedFurniture, label: str, clearance: float, count: int = 5,
+                    index: int | None = None, side: str = "auto") -> np.ndarray:
+    surface = placed.contact_surface(label, index=index, side=side)
+    return surface.grid(count) + clearance * surface.normal
+
+
+def resolve_part(family: str, part: str | None, skill: str) -> str:
+    """The furniture label a skill touches: ``part`` (script spelling allowed) or the skill's default."""
+    if part is not None:
+        return PART_ALIASES.get((family, part), part)
+    if skill in ("sit", "getup"):
+        table = {**SIT_PART, **LIE_PART} if skill == "getup" else SIT_PART
+    elif skill == "lie":
+        table = LIE_PART
+    else:
+        return REACH_PARTS[family][0]
+    if family not in table:
+        raise ValueError(f"cannot {skill} on a {family}; possible: {sorted(table)}")
+    return table[family]
+
+
+def standing_point(placed: PlacedFurniture, label: str, distance: float = 0.35) -> np.ndarray:
+    """Where a character stands after getting up from ``label``: in front of the surface's front edge."""
+    surface = placed.contact_surface(label)
+    local_front = placed.to_local(surface.center[None])[0]
+    hi = placed.furniture.bounds[1]
+    front_local = np.array([hi[0] + distance, local_front[1], 0.0])
+    if placed.family in LIE_PART and placed.family != "sofa":
+        # a bed is left from its long side (+y in the furniture frame is as good as -y)
+        front_local = np.array([local_front[0], hi[1] + distance, 0.0])
+    world = placed.to_world(front_local[None])[0]
+    world[2] = STANDING_ROOT_HEIGHT
+    return world
+
+
+def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Generator, *,
+                 part: str | None = None, hand: str | None = None, walk_target: Sequence[float] | None = None,
+                 details: bool = True) -> ContactGoal:
+    """The goal of ``skill`` on ``placed`` (walk: ``walk_target`` (x, y) instead).
+
+    sit: pelvis on the seat (with ``details``: torso at the backrest and hands on the
+    armrests when the piece has them); lie: pelvis on the bed surface / sofa seat and head on
+    the pillow (if any); reach: one hand (``hand`` or random) to a point of ``part`` (default:
+    a reachable part of the family); getup: pelvis at standing height in front of the piece.
+    """
+    if skill not in SKILLS:
+        raise ValueError(f"skill must be one of {list(SKILLS)}, got {skill!r}")
+    if skill == "walk":
+        if walk_target is None:
+            raise ValueError("a walk goal needs walk_target (x, y)")
+        target = np.array([float(walk_target[0]), float(walk_target[1]), STANDING_ROOT_HEIGHT])
+        return ContactGoal("walk", _joint_points(pelvis=target), JOINT["pelvis"], target)
+    if placed is None:
+        raise ValueError(f"a {skill} goal needs a furniture")
+    family = placed.family
+    label = resolve_part(family, part, skill)
+    if label not in placed.furniture.labels:
+        raise ValueError(f"{family} has no part {label!r} ({skill}); its parts: {list(placed.furniture.labels)}")
+    if skill == "getup":
+        target = standing_point(placed, label)
+        return ContactGoal("getup", _joint_points(pelvis=target), JOINT["pelvis"], target, placed.name, label)
+    if skill == "reach":
+        hand = hand if hand is not None else ("right_hand", "left_hand")[int(rng.integers(0, 2))]
+        hand = hand if hand.endswith("_hand") else f"{hand}_hand"
+        if hand not in ("right_hand", "left_hand"):
+            raise ValueError(f"hand must be 'left' or 'right', got {hand!r}")
+        surfaces = placed.furniture.contact_surfaces(label)
+        reachable = [k for k, s in enumerate(surfaces) if REACH_HEIGHT[0] <= s.center[2] <= REACH_HEIGHT[1]]
+        k = int(rng.choice(reachable)) if reachable else int(np.argmin([abs(s.center[2] - 1.0) for s in surfaces]))
+        surface = placed.contact_surface(label, index=k) if len(surfaces) > 1 else placed.contact_surface(label)
+        point = surface.sample(rng, 1, margin=0.05)[0] + CONTACT_CLEARANCE[hand] * surface.normal
+        return ContactGoal("reach", _joint_points(**{hand: point}), JOINT[hand], point.copy(), placed.name, label)
+
+    pelvis = _surface_points(placed, label, CONTACT_CLEARANCE["pelvis"])
+    extra: dict[str, np.ndarray] = {}
+    if details and skill == "sit":
+        if "backrest" in placed.furniture.labels and len(placed.furniture.parts("backrest")) == 1:
+            extra["torso"] = _surface_points(placed, "backrest", CONTACT_CLEARANCE["torso"], 3)
+        armrests = placed.furniture.contact_surfaces("armrest") if "armrest" in placed.furniture.labels else []
+        if len(armrests) == 2:
+            # facing the front (+x), the left hand is on the +y side
+            left, right = sorted(armrests, key=lambda s: -s.center[1])
+            for name, s in (("left_hand", left), ("right_hand", right)):
+                s = s.transformed(placed.rotation, placed.translation)
+                extra[name] = s.grid(3) + CONTACT_CLEARANCE[name] * s.normal
+    if details and skill == "lie" and "pillow" in placed.furniture.labels:
+        extra["head"] = _surface_points(placed, "pillow", CONTACT_CLEARANCE["head"], 3, index=0)
+    centre = pelvis.mean(axis=0)
+    return ContactGoal(skill, _joint_points(pelvis=pelvis, **extra), JOINT["pelvis"], centre, placed.name, label)
+
+
+# --- scene heights ------------------------------------------------------------------------------
+def convex_top_heights(planes: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Top z of a convex solid (planes (F, 4): n . p <= d inside) above points xy (N, 2); -inf off it."""
+    n, d = planes[:, :3], planes[:, 3]
+    rhs = d[None, :] - xy @ n[:, :2].T  # n_z z <= rhs
+    up, down, side = n[:, 2] > 1e-9, n[:, 2] < -1e-9, np.abs(n[:, 2]) <= 1e-9
+    top = np.min(rhs[:, up] / n[up, 2], axis=1) if up.any() else np.full(len(xy), np.inf)
+    bottom = np.max(rhs[:, down] / n[down, 2], axis=1) if down.any() else np.full(len(xy), -np.inf)
+    inside = bottom <= top + 1e-9
+    if side.any():
+        inside &= np.all(rhs[:, side] >= -1e-9, axis=1)
+    return np.where(inside, top, -np.inf)
+
+
+@dataclass(frozen=True, eq=False)
+class SceneHeights:
+    """The height of the highest surface on a grid over a scene (floor = 0): SIMS' pre-generated
+    object heightmap. ``heights`` (rows y, columns x) of cells ``cell_size`` from ``origin``."""
+
+    heights: np.ndarray
+    origin: tuple[float, float]
+    cell_size: float
+
+    @classmethod
+    def build(cls, furniture: Sequence[PlacedFurniture], walls: Sequence = (), *, bounds=None,
+              cell_size: float = 0.05, margin: float = 1.0) -> SceneHeights:
+        """Rasterise the top of every furniture part and wall ``Box`` over ``bounds`` (x0, y0, x1, y1)
+        (default: the furniture's footprints grown by ``margin``)."""
+        if bounds is None:
+            corners = [f.footprint_box().corners_xy() for f in furniture] + [w.corners_xy() for w in walls]
+            pts = np.concatenate(corners) if corners else np.zeros((1, 2))
+            bounds = (*(pts.min(axis=0) - margin), *(pts.max(axis=0) + margin))
+        x0, y0, x1, y1 = (float(v) for v in bounds)
+        cols, rows = max(1, math.ceil((x1 - x0) / cell_size)), max(1, math.ceil((y1 - y0) / cell_size))
+        xs = x0 + (np.arange(cols) + 0.5) * cell_size
+        ys = y0 + (np.arange(rows) + 0.5) * cell_size
+        grid = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
+        heights = np.zeros(len(grid))
+        for placed in furniture:
+            box = placed.footprint_box(margin=cell_size)
+            near = box.contains_xy(grid)
+            if not near.any():
+                continue
+            local = placed.to_local(np.column_stack((grid[near], np.zeros(int(near.sum())))))[:, :2]
+            for part in placed.furniture.part_list:
+                heights[near] = np.maximum(heights[near], convex_top_heights(part.planes, local))
+        for wall in walls:
+            inside = wall.contains_xy(grid)
+            heights[inside] = np.maximum(heights[inside], wall.top)
+        return cls(heights.reshape(rows, cols), (x0, y0), float(cell_size))
+
+    def sample(self, xy: np.ndarray) -> np.ndarray:
+        """Height at world points (..., 2): the containing cell's (0 off the grid)."""
+        p = np.asarray(xy, dtype=float)
+        j = np.floor((p[..., 0] - self.origin[0]) / self.cell_size).astype(np.int64)
+        i = np.floor((p[..., 1] - self.origin[1]) / self.cell_size).astype(np.int64)
+        rows, cols = self.heights.shape
+        ok = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
+        out = np.zeros(p.shape[:-1])
+        out[ok] = self.heights[i[ok], j[ok]]
+        return out

@@ -1,0 +1,258 @@
+"""SIMS skill envs: rewards against the supplement's equations by hand, contact goals,
+success thresholds, scene heights, the five presets (check_env, determinism), set_task."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import stairenv  # noqa: F401
+from stairenv.environments.sims import SIMSEnv
+from stairenv.humanoid import STANDING_ROOT_HEIGHT
+from stairenv.tasks import sims as task
+from stairenv.world.furniture import PlacedFurniture, make_furniture
+from stairenv.world.rooms import RoomConfig, generate_room
+
+SKILL_IDS = ["SIMS-Walk-v0", "SIMS-Sit-v0", "SIMS-Lie-v0", "SIMS-Reach-v0", "SIMS-GetUp-v0"]
+FAST = {"text_encoder": "hashing"}
+
+
+# --- rewards by hand -------------------------------------------------------------------------
+def test_walk_reward_far_branch_by_hand():
+    # target 2 m ahead on x, moving 1 m/s along x, facing 60 deg off the target direction
+    target, root = np.array([2.0, 0.0]), np.array([0.0, 0.0])
+    vel, facing = np.array([1.0, 0.5]), np.array([math.cos(math.pi / 3), math.sin(math.pi / 3)])
+    terms = task.walk_reward_terms(target, root, vel, np.zeros(2), facing, target_speed=1.5)
+    dist2 = 4.0
+    far = 0.6 * math.exp(-0.5 * dist2) + 0.2 * math.exp(-2.0 * (1.5 - 1.0) ** 2) + 0.2 * 0.5 ** 2
+    near = math.exp(-10 * dist2)
+    np.testing.assert_allclose(terms, [0.4 * near, 0.5 * far, 0.0], rtol=1e-12)
+
+
+def test_walk_reward_near_branch_by_hand():
+    # |x* - x|^2 = 0.3^2 + 0.4^2 = 0.25 <= 0.5: far replaced by its maximum, still counts
+    terms = task.walk_reward_terms(np.array([1.3, 2.4]), np.array([1.0, 2.0]), np.array([0.2, 0.1]),
+                                   np.array([0.5, -0.3]), np.array([1.0, 0.0]), 1.0)
+    still = math.exp(-2.0 * (0.3 ** 2 + 0.4 ** 2))
+    np.testing.assert_allclose(terms, [0.4 * math.exp(-10 * 0.25), 0.5, 0.1 * still], rtol=1e-12)
+    assert terms.sum() <= 1.0
+
+
+def test_walk_facing_term_is_clamped_backwards():
+    away = task.walk_reward_terms(np.array([3.0, 0.0]), np.zeros(2), np.zeros(2), np.zeros(2), np.array([-1.0, 0.0]), 1.0)
+    towards = task.walk_reward_terms(np.array([3.0, 0.0]), np.zeros(2), np.zeros(2), np.zeros(2), np.array([1.0, 0.0]), 1.0)
+    assert towards[1] - away[1] == pytest.approx(0.5 * 0.2)
+
+
+def test_contact_reward_by_hand():
+    joints = np.zeros((15, 3))
+    joints[0] = (0.0, 0.0, 0.9)
+    joints[5] = (0.3, -0.2, 1.0)
+    goals = joints.copy()
+    goals[0] = (0.1, 0.0, 0.5)          # pelvis 0.41 m off
+    goals[5] = (0.3, -0.2, 1.2)         # right hand 0.2 m off
+    mask = np.zeros(15, dtype=bool)
+    mask[[0, 5]] = True
+    # far branch: x* 1.5 m away on y
+    terms = task.contact_reward_terms(np.array([0.0, 1.5]), joints[0], np.array([0.0, 0.8]), np.array([0.0, 1.0]),
+                                      1.0, goals, joints, mask)
+    near = math.exp(-10.0 * ((0.1 ** 2 + 0.4 ** 2) + 0.2 ** 2))
+    far = 0.5 * math.exp(-0.5 * 2.25) + 0.4 * math.exp(-2.0 * 0.2 ** 2) + 0.1 * 1.0
+    np.testing.assert_allclose(terms, [0.6 * near, 0.4 * far], rtol=1e-12)
+    # near branch (|x* - x|^2 = 0.49): far term at its maximum 0.4
+    terms = task.contact_reward_terms(np.array([0.7, 0.0]), joints[0], np.zeros(2), np.array([1.0, 0.0]),
+                                      1.0, goals, joints, mask)
+    np.testing.assert_allclose(terms, [0.6 * near, 0.4], rtol=1e-12)
+    # masked-out bodies do not count
+    far_hand = goals.copy()
+    far_hand[9] += 5.0
+    same = task.contact_reward_terms(np.array([0.7, 0.0]), joints[0], np.zeros(2), np.array([1.0, 0.0]),
+                                     1.0, far_hand, joints, mask)
+    np.testing.assert_allclose(same, terms)
+
+
+# --- contact goals ---------------------------------------------------------------------------
+def chair(yaw: float = 0.4) -> PlacedFurniture:
+    return PlacedFurniture("chair_0", make_furniture("armchair", np.random.default_rng(2)), (1.0, -0.5, yaw))
+
+
+def test_goal_targets_are_nearest_points_of_the_part():
+    placed = chair()
+    goal = task.contact_goal("sit", placed, np.random.default_rng(0))
+    assert goal.part == "seat" and goal.furniture == "chair_0"
+    mask = goal.mask
+    assert mask[task.JOINT["pelvis"]] and mask[task.JOINT["torso"]]
+    assert mask[task.JOINT["left_hand"]] and mask[task.JOINT["right_hand"]]  # armrests
+    joints = np.tile(np.array([5.0, 5.0, 1.0]), (15, 1))
+    targets = goal.targets(joints)
+    pelvis_pts = goal.points[0]
+    d = np.linalg.norm(pelvis_pts - joints[0], axis=1)
+    np.testing.assert_allclose(targets[0], pelvis_pts[np.argmin(d)])
+    np.testing.assert_allclose(targets[~mask], joints[~mask])  # unmasked: themselves
+    # pelvis targets lie above the seat's top surface by the pelvis clearance
+    seat = placed.contact_surface("seat")
+    np.testing.assert_allclose((pelvis_pts - seat.center) @ seat.normal, task.CONTACT_CLEARANCE["pelvis"], atol=1e-9)
+    # left hand goes to the armrest on the character's left when seated facing the front
+    left = goal.points[task.JOINT["left_hand"]].mean(axis=0)
+    right = goal.points[task.JOINT["right_hand"]].mean(axis=0)
+    front = placed.rotation[:, 0]
+    assert np.cross(front, left - right)[2] > 0
+
+
+def test_success_thresholds():
+    assert task.SUCCESS_DISTANCE["sit"] == 0.2 and task.SUCCESS_DISTANCE["reach"] == 0.2
+    assert task.SUCCESS_DISTANCE["lie"] == 0.3
+    placed = chair()
+    goal = task.contact_goal("sit", placed, np.random.default_rng(0))
+    joints = np.zeros((15, 3))
+    seat_point = goal.points[0][0]
+    for offset, expected in ((0.19, True), (0.21, False)):
+        joints[0] = seat_point + np.array([0.0, 0.0, offset])
+        assert (goal.contact_error(joints) < task.SUCCESS_DISTANCE["sit"]) is expected
+
+
+def test_reach_and_getup_goals():
+    rng = np.random.default_rng(4)
+    table = PlacedFurniture("table_0", make_furniture("table", rng), (0.0, 0.0, 0.0))
+    goal = task.contact_goal("reach", table, rng, hand="left")
+    assert goal.primary == task.JOINT["left_hand"] and goal.mask.sum() == 1
+    top = table.contact_surface("table_top")
+    assert (goal.points[goal.primary][0] - top.center) @ top.normal == pytest.approx(task.CONTACT_CLEARANCE["left_hand"])
+    getup = task.contact_goal("getup", chair(0.0), rng)
+    assert getup.root_target[2] == pytest.approx(STANDING_ROOT_HEIGHT)
+    assert getup.root_target[0] > chair(0.0).furniture.bounds[1][0] + 1.0 - 1e-9  # in front of the chair
+    with pytest.raises(ValueError, match="cannot lie on a table"):
+        task.contact_goal("lie", table, rng)
+    with pytest.raises(ValueError, match="hand must be"):
+        task.contact_goal("reach", table, rng, hand="middle")
+    with pytest.raises(ValueError, match="table has no part 'shelf'"):
+        task.contact_goal("reach", table, rng, part="shelf")
+    assert task.resolve_part("cabinet", "table_top", "reach") == "top"
+
+
+# --- scene heights ---------------------------------------------------------------------------
+def test_convex_top_heights_of_a_box():
+    # unit cube [0,1]^3 as planes n.p <= d
+    planes = np.array([[1, 0, 0, 1], [-1, 0, 0, 0], [0, 1, 0, 1], [0, -1, 0, 0], [0, 0, 1, 1], [0, 0, -1, 0]], float)
+    z = task.convex_top_heights(planes, np.array([[0.5, 0.5], [1.5, 0.5], [0.0, 1.0]]))
+    assert z[0] == pytest.approx(1.0) and z[1] == -np.inf and z[2] == pytest.approx(1.0)
+
+
+def test_scene_heights_match_furniture_tops():
+    placed = chair(0.0)
+    heights = task.SceneHeights.build([placed], cell_size=0.02)
+    seat = placed.contact_surface("seat")
+    assert heights.sample(seat.center[None, :2])[0] == pytest.approx(seat.center[2], abs=1e-6)
+    assert heights.sample(np.array([[10.0, 10.0]]))[0] == 0.0
+    assert heights.heights.max() == pytest.approx(placed.furniture.height, abs=1e-6)
+
+
+# --- the env ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", SKILL_IDS)
+def test_check_env_and_determinism(env_id):
+    env = gym.make(env_id, **FAST)
+    check_env(env.unwrapped, skip_render_check=True)
+    runs = []
+    for _ in range(2):
+        obs, _ = env.reset(seed=5)
+        trace = [obs]
+        rng = np.random.default_rng(0)
+        for _ in range(25):
+            obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, 28))
+            assert reward == pytest.approx(sum(v for k, v in info.items() if k.startswith("reward_")))
+            trace.append(np.r_[obs, reward])
+            if terminated or truncated:
+                trace.append(env.reset()[0])
+        runs.append(np.concatenate(trace))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_observation_layout_and_text():
+    env = SIMSEnv(skill="sit", families=("chair",), **FAST)
+    obs, info = env.reset(seed=3)
+    s = env.observation_structure
+    assert obs.shape == (113 + 256 + 60 + 64,)
+    mask = obs[s["goal_mask"]]
+    np.testing.assert_array_equal(mask, env.goal.mask.astype(float))
+    goal = obs[s["goal_positions"]].reshape(15, 3)
+    assert np.all(goal[mask == 0] == 0)
+    # the pelvis goal offset has the length of target minus root
+    root = env.data.xpos[env._idx.pelvis_id]
+    targets = env.goal.targets(env.data.xpos[env._idx.body_ids])
+    assert np.linalg.norm(goal[0]) == pytest.approx(np.linalg.norm(targets[0] - root))
+    z = obs[s["text"]]
+    assert np.linalg.norm(z) == pytest.approx(1.0, abs=1e-5)
+    np.testing.assert_array_equal(info["amp_condition"], z.astype(np.float32))
+    off = SIMSEnv(skill="reach", text_conditioned=False, **FAST)
+    assert np.all(off.reset(seed=0)[0][off.observation_structure["text"]] == 0)
+
+
+def test_heightmap_sees_the_furniture():
+    env = SIMSEnv(skill="sit", families=("bed",), start_distance=(1.4, 1.6), **FAST)
+    obs, _ = env.reset(seed=0)
+    hm = obs[env.observation_structure["heightmap"]]
+    root_z = env.data.xpos[env._idx.pelvis_id][2]
+    assert hm.min() == pytest.approx(-root_z)          # floor somewhere
+    assert hm.max() > -root_z + 0.3                   # the bed within 1 m
+
+
+def test_getup_starts_on_the_furniture_and_holding_still_keeps_it_there():
+    env = SIMSEnv(skill="getup", families=("chair",), getup_from="sit", **FAST)
+    obs, info = env.reset(seed=2)
+    seat = env.furniture["chair"].contact_surface("seat")
+    pelvis = env.data.xpos[env._idx.pelvis_id].copy()
+    assert 0.05 < pelvis[2] - seat.center[2] < 0.2
+    hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
+    for _ in range(60):
+        _obs, _reward, terminated, _truncated, info = env.step(hold)
+    assert not terminated and not info["success"]
+    assert np.linalg.norm(env.data.xpos[env._idx.pelvis_id] - pelvis) < 0.1
+
+
+def test_success_flag_when_the_pelvis_is_on_the_seat():
+    env = SIMSEnv(skill="sit", families=("stool",), **FAST)
+    env.reset(seed=1)
+    env._place_on(env.furniture["stool"], "sit")
+    obs, info = env.set_task("sit", "stool")
+    assert info["success"] and info["contact_error"] < 0.2
+    hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
+    _obs, _reward, _terminated, _truncated, info = env.step(hold)
+    assert info["success"] and info["success_once"]
+    assert info["reward_near"] > 0.6 * math.exp(-10 * 0.2 ** 2)
+
+
+def test_room_scene_and_set_task():
+    room = generate_room(RoomConfig(), np.random.default_rng(0), categories=["chair", "table", "bed"])
+    env = SIMSEnv(skill="walk", room=room, **FAST)
+    obs, info = env.reset(seed=0)
+    assert set(env.furniture) == {f.name for f in room.furniture}
+    obs, info = env.set_task("sit", "chair_0", caption="sits down tiredly", style="tired")
+    assert info["skill"] == "sit" and info["furniture"] == "chair_0" and info["caption"] == "sits down tiredly"
+    _obs, info = env.set_task("walk", "bed_0")
+    assert room.free_space().label_at(env.goal.root_target[None, :2])[0] > 0
+    with pytest.raises(KeyError, match="no furniture named 'sofa_9'"):
+        env.set_task("sit", "sofa_9")
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"skill": "fly"}, "skill must be one of"),
+    ({"scene": "house"}, "scene must be one of"),
+    ({"families": ("throne",)}, "families must be one of"),
+    ({"start_distance": (3.0, 1.0)}, "start_distance"),
+    ({"getup_from": "floor"}, "getup_from must be one of"),
+    ({"scene_resample_every": 0}, "scene_resample_every"),
+])
+def test_bad_keywords_name_the_parameter(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        SIMSEnv(**FAST, **kwargs)
+
+
+def test_nan_action_raises():
+    env = SIMSEnv(skill="reach", **FAST)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(28, np.nan))
