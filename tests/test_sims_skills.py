@@ -256,3 +256,12 @@ def test_nan_action_raises():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.full(28, np.nan))
+
+
+def test_compiled_heightmap_matches_the_reference_points():
+    from stairenv.tasks.plamo import heightmap_points
+
+    heights = task.SceneHeights.build([chair(0.3)], cell_size=0.05)
+    root = np.array([1.3, -0.2, 0.9])
+    expected = heights.sample(heightmap_points(root[:2], 0.7, 12, 2.5)) - root[2]
+    np.testing.assert_allclose(heights.egocentric(root, 0.7, 12, 2.5), expected)

@@ -18,7 +18,6 @@ from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z, load_referenc
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.tasks.plamo import heightmap_points
 from stairenv.tasks.state import HEAD, PELVIS, read_state
 from stairenv.validation import check_choice, check_number, check_range
 from stairenv.world.furniture import (
@@ -469,14 +468,13 @@ class SIMSEnv(HumanoidEnv):
         c, s = math.cos(yaw), math.sin(yaw)
         proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                  np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-        points = heightmap_points(root[:2], yaw, self.heightmap_size, self.heightmap_extent)
-        heightmap = self._heights.sample(points) - root[2]
+        heightmap = self._heights.egocentric(root, yaw, self.heightmap_size, self.heightmap_extent)
         joints = state.body_pos[0]
         targets = goal.targets(joints)
         mask = goal.mask
         rel = (targets - root) * mask[:, None]
-        rel_heading = np.column_stack((c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1], rel[:, 2]))
-        obs = np.concatenate((proprio, heightmap, rel_heading.ravel(), mask.astype(float), self._z))
+        rel = rel @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # into the heading frame
+        obs = np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), self._z))
 
         vel = state.root_lin_vel[0, :2]
         facing = np.array([c, s])
@@ -487,7 +485,7 @@ class SIMSEnv(HumanoidEnv):
         else:
             terms = task.contact_reward_terms(goal.root_target, root, vel, facing, self._target_speed,
                                               targets, joints, mask)
-            error = goal.contact_error(joints)
+            error = float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
         results = {
             "terms": terms,
             "contact_error": error,

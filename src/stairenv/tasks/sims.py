@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
+from stairenv.tasks.kernels import jit
 from stairenv.world.furniture import PlacedFurniture
 
 SKILLS: tuple[str, ...] = ("walk", "sit", "lie", "reach", "getup")
@@ -124,22 +125,61 @@ class ContactGoal:
     furniture: str | None = None
     part: str | None = None
 
-    @property
-    def mask(self) -> np.ndarray:
-        return np.array([p is not None for p in self.points])
+    def __post_init__(self) -> None:
+        # All target points in one array with the body each belongs to, for the compiled lookup.
+        sets = [(j, p) for j, p in enumerate(self.points) if p is not None]
+        object.__setattr__(self, "_flat", np.ascontiguousarray(np.concatenate([p for _, p in sets]), dtype=np.float64))
+        object.__setattr__(self, "_owner", np.concatenate([np.full(len(p), j, dtype=np.int64) for j, p in sets]))
+        object.__setattr__(self, "mask", np.array([p is not None for p in self.points]))
 
     def targets(self, joints: np.ndarray) -> np.ndarray:
         """g_j (15, 3): the nearest target point of each masked body; unmasked bodies: themselves."""
-        out = np.array(joints, dtype=float, copy=True)
-        for j, pts in enumerate(self.points):
-            if pts is not None:
-                out[j] = pts[int(np.argmin(np.sum(np.square(pts - joints[j]), axis=-1)))]
-        return out
+        return nearest_targets(self._flat, self._owner, np.ascontiguousarray(joints, dtype=np.float64),
+                               np.empty((NUM_CONTACT_JOINTS, 3)))
 
     def contact_error(self, joints: np.ndarray) -> float:
         """Distance (m) of the primary body to its target set."""
         pts = self.points[self.primary]
         return float(np.sqrt(np.min(np.sum(np.square(pts - joints[self.primary]), axis=-1))))
+
+
+@jit
+def nearest_targets(points, owner, joints, out):
+    """out[j] = the point of ``points`` (P, 3) with ``owner`` j nearest to joints[j]; joints[j] if none."""
+    best = np.full(joints.shape[0], np.inf)
+    out[:] = joints
+    for p in range(points.shape[0]):
+        j = owner[p]
+        d = 0.0
+        for k in range(3):
+            d += (points[p, k] - joints[j, k]) ** 2
+        if d < best[j]:
+            best[j] = d
+            out[j, :] = points[p]
+    return out
+
+
+@jit
+def egocentric_heights(heights, x0, y0, cell, root_x, root_y, root_z, yaw, size, extent, out):
+    """SceneHeights.sample over a size x size grid of ``extent`` m turned with ``yaw``, minus root_z
+    (the same points as ``stairenv.tasks.plamo.heightmap_points``), written to out (size * size)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    rows, cols = heights.shape
+    k = 0
+    for a in range(size):
+        gy = (a + 0.5) / size * extent - extent / 2
+        for b in range(size):
+            gx = (b + 0.5) / size * extent - extent / 2
+            x = root_x + c * gx - s * gy
+            y = root_y + s * gx + c * gy
+            j = int(math.floor((x - x0) / cell))
+            i = int(math.floor((y - y0) / cell))
+            h = 0.0
+            if 0 <= i < rows and 0 <= j < cols:
+                h = heights[i, j]
+            out[k] = h - root_z
+            k += 1
+    return out
 
 
 def _joint_points(**by_joint: np.ndarray) -> tuple[np.ndarray | None, ...]:
@@ -301,3 +341,9 @@ class SceneHeights:
         out = np.zeros(p.shape[:-1])
         out[ok] = self.heights[i[ok], j[ok]]
         return out
+
+    def egocentric(self, root: np.ndarray, yaw: float, size: int, extent: float) -> np.ndarray:
+        """(size * size,) heights around ``root`` turned with ``yaw`` minus the root's height."""
+        return egocentric_heights(self.heights, self.origin[0], self.origin[1], self.cell_size, float(root[0]),
+                                  float(root[1]), float(root[2]), float(yaw), int(size), float(extent),
+                                  np.empty(size * size))
