@@ -265,3 +265,15 @@ def test_compiled_heightmap_matches_the_reference_points():
     root = np.array([1.3, -0.2, 0.9])
     expected = heights.sample(heightmap_points(root[:2], 0.7, 12, 2.5)) - root[2]
     np.testing.assert_allclose(heights.egocentric(root, 0.7, 12, 2.5), expected)
+
+
+def test_captions_fit_the_furniture():
+    from stairenv.environments.sims import captions_for, skill_captions
+
+    sofa = captions_for(skill_captions("sit"), "sofa")
+    assert sofa and all("stool" not in text and "chair" not in text for _, text in sofa)
+    assert any("sofa" in text for _, text in sofa)
+    walks = captions_for(skill_captions("walk"), None)
+    assert walks and not any(" bed" in text for _, text in walks)
+    beds = captions_for(skill_captions("lie"), "bed")
+    assert all("sofa" not in text for _, text in beds)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from functools import cache
 from typing import Any
@@ -52,6 +53,19 @@ def skill_captions(skill: str) -> tuple[tuple[str, str], ...]:
 
     pairs = {(kf.style, kf.caption) for script in load_database() for kf in script.keyframes if kf.skill == skill}
     return tuple(sorted(pairs))
+
+
+def captions_for(captions: Sequence[tuple[str, str]], family: str | None) -> tuple[tuple[str, str], ...]:
+    """The captions that name no furniture other than ``family`` (None: no furniture at all),
+    so that "sits on the stool" is not drawn for a sofa; all of them if none is left."""
+    from stairenv.scripts.schema import FURNITURE
+
+    target = None if family is None else family.replace("_", " ")
+    words = {c: re.compile(rf"\b{c}s?\b") for c in FURNITURE}
+    fitting = tuple((style, text) for style, text in captions
+                    if all(c == target or (target is not None and c in target) or not w.search(text)
+                           for c, w in words.items()))
+    return fitting or tuple(captions)
 
 
 def seated_joint_angles() -> np.ndarray:
@@ -182,6 +196,7 @@ class SIMSEnv(HumanoidEnv):
         self._frame_skip, self._amp_history = frame_skip, amp_history
         self._render_args = (render_mode, width, height)
         self._resets = 0
+        self._caption_pools: dict[str | None, tuple[tuple[str, str], ...]] = {}
         self.furniture: dict[str, PlacedFurniture] = {}
         self.room: Room | None = None
 
@@ -239,6 +254,11 @@ class SIMSEnv(HumanoidEnv):
                 return room
         return generate_room(config, rng, categories=[self.families[int(rng.integers(0, len(self.families)))]])
 
+    def _caption_pool(self, family: str | None) -> tuple[tuple[str, str], ...]:
+        if family not in self._caption_pools:
+            self._caption_pools[family] = captions_for(self.captions, family)
+        return self._caption_pools[family]
+
     def _candidates(self, skill: str) -> list[PlacedFurniture]:
         families = set(self.families) & set(SKILL_FAMILIES[skill])
         if skill == "getup" and self.getup_from == "lie":
@@ -275,7 +295,8 @@ class SIMSEnv(HumanoidEnv):
             walk_target = self._random_walk_target(rng, start) if self.skill == "walk" else None
             goal = task.contact_goal(self.skill, target, rng, walk_target=walk_target, details=self.details)
         self._needs_reset = False
-        style, caption = self.captions[int(rng.integers(0, len(self.captions)))]
+        pool = self._caption_pool(None if target is None or self.skill == "walk" else target.family)
+        style, caption = pool[int(rng.integers(0, len(pool)))]
         return self._begin(goal, caption, style, float(rng.uniform(*self.target_speed)))
 
     def set_task(self, skill: str, furniture: str | None = None, *, part: str | None = None,
