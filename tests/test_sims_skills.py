@@ -202,7 +202,7 @@ def test_heightmap_sees_the_furniture():
 
 def test_getup_starts_on_the_furniture_and_holding_still_keeps_it_there():
     env = SIMSEnv(skill="getup", families=("chair",), getup_from="sit", **FAST)
-    obs, info = env.reset(seed=2)
+    _obs, info = env.reset(seed=2)
     seat = env.furniture["chair"].contact_surface("seat")
     pelvis = env.data.xpos[env._idx.pelvis_id].copy()
     assert 0.05 < pelvis[2] - seat.center[2] < 0.2
@@ -217,7 +217,7 @@ def test_success_flag_when_the_pelvis_is_on_the_seat():
     env = SIMSEnv(skill="sit", families=("stool",), **FAST)
     env.reset(seed=1)
     env._place_on(env.furniture["stool"], "sit")
-    obs, info = env.set_task("sit", "stool")
+    _obs, info = env.set_task("sit", "stool")
     assert info["success"] and info["contact_error"] < 0.2
     hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
     _obs, _reward, _terminated, _truncated, info = env.step(hold)
@@ -228,9 +228,9 @@ def test_success_flag_when_the_pelvis_is_on_the_seat():
 def test_room_scene_and_set_task():
     room = generate_room(RoomConfig(), np.random.default_rng(0), categories=["chair", "table", "bed"])
     env = SIMSEnv(skill="walk", room=room, **FAST)
-    obs, info = env.reset(seed=0)
+    _obs, info = env.reset(seed=0)
     assert set(env.furniture) == {f.name for f in room.furniture}
-    obs, info = env.set_task("sit", "chair_0", caption="sits down tiredly", style="tired")
+    _obs, info = env.set_task("sit", "chair_0", caption="sits down tiredly", style="tired")
     assert info["skill"] == "sit" and info["furniture"] == "chair_0" and info["caption"] == "sits down tiredly"
     _obs, info = env.set_task("walk", "bed_0")
     assert room.free_space().label_at(env.goal.root_target[None, :2])[0] > 0
