@@ -141,3 +141,26 @@ __all__ = [
     "validate_script",
     "world_room_builder",
 ]
+
+# The state machine (stairenv.scripts.machine) imports MuJoCo and the SIMS env: exported lazily
+# so that importing this package stays light.
+_MACHINE_EXPORTS = (
+    "BindingError",
+    "KINEMATIC",
+    "KeyframeResult",
+    "KinematicStandIn",
+    "MachineSettings",
+    "StoryResult",
+    "StoryRunner",
+    "run_script",
+    "story_room",
+)
+__all__ += list(_MACHINE_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _MACHINE_EXPORTS:
+        from stairenv.scripts import machine
+
+        return getattr(machine, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

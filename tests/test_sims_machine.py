@@ -1,0 +1,198 @@
+"""The SIMS state machine: transitions after the dwell time, failures, bindings, whole scripts, the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from stairenv.environments.sims import SIMSEnv
+from stairenv.scripts import Keyframe, load_database
+from stairenv.scripts.machine import (
+    KINEMATIC,
+    BindingError,
+    KinematicStandIn,
+    MachineSettings,
+    StoryRunner,
+    run_script,
+)
+from stairenv.tasks.sims import SUCCESS_DISTANCE
+from stairenv.world.rooms import RoomConfig, generate_room
+
+SKILLS = ("walk", "sit", "lie", "reach", "getup")
+RUN_STORY = Path(__file__).resolve().parents[1] / "baselines" / "run_story.py"
+
+STORY = [
+    Keyframe("walk", "tired", "drags the feet to the chair", "chair"),
+    Keyframe("sit", "tired", "slumps on the chair", "chair", "seat"),
+    Keyframe("getup", "neutral", "gets up from the chair", "chair"),
+    Keyframe("walk", "happy", "skips to the bookshelf", "bookshelf"),
+    Keyframe("reach", "happy", "takes a book with the right hand", "bookshelf", "shelf", "right"),
+]
+BINDING = ["chair_0", "chair_0", "chair_0", "bookshelf_0", "bookshelf_0"]
+
+
+@pytest.fixture(scope="module")
+def env():
+    room = generate_room(RoomConfig(size_x=(4.0, 4.0), size_y=(4.0, 4.0)), np.random.default_rng(3),
+                         categories=["chair", "table", "bookshelf", "cabinet"])
+    env = SIMSEnv(skill="walk", room=room, text_encoder="hashing")
+    yield env
+    env.close()
+
+
+def stand_ins(env) -> dict:
+    return dict.fromkeys(SKILLS, KINEMATIC)
+
+
+class Freeze:
+    """Holds the character where it stands by re-writing its pose (a policy that does nothing
+    and never falls): every goal times out."""
+
+    def __init__(self, env):
+        self.env, self.qpos = env, None
+
+    def __call__(self, obs):
+        env = self.env
+        if self.qpos is None:
+            self.qpos = env.data.qpos.copy()
+        env.data.qpos[:] = self.qpos
+        env.data.qvel[:] = 0.0
+        mujoco.mj_forward(env.model, env.data)
+        q = self.qpos[env._idx.qpos_joints]
+        return np.clip((q - env._ctrl_offset) / env._ctrl_scale, -1, 1)
+
+
+def test_story_runs_in_order_and_moves_on_after_the_dwell_time(env):
+    goals = []
+    stand_in = KinematicStandIn(env)
+
+    def traced(obs):  # one stand-in behind every skill, recording which goal each step served
+        goals.append(env.goal)
+        return stand_in(obs)
+
+    runs = {}
+    for dwell in (0.5, 1.0):
+        goals.clear()
+        runner = StoryRunner(env, dict.fromkeys(SKILLS, traced), MachineSettings(dwell_seconds=dwell))
+        runs[dwell] = result = runner.run(STORY, BINDING, seed=0)
+        assert result.success and [k.outcome for k in result.keyframes] == ["success"] * 5
+        assert result.skills == ["walk", "sit", "getup", "walk", "reach"]
+        assert result.interactions_succeeded == 2
+        # steps per goal, in order, are exactly the keyframes' steps: one goal at a time
+        per_goal = [sum(1 for g in goals if g is goal) for goal in dict.fromkeys(goals)]
+        assert per_goal == [k.steps for k in result.keyframes]
+        dwell_steps = math.ceil(dwell / env.dt - 1e-9)
+        for k in result.keyframes:
+            # the goal held for the whole dwell time right before the transition
+            assert k.seconds - k.held_from == pytest.approx(dwell_steps * env.dt)
+            assert k.contact_error < (MachineSettings().arrive_radius if k.skill == "walk" else SUCCESS_DISTANCE[k.skill])
+            assert k.min_contact_error <= k.contact_error
+        assert [k.furniture for k in result.keyframes] == BINDING
+        assert result.keyframes[4].part == "shelf"
+    # a longer dwell only adds the extra hold: the goals were reached at the same times
+    for short, long in zip(runs[0.5].keyframes, runs[1.0].keyframes):
+        assert long.held_from == pytest.approx(short.held_from, abs=2 * env.dt)
+        assert long.seconds - short.seconds == pytest.approx(0.5, abs=2 * env.dt)
+
+
+def test_a_policy_that_does_nothing_times_out(env):
+    policies = {**stand_ins(env), "walk": Freeze(env)}
+    settings = MachineSettings(dwell_seconds=0.2, max_seconds=1.0)
+    result = StoryRunner(env, policies, settings).run(STORY, BINDING, seed=1)
+    first = result.keyframes[0]
+    assert (first.outcome, first.success, first.held_from) == ("timeout", False, None)
+    assert first.seconds == pytest.approx(1.0) and first.steps == 30
+    assert [k.outcome for k in result.keyframes[1:]] == ["skipped"] * 4
+    assert not result.success and result.skills == ["walk"]
+
+    # going on after the failure: the stand-in takes the character to the chair itself
+    policies["walk"] = Freeze(env)
+    result = StoryRunner(env, policies, MachineSettings(dwell_seconds=0.2, max_seconds=8.0, stop_on_failure=False)
+                         ).run(STORY[:3], BINDING[:3], seed=1)
+    assert [k.outcome for k in result.keyframes] == ["timeout", "success", "success"]
+    assert not result.success and result.skills == ["walk", "sit", "getup"]
+
+
+def test_zero_actions_fail_by_falling_or_timeout(env):
+    zero = np.zeros(28)
+    result = StoryRunner(env, {"walk": lambda obs: zero}, MachineSettings(max_seconds=3.0)).run(
+        STORY[:1], BINDING[:1], seed=2)
+    assert result.keyframes[0].outcome in ("fell", "timeout") and not result.success
+
+
+def test_bad_bindings_raise_clear_errors(env):
+    runner = StoryRunner(env, stand_ins(env))
+    with pytest.raises(BindingError, match=r"keyframe 1 .*no furniture instance 'sofa_9'.*chair_0"):
+        runner.run(STORY, ["chair_0", "sofa_9", "chair_0", "bookshelf_0", "bookshelf_0"])
+    with pytest.raises(BindingError, match="sit needs a furniture instance"):
+        runner.run(STORY[:2], ["chair_0", None])
+    with pytest.raises(BindingError, match="3 entries for 5 keyframes"):
+        runner.run(STORY, BINDING[:3])
+    with pytest.raises(BindingError, match="cannot sit on a table"):
+        runner.run([Keyframe("sit", "neutral", "sits on the table", "table")], ["table_0"])
+    with pytest.raises(BindingError, match="no policy for 'reach'"):
+        StoryRunner(env, {"walk": KINEMATIC}).run(STORY[3:], BINDING[3:])
+    with pytest.raises(BindingError, match="getup without furniture"):
+        runner.run([Keyframe("getup", "neutral", "gets up")], [None])
+    with pytest.raises(ValueError, match="render_mode"):
+        runner.run(STORY[:1], BINDING[:1], video=[])
+    with pytest.raises(ValueError, match="dwell_seconds"):
+        MachineSettings(dwell_seconds=5.0, max_seconds=2.0)
+
+
+def test_getup_without_furniture_part_fallback_and_seated_start(env):
+    keyframes = [
+        Keyframe("getup", "neutral", "gets up"),  # from the chair the run starts on
+        Keyframe("walk", "neutral", "walks to the cabinet", "cabinet"),
+        Keyframe("reach", "neutral", "leans on the cabinet", "cabinet", "armrest"),  # no such part
+        Keyframe("walk", "neutral", "wanders about"),  # no target: a random free point
+    ]
+    runner = StoryRunner(env, stand_ins(env), MachineSettings(dwell_seconds=0.3))
+    result = runner.run(keyframes, [None, "cabinet_0", "cabinet_0", None], seed=4, start_pose="sitting",
+                        start_on="chair_0")
+    assert result.success, [(k.skill, k.outcome) for k in result.keyframes]
+    getup, _, reach, wander = result.keyframes
+    assert getup.furniture == "chair_0"
+    assert reach.note and "'armrest'" in reach.note and reach.part != "armrest"
+    assert wander.furniture is None
+    # every walk target is free floor the stand-in could reach
+    for name in ("chair_0", "bookshelf_0", "cabinet_0"):
+        assert env.room.free_space().label_at(env.approach_point(env.furniture[name])[None])[0] > 0
+
+
+def test_run_script_generates_a_room_and_films_it(tmp_path):
+    script = load_database().get("angry_after_argument")
+    video = tmp_path / "story.mp4"
+    result = run_script(script, seed=0, env_kwargs={"text_encoder": "hashing"}, video=video, video_every=15,
+                        width=160, height=120)
+    assert result.success and result.script_ids == ["angry_after_argument"]
+    assert [k.skill for k in result.keyframes] == [k.skill for k in script.keyframes]
+    assert result.details["room_generated"]
+    assert {"bed", "wardrobe"} <= {f["category"] for f in result.details["room_summary"]["furniture"]}
+    assert video.stat().st_size > 0 and result.frames == sum(k.steps for k in result.keyframes) // 15
+    assert set(result.policies.values()) == {"kinematic stand-in (NOT physics-based: writes qpos)"}
+    json.dumps(result.to_dict())  # plain data
+
+
+def test_run_story_cli(tmp_path):
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    out = tmp_path / "story.json"
+    cmd = [sys.executable, str(RUN_STORY), "--script", "tired_bedtime", "--no-video", "--json", str(out),
+           "--text-encoder", "hashing", "--dwell", "0.5"]
+    done = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "kinematic stand-in (NOT physics-based" in done.stdout and "story succeeded" in done.stdout
+    data = json.loads(out.read_text())
+    assert data["script"] == "tired_bedtime" and data["result"]["success"]
+    assert len(data["result"]["keyframes"]) == len(data["story"]["keyframes"])
+    bad = subprocess.run([sys.executable, str(RUN_STORY), "--script", "no_such_script", "--no-video"],
+                         check=False, capture_output=True, text=True, timeout=300, env=env)
+    assert bad.returncode != 0 and "no_such_script" in bad.stderr
