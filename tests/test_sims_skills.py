@@ -132,6 +132,16 @@ def test_reach_and_getup_goals():
     with pytest.raises(ValueError, match="table has no part 'shelf'"):
         task.contact_goal("reach", table, rng, part="shelf")
     assert task.resolve_part("cabinet", "table_top", "reach") == "top"
+    assert task.resolve_part("cabinet", "shelf", "reach") == "door"  # scripts reach for a cabinet's shelf
+    # reach targets stay within a standing character's reach even on tall parts
+    lamp = PlacedFurniture("lamp_0", make_furniture("lamp", rng), (0.0, 0.0, 0.0))
+    heights = [task.contact_goal("reach", lamp, rng, part="switch").root_target[2] for _ in range(50)]
+    assert task.REACH_HEIGHT[0] <= min(heights) and max(heights) <= task.REACH_HEIGHT[1] + 0.05
+    # standing points work for pieces with several parts of the label (two armrests, four shelves)
+    for family in ("sofa", "bookshelf", "wardrobe", "armchair"):
+        piece = PlacedFurniture("p", make_furniture(family, rng), (0.0, 0.0, 0.0))
+        point = task.standing_point(piece, task.resolve_part(family, None, "reach"))
+        assert point[0] > piece.furniture.bounds[1][0]
 
 
 # --- scene heights ---------------------------------------------------------------------------
@@ -277,3 +287,16 @@ def test_captions_fit_the_furniture():
     assert walks and not any(" bed" in text for _, text in walks)
     beds = captions_for(skill_captions("lie"), "bed")
     assert all("sofa" not in text for _, text in beds)
+
+
+def test_seated_start_rests_on_the_seat_even_at_a_table():
+    for seed in (0, 3, 7):  # rooms whose two chairs stand at the table (their shins touch its legs)
+        room = generate_room(RoomConfig(), np.random.default_rng(seed), categories=["table", "chair", "chair"])
+        env = SIMSEnv(skill="getup", room=room, **FAST)
+        env.reset(seed=0)
+        for name in ("chair_0", "chair_1"):
+            assert np.linalg.norm(env.furniture[name].position - env.furniture["table_0"].position) < 0.9
+            env._place_on(env.furniture[name], "sit")
+            _obs, info = env.set_task("sit", name)
+            assert info["contact_error"] < task.SUCCESS_DISTANCE["sit"], (seed, name)
+        assert env.skill == "getup"  # set_task leaves the episode skill alone

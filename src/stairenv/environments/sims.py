@@ -242,6 +242,8 @@ class SIMSEnv(HumanoidEnv):
             self._free_xy = None
         self.furniture = {p.name: p for p in placed}
         self._setup(spec, self._frame_skip, self._amp_history, *self._render_args)
+        if self.room is not None:  # look down over the walls
+            self._camera_distance, self._camera_elevation = 5.0, -65.0
         self._geoms = humanoid_geoms(self.model, self._idx)
         self._humanoid_geom_mask = np.zeros(self.model.ngeom, dtype=bool)
         self._humanoid_geom_mask[self._geoms] = True
@@ -323,7 +325,7 @@ class SIMSEnv(HumanoidEnv):
             walk_target = self.approach_point(placed)
         goal = task.contact_goal(skill, placed, rng, part=part, hand=hand, walk_target=walk_target,
                                  details=self.details)
-        self.skill = skill
+        # self.skill stays the episode skill that reset() draws; the goal carries the current one
         speed = float(np.mean(self.target_speed)) if target_speed is None else float(target_speed)
         return self._begin(goal, caption if caption is not None else skill, style, speed)
 
@@ -433,12 +435,14 @@ class SIMSEnv(HumanoidEnv):
             joints = seated_joint_angles()
             bed = placed.family in ("bed", "double_bed")
             # sit 0.3 m inside the front edge (beds: the long side), facing out
-            if bed:
-                local = np.array([centre_local[0], surface_hi(surface, placed)[1] - 0.3, 0.0])
-                facing_local = np.array([0.0, 1.0, 0.0])
-            else:
-                local = np.array([surface_hi(surface, placed)[0] - 0.3, centre_local[1], 0.0])
-                facing_local = np.array([1.0, 0.0, 0.0])
+            # 0.3 m inside the front edge, less on shallow seats (the back must not hit the backrest)
+            axis = 1 if bed else 0
+            depth = float(np.ptp(placed.to_local(surface.corners())[:, axis]))
+            inset = min(0.3, max(depth - 0.12, 0.5 * depth))
+            local = centre_local.copy()
+            local[axis] = surface_hi(surface, placed)[axis] - inset
+            local[2] = 0.0
+            facing_local = np.eye(3)[axis]
             facing = placed.rotation @ facing_local
             rot = Rotation.from_euler("z", math.atan2(facing[1], facing[0]))
         else:
@@ -457,18 +461,25 @@ class SIMSEnv(HumanoidEnv):
         world = placed.to_world(local[None])[0]
         data.qpos[self._idx.qpos_root] = (world[0], world[1], surface.center[2] + 0.12, *rot.as_quat(scalar_first=True))
         data.qpos[self._idx.qpos_joints] = joints
-        self._rest_on_contacts()
+        self._rest_on_contacts(placed.name)
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
 
-    def _rest_on_contacts(self, iterations: int = 20) -> None:
-        """Raise the character until it no longer penetrates anything (then 2 mm of clearance)."""
+    def _rest_on_contacts(self, body_name: str, iterations: int = 20) -> None:
+        """Raise the character until it no longer penetrates the floor or the piece ``body_name``
+        (then 2 mm of clearance). Other pieces (a table a chair stands at) are ignored: rising
+        over them would put the character on the table."""
         model, data = self.model, self.data
+        support = {model.body(body_name).id, 0}
         for _ in range(iterations):
             mujoco.mj_forward(model, data)
             depth = 0.0
             for c in data.contact[:data.ncon]:
-                if self._humanoid_geom_mask[c.geom1] != self._humanoid_geom_mask[c.geom2]:
+                ours = self._humanoid_geom_mask[c.geom1], self._humanoid_geom_mask[c.geom2]
+                if ours[0] == ours[1]:
+                    continue
+                other = c.geom2 if ours[0] else c.geom1
+                if model.geom_bodyid[other] in support:
                     depth = max(depth, -c.dist)
             if depth <= 0.0:
                 break

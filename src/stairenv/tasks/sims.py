@@ -62,7 +62,8 @@ REACH_PARTS = {"chair": ("backrest", "seat"), "armchair": ("armrest", "backrest"
                "table": ("table_top",), "cabinet": ("top", "handle"), "wardrobe": ("handle", "door"),
                "bookshelf": ("shelf",), "lamp": ("lamp_shade", "pole")}
 # Script part names (stairenv.scripts.schema.PARTS) that are spelt differently on a family.
-PART_ALIASES = {("cabinet", "table_top"): "top", ("lamp", "switch"): "pole", ("wardrobe", "shelf"): "door"}
+PART_ALIASES = {("cabinet", "table_top"): "top", ("cabinet", "shelf"): "door", ("lamp", "switch"): "pole",
+                ("wardrobe", "shelf"): "door"}
 REACH_HEIGHT = (0.3, 1.7)  # a standing character's hand reaches targets at these heights (m)
 
 
@@ -172,8 +173,8 @@ def egocentric_heights(heights, x0, y0, cell, root_x, root_y, root_z, yaw, size,
             gx = (b + 0.5) / size * extent - extent / 2
             x = root_x + c * gx - s * gy
             y = root_y + s * gx + c * gy
-            j = int(math.floor((x - x0) / cell))
-            i = int(math.floor((y - y0) / cell))
+            j = math.floor((x - x0) / cell)
+            i = math.floor((y - y0) / cell)
             h = 0.0
             if 0 <= i < rows and 0 <= j < cols:
                 h = heights[i, j]
@@ -212,8 +213,8 @@ def resolve_part(family: str, part: str | None, skill: str) -> str:
 
 def standing_point(placed: PlacedFurniture, label: str, distance: float = 0.35) -> np.ndarray:
     """Where a character stands after getting up from ``label``: in front of the surface's front edge."""
-    surface = placed.contact_surface(label)
-    local_front = placed.to_local(surface.center[None])[0]
+    # several parts of a label (two armrests, four shelves): their mean centre, furniture frame
+    local_front = np.mean([s.center for s in placed.furniture.contact_surfaces(label)], axis=0)
     hi = placed.furniture.bounds[1]
     front_local = np.array([hi[0] + distance, local_front[1], 0.0])
     if placed.family in LIE_PART and placed.family != "sofa":
@@ -259,7 +260,12 @@ def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Gene
         reachable = [k for k, s in enumerate(surfaces) if REACH_HEIGHT[0] <= s.center[2] <= REACH_HEIGHT[1]]
         k = int(rng.choice(reachable)) if reachable else int(np.argmin([abs(s.center[2] - 1.0) for s in surfaces]))
         surface = placed.contact_surface(label, index=k) if len(surfaces) > 1 else placed.contact_surface(label)
-        point = surface.sample(rng, 1, margin=0.05)[0] + CONTACT_CLEARANCE[hand] * surface.normal
+        # a tall part (a lamp pole, a door) has points out of reach: draw among the reachable ones
+        candidates = surface.sample(rng, 32, margin=0.05)
+        heights = candidates[:, 2]
+        ok = (heights >= REACH_HEIGHT[0]) & (heights <= REACH_HEIGHT[1])
+        point = candidates[int(np.flatnonzero(ok)[0])] if ok.any() else candidates[int(np.argmin(abs(heights - 1.0)))]
+        point = point + CONTACT_CLEARANCE[hand] * surface.normal
         return ContactGoal("reach", _joint_points(**{hand: point}), JOINT[hand], point.copy(), placed.name, label)
 
     pelvis = _surface_points(placed, label, CONTACT_CLEARANCE["pelvis"])
