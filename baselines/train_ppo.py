@@ -6,6 +6,7 @@
     python baselines/train_ppo.py --env-kwarg target_speed=0.8 --timesteps 5e6
     python baselines/train_ppo.py --config my_run.toml    # any of the flags below as keys
     python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
+    python baselines/train_ppo.py --preset style-short    # instance noise + stable PPO for short runs (below)
 
 Paper settings (InterLevel, BRIEF section 2): learning rate 2e-5 constant, MLP
 [1024, 512] ReLU for policy and value, gradient-norm clip 1.0, entropy 0,
@@ -14,6 +15,30 @@ Style: the AMP discriminator wrapper (``stairenv.style.wrappers``) trained on
 reference clips (``--reference``; default: the built-in synthesised walks and
 stair ascents), reward 0.5 task + 0.5 style, episodes started half from
 reference states (``--init hybrid``).
+
+``--preset style-short`` (``PRESETS``; flags and ``--config`` keys win over it),
+from 35-minute (~1M-step) runs on InterLevel-v0 with the built-in clips on a
+2-core CPU. Without instance noise (the preset otherwise) the discriminator
+wins within ~100k steps (accuracy ~1) and the style reward falls for the whole
+run (0.35 -> 0.09 over 1.1M steps); slower discriminators (lr 1e-5, one
+minibatch per round), weight decay 1e-3, higher style weight and lower action
+noise only delay or shift the fall. Two causes were found:
+
+- 22 of the 105 per-frame features never vary in the synthesised reference
+  clips (no roll, fixed arm joints, zero velocity in several DoFs), so any agent
+  window is rejected on a hair's breadth. Instance noise on the
+  discriminator's training inputs (``--disc-input-noise 1``) blunts that
+  shortcut (same run otherwise): the style reward then rises after the discriminator's first
+  trough (0.44 -> 0.53 over 100k-300k steps) while the episode length rises
+  (23 -> 38 steps over 1.1M). It does not keep rising: it dipped to 0.41 at
+  ~600k and was back at 0.45 at 1.1M.
+- A policy learning rate of 1e-4 (used before) gives PPO approx-KL 0.1-5 and
+  clip fractions 0.5-0.75 per update. With the policy's std lowered to 0.135
+  (``--log-std-init -2``, near AMP's fixed action noise; longer episodes from
+  the start), 1e-5 keeps approx-KL ~0.01-0.03.
+
+The preset also weights style 0.8 (task 0.2) and uses gradient penalty 10 and a
+200k-window replay buffer.
 
 Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
 checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
@@ -57,9 +82,36 @@ PAPER_PPO = {
 }
 
 
+# Named groups of flag values (see the module docstring); explicit flags and --config keys win.
+PRESETS: dict[str, dict] = {
+    "paper": {},
+    "style-short": {
+        "learning_rate": 1e-5,
+        "log_std_init": -2.0,
+        "w_task": 0.2,
+        "w_style": 0.8,
+        "disc_grad_penalty": 10.0,
+        "disc_replay_size": 200_000,
+        "disc_input_noise": 1.0,
+    },
+}
+
+
+def _layer_sizes(text: str) -> tuple[int, ...]:
+    try:
+        sizes = tuple(int(v) for v in str(text).replace(" ", "").strip("[]()").split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected layer sizes like 1024,512, got {text!r}") from None
+    if not sizes or min(sizes) < 1:
+        raise argparse.ArgumentTypeError(f"expected positive layer sizes like 1024,512, got {text!r}")
+    return sizes
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", type=Path, help="TOML file whose keys set any flag below (flags win)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
+                   help="named flag values (flags and --config win); style-short: see above")
     p.add_argument("--env", default="InterLevel-v0", help="registered env id")
     p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
@@ -80,6 +132,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--amp-history", type=int, default=2, help="frames per discriminator sample")
     p.add_argument("--disc-loss", choices=LOSSES, default="lsgan")
     p.add_argument("--disc-lr", type=float, default=1e-4)
+    p.add_argument("--disc-hidden", type=_layer_sizes, default=(1024, 512), metavar="N,N",
+                   help="discriminator hidden layers (paper: 1024,512)")
+    p.add_argument("--disc-grad-penalty", type=float, default=5.0, help="gradient penalty weight")
+    p.add_argument("--disc-grad-penalty-batch", type=int, default=None,
+                   help="reference windows the gradient penalty is estimated on (default: the whole batch)")
+    p.add_argument("--disc-weight-decay", type=float, default=1e-4, help="L2 penalty on every discriminator weight")
+    p.add_argument("--disc-logit-reg", type=float, default=0.01, help="L2 penalty on the output layer's weights")
+    p.add_argument("--disc-input-noise", type=float, default=0.0,
+                   help="std of instance noise on the discriminator's normalised training inputs (0: none)")
+    p.add_argument("--disc-batch-size", type=int, default=256, help="reference and agent windows per minibatch")
+    p.add_argument("--disc-replay-size", type=int, default=100_000, help="agent windows kept for training")
+    p.add_argument("--disc-update-interval", type=int, default=2048, help="transitions between training rounds")
+    p.add_argument("--disc-updates", type=int, default=2, help="discriminator minibatches per training round")
+    p.add_argument("--log-std-init", type=float, default=0.0,
+                   help="initial log std of the Gaussian policy (SB3 default 0: std 1 on actions in [-1, 1])")
+    p.add_argument("--torch-threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--no-progress-bar", action="store_true")
     for key, value in PAPER_PPO.items():
@@ -103,6 +171,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                 args.env_kwarg = list(value.items()) + args.env_kwarg
             elif getattr(args, key) == defaults[key]:
                 setattr(args, key, value)
+    defaults = vars(parser.parse_args([]))
+    for key, value in PRESETS[args.preset].items():
+        if getattr(args, key) == defaults[key]:
+            setattr(args, key, value)
     if args.env not in gym.registry:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
     if args.n_envs < 1:
@@ -138,8 +210,19 @@ def _amp_state_beside(checkpoint: Path) -> Path | None:
     return None
 
 
+def discriminator_config(args: argparse.Namespace) -> DiscriminatorConfig:
+    return DiscriminatorConfig(
+        hidden=tuple(args.disc_hidden), loss=args.disc_loss, learning_rate=args.disc_lr,
+        grad_penalty=args.disc_grad_penalty, grad_penalty_batch=args.disc_grad_penalty_batch,
+        weight_decay=args.disc_weight_decay, logit_reg=args.disc_logit_reg, input_noise=args.disc_input_noise,
+        batch_size=args.disc_batch_size, replay_size=args.disc_replay_size,
+    )
+
+
 def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
+    if args.torch_threads is not None:
+        torch.set_num_threads(args.torch_threads)
     env_kwargs = dict(args.env_kwarg)
     env_kwargs.setdefault("init", args.init)
     if args.reference is not None:
@@ -163,7 +246,8 @@ def main(argv: list[str] | None = None) -> Path:
             style = AMPStyleReward.load(amp_state, reference, seed=args.seed)
         else:
             style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
-                                   config=DiscriminatorConfig(loss=args.disc_loss, learning_rate=args.disc_lr))
+                                   update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
+                                   config=discriminator_config(args))
         venv = AMPVecEnvWrapper(venv, style)
 
     if args.resume is not None:
@@ -178,7 +262,8 @@ def main(argv: list[str] | None = None) -> Path:
         model = PPO(
             "MlpPolicy",
             venv,
-            policy_kwargs={"net_arch": {"pi": [1024, 512], "vf": [1024, 512]}, "activation_fn": torch.nn.ReLU},
+            policy_kwargs={"net_arch": {"pi": [1024, 512], "vf": [1024, 512]}, "activation_fn": torch.nn.ReLU,
+                           "log_std_init": args.log_std_init},
             tensorboard_log=tensorboard,
             seed=args.seed,
             device=args.device,

@@ -16,7 +16,14 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 import stairenv  # noqa: F401
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.motion import MotionClip, MotionLibrary
-from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, ReplayBuffer, RunningNorm, style_reward
+from stairenv.style.discriminator import (
+    AMPDiscriminator,
+    DiscriminatorConfig,
+    ReplayBuffer,
+    RunningNorm,
+    onednn_available,
+    style_reward,
+)
 from stairenv.style.features import AMP_FEATURE_SIZE, AMP_FEATURE_STRUCTURE, state_features
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper, AMPVectorWrapper
@@ -151,6 +158,178 @@ def test_discriminator_separates_reference_from_random_actions(reference, loss):
     accuracy = 0.5 * ((d_ref > 0).mean() + (d_agent < 0).mean())
     assert accuracy > 0.9
     assert disc.reward(held_ref).mean() > disc.reward(held_agent).mean() + 0.1
+
+
+def plain_update(disc: AMPDiscriminator, optimizer, reference: np.ndarray, agent: np.ndarray) -> dict[str, float]:
+    """The discriminator step written out plainly (everything through autograd, ATen kernels)."""
+    cfg = disc.config
+    ref, fake = torch.as_tensor(reference, dtype=torch.float32), torch.as_tensor(agent, dtype=torch.float32)
+    disc.norm.update(torch.cat((ref, fake)))
+
+    def mlp(x):
+        for layer in disc.linears[:-1]:
+            x = torch.relu(torch.nn.functional.linear(x, layer.weight, layer.bias))
+        return torch.nn.functional.linear(x, disc.logit.weight, disc.logit.bias).squeeze(-1)
+
+    ref_n = disc.norm(ref).requires_grad_(True)
+    d_ref, d_fake = mlp(ref_n), mlp(disc.norm(fake))
+    (grad,) = torch.autograd.grad(d_ref.sum(), ref_n, create_graph=True)
+    penalty = grad.square().sum(-1).mean()
+    decay = sum(layer.weight.square().sum() for layer in disc.linears)
+    loss = (0.5 * torch.mean((d_ref - 1.0) ** 2) + 0.5 * torch.mean((d_fake + 1.0) ** 2)
+            + cfg.grad_penalty * penalty + cfg.logit_reg * disc.logit.weight.square().sum()
+            + cfg.weight_decay * decay)
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    optimizer.step()
+    return {"disc_loss": loss.item(), "disc_grad_penalty": penalty.item()}
+
+
+@pytest.mark.parametrize("backend", ["auto", "aten"])
+def test_fast_update_equals_the_plain_formulation(backend):
+    """oneDNN products, in-place decay gradients and fused Adam change nothing but rounding."""
+    rng = np.random.default_rng(3)
+    config = DiscriminatorConfig(batch_size=64, weight_decay=1e-2)  # decay large enough to matter
+    torch.manual_seed(0)
+    fast = AMPDiscriminator(210, config, backend=backend)
+    torch.manual_seed(0)
+    plain = AMPDiscriminator(210, config, backend="aten")
+    optimizer = torch.optim.Adam(plain.parameters(), lr=config.learning_rate, foreach=False)
+    for _ in range(5):
+        ref, agent = rng.normal(size=(64, 210)), rng.normal(0.5, 2.0, size=(64, 210))
+        got, want = fast.update(ref, agent), plain_update(plain, optimizer, ref, agent)
+        for key in want:
+            assert got[key] == pytest.approx(want[key], rel=1e-4, abs=1e-6), key
+    for (name, a), b in zip(fast.named_parameters(), plain.parameters()):
+        np.testing.assert_allclose(a.detach().numpy(), b.detach().numpy(), atol=2e-6, err_msg=name)
+    for name in ("mean", "var", "count"):
+        np.testing.assert_allclose(getattr(fast.norm, name).numpy(), getattr(plain.norm, name).numpy(), rtol=1e-12)
+
+
+def test_onednn_backend_is_used_where_it_works():
+    disc = AMPDiscriminator(210)
+    assert disc.onednn == onednn_available()
+    assert not AMPDiscriminator(210, backend="aten").onednn
+    with pytest.raises(ValueError, match="backend"):
+        AMPDiscriminator(210, backend="cuda")
+
+
+@pytest.mark.parametrize("scoring", ["auto", "numba", "torch"])
+def test_scoring_follows_training_loading_and_edits(scoring):
+    """The cached scoring plan is rebuilt whenever a weight or a normaliser statistic changes."""
+    rng = np.random.default_rng(0)
+    disc = AMPDiscriminator(210, DiscriminatorConfig(hidden=(64, 32), batch_size=32), scoring=scoring)
+    x = rng.normal(size=(8, 210))
+
+    def direct():
+        with torch.no_grad():
+            return disc(torch.as_tensor(x, dtype=torch.float32)).numpy()
+
+    before = disc.logits(x)
+    np.testing.assert_allclose(before, direct(), atol=1e-5)
+    disc.update(rng.normal(size=(32, 210)), rng.normal(size=(32, 210)))
+    after = disc.logits(x)
+    assert np.abs(after - before).max() > 1e-4
+    np.testing.assert_allclose(after, direct(), atol=1e-5)
+    with torch.no_grad():
+        disc.trunk[0].weight.mul_(1.5)
+        disc.norm.mean.add_(0.1)
+    np.testing.assert_allclose(disc.logits(x), direct(), atol=1e-5)
+    other = AMPDiscriminator(210, DiscriminatorConfig(hidden=(64, 32), batch_size=32), scoring=scoring)
+    other.logits(x)  # builds its plan with its own weights
+    other.load_state_dict(disc.state_dict())
+    np.testing.assert_array_equal(other.logits(x), disc.logits(x))
+    assert disc.logits(np.zeros((0, 210))).shape == (0,)
+    with pytest.raises(ValueError, match="features"):
+        disc.logits(np.zeros((2, 211)))
+
+
+def test_numba_and_torch_scoring_agree(reference):
+    torch.manual_seed(0)
+    disc = AMPDiscriminator(reference.dim)
+    rng = np.random.default_rng(0)
+    disc.update(reference.sample(256, rng), random_action_windows(256, seed=3))
+    windows = random_action_windows(40, seed=6)
+    numba = disc.logits(windows)
+    disc.scoring = "torch"
+    disc._plan = None
+    np.testing.assert_allclose(numba, disc.logits(windows), atol=1e-5)
+    with pytest.raises(ValueError, match="scoring"):
+        AMPDiscriminator(reference.dim, scoring="numpy")
+
+
+def test_batched_scoring_equals_per_step_scoring(reference):
+    """Scoring a whole rollout at once gives the rewards scoring it step by step (8 envs) does."""
+    disc = AMPDiscriminator(reference.dim)
+    rng = np.random.default_rng(0)
+    disc.update(reference.sample(256, rng), random_action_windows(256, seed=3))
+    windows = random_action_windows(64 * 8, seed=4)
+    per_step = np.concatenate([disc.reward(w) for w in windows.reshape(64, 8, -1)])
+    np.testing.assert_allclose(disc.reward(windows), per_step, atol=1e-5)
+    np.testing.assert_allclose(disc.logits(windows[:1]), disc.logits(windows[:8])[:1], atol=1e-5)
+
+
+def test_grad_penalty_on_a_subsample(reference):
+    rng = np.random.default_rng(1)
+    ref, agent = reference.sample(64, rng), random_action_windows(64, seed=5)
+    for n in (None, 16):
+        torch.manual_seed(0)
+        disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(batch_size=64, grad_penalty_batch=n),
+                                backend="aten")
+        probe = AMPDiscriminator.from_state(disc.state(), backend="aten")  # the penalty by hand, before the step
+        probe.norm.update(torch.as_tensor(np.concatenate((ref, agent)), dtype=torch.float32))
+        x = probe.norm(torch.as_tensor(ref[: n or 64], dtype=torch.float32)).requires_grad_(True)
+        (grad,) = torch.autograd.grad(probe._mlp(x).sum(), x)
+        stats = disc.update(ref, agent)
+        assert stats["disc_grad_penalty"] == pytest.approx(grad.square().sum(-1).mean().item(), rel=1e-5)
+    with pytest.raises(ValueError, match="grad_penalty_batch"):
+        DiscriminatorConfig(grad_penalty_batch=0)
+    stats = AMPDiscriminator(reference.dim, DiscriminatorConfig(batch_size=64, grad_penalty=0.0)).update(ref, agent)
+    assert stats["disc_grad_penalty"] == 0.0
+
+
+def test_instance_noise_is_training_only(reference):
+    rng = np.random.default_rng(2)
+    ref, agent = reference.sample(64, rng), random_action_windows(64, seed=7)
+    states = []
+    for noise in (0.0, 0.5):
+        torch.manual_seed(0)
+        disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(batch_size=64, input_noise=noise))
+        before = disc.logits(agent)
+        disc.update(ref, agent)
+        states.append((before, disc.logits(agent)))
+    np.testing.assert_array_equal(states[0][0], states[1][0])  # same init, clean scoring
+    assert np.abs(states[0][1] - states[1][1]).max() > 1e-6  # the noise changed the step
+    with pytest.raises(ValueError, match="input_noise"):
+        DiscriminatorConfig(input_noise=-0.1)
+
+
+def test_train_ppo_discriminator_flags():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
+    spec = importlib.util.spec_from_file_location("train_ppo_for_test", path)
+    train_ppo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(train_ppo)
+    default = train_ppo.discriminator_config(train_ppo.parse_args([]))
+    assert default == DiscriminatorConfig()  # the paper's discriminator unless asked otherwise
+    args = train_ppo.parse_args(["--disc-hidden", "512,256", "--disc-grad-penalty", "10", "--disc-lr", "1e-5",
+                                 "--disc-replay-size", "200000", "--disc-grad-penalty-batch", "64",
+                                 "--disc-updates", "1", "--disc-update-interval", "4096",
+                                 "--disc-weight-decay", "1e-3", "--disc-logit-reg", "0.05",
+                                 "--disc-input-noise", "0.5"])
+    config = train_ppo.discriminator_config(args)
+    assert config.hidden == (512, 256) and config.grad_penalty == 10.0 and config.learning_rate == 1e-5
+    assert config.weight_decay == 1e-3 and config.logit_reg == 0.05 and config.input_noise == 0.5
+    assert config.replay_size == 200_000 and config.grad_penalty_batch == 64
+    assert args.disc_updates == 1 and args.disc_update_interval == 4096
+    with pytest.raises(SystemExit):
+        train_ppo.parse_args(["--disc-hidden", "512,x"])
+    preset = train_ppo.parse_args(["--preset", "style-short", "--w-style", "0.7"])
+    assert preset.disc_input_noise == 1.0 and preset.learning_rate == 1e-5 and preset.log_std_init == -2.0
+    assert preset.w_style == 0.7  # explicit flags win over the preset
+    assert train_ppo.parse_args([]).disc_input_noise == 0.0  # the paper's settings by default
 
 
 # --- wrappers --------------------------------------------------------------------

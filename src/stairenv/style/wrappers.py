@@ -124,17 +124,22 @@ class AMPVecEnvWrapper(VecEnvWrapper):
     def __init__(self, venv: VecEnv, style: AMPStyleReward) -> None:
         super().__init__(venv)
         self.style = style
+        self._amp = np.empty((self.num_envs, style.reference.dim), dtype=np.float32)
 
     def reset(self):
         return self.venv.reset()
 
     def step_wait(self):
         obs, task_reward, dones, infos = self.venv.step_wait()
-        amp = np.stack([info["amp_obs"] for info in infos])
+        windows = [info["amp_obs"] for info in infos]
+        if windows[0].shape[-1] == self._amp.shape[1]:  # straight into float32, as the discriminator reads them
+            amp = np.stack(windows, out=self._amp)
+        else:  # AMPStyleReward explains the mismatch
+            amp = np.stack(windows)
         reward, style = self.style(amp, task_reward)
-        for info, task, sty in zip(infos, task_reward, style):
-            info["task_reward"] = float(task)
-            info["style_reward"] = float(sty)
+        for info, task, sty in zip(infos, task_reward.tolist(), style.tolist()):
+            info["task_reward"] = task
+            info["style_reward"] = sty
         return obs, reward.astype(np.float32), dones, infos
 
 
