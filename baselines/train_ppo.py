@@ -7,13 +7,20 @@
     python baselines/train_ppo.py --config my_run.toml    # any of the flags below as keys
     python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
     python baselines/train_ppo.py --preset style-short    # instance noise + stable PPO for short runs (below)
+    python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
+
+``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
+judges [motion window, text embedding]; each reference clip is embedded from its
+``meta["text"]`` with the env's encoder, and the env's captions become the
+reference texts of its skill, so agent and reference conditions come from one set.
 
 Paper settings (InterLevel, BRIEF section 2): learning rate 2e-5 constant, MLP
 [1024, 512] ReLU for policy and value, gradient-norm clip 1.0, entropy 0,
 gamma 0.99, minibatch 64, observation and return normalisation (VecNormalize).
 Style: the AMP discriminator wrapper (``stairenv.style.wrappers``) trained on
-reference clips (``--reference``; default: the built-in synthesised walks and
-stair ascents), reward 0.5 task + 0.5 style, episodes started half from
+reference clips (``--reference``; default: the env's built-in synthesised set,
+walks and stair ascents, or for SIMS envs walks plus sit / lie / reach / get-up
+clips), reward 0.5 task + 0.5 style, episodes started half from
 reference states (``--init hybrid``).
 
 ``--preset style-short`` (``PRESETS``; flags and ``--config`` keys win over it),
@@ -62,11 +69,13 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.plamo import PlaMoEnv
+from stairenv.environments.sims import SIMSEnv, reference_captions
 from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy
-from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.motion.rsi import load_reference_library
+from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
+from stairenv.sims_evaluation import evaluate_skills, write_reports
 from stairenv.style.discriminator import LOSSES, DiscriminatorConfig
-from stairenv.style.reference import ReferenceWindows
+from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 
 PAPER_PPO = {
@@ -124,7 +133,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-episodes", type=int, default=50, help="0 skips the final evaluation")
     p.add_argument("--eval-max-episode-steps", type=int, default=None, help="shorter evaluation episodes")
     p.add_argument("--style", choices=("amp", "none"), default="amp", help="add the AMP style reward")
-    p.add_argument("--reference", type=Path, default=None, help="folder or .npz of reference clips")
+    p.add_argument("--reference", default=None,
+                   help="folder or .npz of reference clips, or builtin:stairs / builtin:sims (default: the env's)")
+    p.add_argument("--amp-text-condition", action="store_true",
+                   help="SIMS: condition the discriminator on the caption's text embedding (see above)")
     p.add_argument("--init", choices=("default", "reference", "hybrid"), default="hybrid",
                    help="episode start: standing, reference frames, or half/half")
     p.add_argument("--w-task", type=float, default=0.5)
@@ -231,16 +243,30 @@ def main(argv: list[str] | None = None) -> Path:
         env_kwargs.setdefault("amp_history", args.amp_history)
     run_dir = args.logdir / args.env / f"seed{args.seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
+    if args.amp_text_condition and args.style != "amp":
+        raise SystemExit("--amp-text-condition needs --style amp")
+
+    style = None
+    reference = None
+    if args.style == "amp":
+        probe = gym.make(args.env, **env_kwargs).unwrapped
+        library = load_reference_library(args.reference if args.reference is not None
+                                         else probe.DEFAULT_REFERENCE_MOTION)
+        conditions = None
+        if args.amp_text_condition:
+            if not isinstance(probe, SIMSEnv) or not probe.text_conditioned:
+                raise SystemExit(f"--amp-text-condition needs a SIMS env with text_conditioned=True, not {args.env}")
+            conditions = text_conditions(library, probe.embed_text)
+            env_kwargs.setdefault("captions", reference_captions(library, probe.skill))
+        reference = ReferenceWindows(library, num_frames=args.amp_history, fps=1.0 / probe.dt, conditions=conditions)
+        probe.close()
 
     vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
     venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
     ppo_kwargs = {key: getattr(args, key) for key in PAPER_PPO}
     tensorboard = str(run_dir / "tb") if importlib.util.find_spec("tensorboard") else None
 
-    style = None
-    if args.style == "amp":
-        reference = ReferenceWindows(load_reference_library(args.reference), num_frames=args.amp_history,
-                                     fps=1.0 / gym.make(args.env, **env_kwargs).unwrapped.dt)
+    if reference is not None:
         amp_state = _amp_state_beside(args.resume) if args.resume is not None else None
         if amp_state is not None:
             style = AMPStyleReward.load(amp_state, reference, seed=args.seed)
@@ -296,14 +322,22 @@ def main(argv: list[str] | None = None) -> Path:
         eval_env = gym.make(args.env, **env_kwargs)
         policy = load_policy(str(model_path), eval_env)
         is_plamo = isinstance(eval_env.unwrapped, PlaMoEnv)
+        sims_skill = eval_env.unwrapped.skill if isinstance(eval_env.unwrapped, SIMSEnv) else None
         eval_env.close()
-        if is_plamo:  # PlaMo's Table 2: head tracking errors per terrain x locomotion
+        eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
+        if sims_skill is not None:  # SIMS Table 1: success rate and contact error
+            report = evaluate_skills(policy, skills=[sims_skill], episodes=args.eval_episodes, seed=10_000 + args.seed,
+                                     env_kwargs={k: v for k, v in eval_kwargs.items() if k != "skill"},
+                                     max_episode_steps=args.eval_max_episode_steps,
+                                     progress_bar=not args.no_progress_bar, label=str(model_path))
+            print(report.format_table())
+            write_reports([report], run_dir / "evaluation.csv", run_dir / "evaluation.json")
+        elif is_plamo:  # PlaMo's Table 2: head tracking errors per terrain x locomotion
             rows = tracking_errors(policy, episodes=args.eval_episodes, seed=10_000 + args.seed, env_id=args.env,
                                    max_episode_steps=args.eval_max_episode_steps)
             print(format_rows(rows))
             write_rows(rows, run_dir / "evaluation.csv", run_dir / "evaluation.json")
         else:  # InterLevel's Tables 1-3
-            eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
             report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
                               env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
                               progress_bar=not args.no_progress_bar)

@@ -29,6 +29,8 @@ class HumanoidEnv(gym.Env):
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+    #: ``load_reference_library`` source used when ``reference_motion`` is None (RSI and AMP reference).
+    DEFAULT_REFERENCE_MOTION: str | None = None
 
     def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,
                width: int, height: int) -> None:

@@ -15,7 +15,13 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.environments.base import HumanoidEnv
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z, load_reference_library, place_reference_state
+from stairenv.motion.rsi import (
+    humanoid_geoms,
+    humanoid_lowest_z,
+    load_reference_library,
+    place_reference_state,
+    standing_clips,
+)
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
@@ -66,6 +72,20 @@ def captions_for(captions: Sequence[tuple[str, str]], family: str | None) -> tup
                     if all(c == target or (target is not None and c in target) or not w.search(text)
                            for c, w in words.items()))
     return fitting or tuple(captions)
+
+
+def reference_captions(library, skill: str) -> tuple[tuple[str, str], ...]:
+    """(style, text) pairs of a motion library's clips of ``skill`` (``meta["skill"]``; text by
+    ``stairenv.style.reference.clip_text``): the captions to train a text-conditioned
+    discriminator with, so the env's conditions are the reference's."""
+    from stairenv.style.reference import clip_text
+
+    check_choice("skill", skill, task.SKILLS)
+    pairs = {(str(clip.meta.get("style", "neutral")), clip_text(clip))
+             for clip in library.clips if clip.meta.get("skill") == skill}
+    if not pairs:
+        raise ValueError(f"the motion library has no clip with meta['skill'] == {skill!r}")
+    return tuple(sorted(pairs))
 
 
 def seated_joint_angles() -> np.ndarray:
@@ -127,10 +147,12 @@ class SIMSEnv(HumanoidEnv):
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | fall_height | 0.25 | head height (m) below which the episode ends |
     | terminate_on_success | False | end the episode at the first success |
-    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states, as InterLevel |
+    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states (None: "builtin:sims"; walk and idle clips) |
     | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
+
+    DEFAULT_REFERENCE_MOTION = "builtin:sims"
 
     def __init__(
         self,
@@ -191,7 +213,9 @@ class SIMSEnv(HumanoidEnv):
         self.terminate_on_success = bool(terminate_on_success)
         self.init = check_choice("init", init, INITS)
         self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
-        self._library = None if self.init == "default" else load_reference_library(reference_motion)
+        # Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
+        self._library = None if self.init == "default" else standing_clips(
+            load_reference_library(reference_motion if reference_motion is not None else self.DEFAULT_REFERENCE_MOTION))
         self._pd_gains = pd_gains
         self._frame_skip, self._amp_history = frame_skip, amp_history
         self._render_args = (render_mode, width, height)
@@ -340,7 +364,7 @@ class SIMSEnv(HumanoidEnv):
     def _begin(self, goal: task.ContactGoal, caption: str, style: str, speed: float):
         self.goal = goal
         self.caption, self.style = caption, style
-        self._z = self._embed(f"{caption}") if self.text_conditioned else np.zeros(self.text_dim)
+        self._z = self.embed_text(f"{caption}") if self.text_conditioned else np.zeros(self.text_dim)
         self._target_speed = speed
         self._steps = 0
         self._success_once = False
@@ -352,7 +376,9 @@ class SIMSEnv(HumanoidEnv):
         self._success_once = results["success"]
         return obs, self._info(results, None)
 
-    def _embed(self, text: str) -> np.ndarray:
+    def embed_text(self, text: str) -> np.ndarray:
+        """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
+        the reference clips' conditions of a text-conditioned discriminator."""
         if self._encoder is None:
             if isinstance(self._encoder_spec, str):
                 from stairenv.scripts.embeddings import get_encoder

@@ -1,10 +1,12 @@
 """Reference-state initialisation (RSI): start episodes from frames of reference motion.
 
 ``load_reference_library(source)`` gives the clips an env starts from and the
-discriminator learns from: a folder or list of ``.npz`` clips, or ``None`` for
-the built-in set synthesised by ``stairenv.motion.synthesis`` (flat walks and
-stair ascents for step heights 0.05-0.20 m; made in about a second, cached per
-process). ``place_reference_state`` puts a sampled frame at a start position and
+discriminator learns from: a folder or list of ``.npz`` clips, or a built-in set
+synthesised in about a second and cached per process: ``None`` / ``"builtin:stairs"``
+(``stairenv.motion.synthesis``: flat walks and stair ascents for step heights
+0.05-0.20 m) or ``"builtin:sims"`` (the flat walks plus
+``stairenv.motion.interactions``' sit, stand-up, lie, get-up, reach and idle clips).
+``place_reference_state`` puts a sampled frame at a start position and
 heading with its lowest point just above the floor, so nothing penetrates.
 """
 
@@ -24,18 +26,42 @@ from stairenv.motion.library import MotionLibrary
 PLACEMENT_CLEARANCE = 0.002
 
 
+BUILTIN_REFERENCE_SETS = ("builtin:stairs", "builtin:sims")
+
+# Clips of these meta["skill"] values start standing up: the ones standing starts are drawn from.
+STANDING_SKILLS = ("walk", "idle")
+
+
 @lru_cache(maxsize=8)
 def _load_cached(source: str | None, include_descents: bool) -> MotionLibrary:
-    if source is None:
-        from stairenv.motion.synthesis import reference_set
+    from stairenv.motion.synthesis import reference_set
 
+    if source is None or source == "builtin:stairs":
         return MotionLibrary(reference_set(descents=include_descents))
+    if source == "builtin:sims":
+        from stairenv.motion.interactions import interaction_reference_set
+
+        return MotionLibrary(reference_set(step_heights=(), descents=False) + interaction_reference_set())
+    if source.startswith("builtin:"):
+        raise ValueError(f"reference_motion {source!r} is not a built-in set; known: {list(BUILTIN_REFERENCE_SETS)}")
     return MotionLibrary.load(source)
 
 
 def load_reference_library(source: str | Path | None = None, include_descents: bool = False) -> MotionLibrary:
-    """Clips from a folder or ``.npz`` file, or the built-in synthesised set (``None``)."""
+    """Clips from a folder or ``.npz`` file, or a built-in synthesised set (``None``: the stairs set;
+    one of :data:`BUILTIN_REFERENCE_SETS`)."""
     return _load_cached(None if source is None else str(source), include_descents)
+
+
+def standing_clips(library: MotionLibrary) -> MotionLibrary:
+    """The clips that stand on the floor throughout (``meta["skill"]`` in :data:`STANDING_SKILLS`, or no
+    skill given), keeping their weights: where a standing start may be drawn from."""
+    keep = [i for i, clip in enumerate(library.clips) if clip.meta.get("skill", "walk") in STANDING_SKILLS]
+    if not keep:
+        raise ValueError("the reference motion has no standing clip (meta['skill'] walk or idle) to start from")
+    if len(keep) == len(library.clips):
+        return library
+    return MotionLibrary([library.clips[i] for i in keep], library.probabilities[keep])
 
 
 def humanoid_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geom_ids: np.ndarray) -> float:

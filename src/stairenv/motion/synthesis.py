@@ -924,7 +924,7 @@ def walk(speed: float = 1.0, step_length: float | None = None, duration: float =
                   **asdict(timing))
     return MotionClip(
         qpos, fps, name or f"walk_{speed:.2f}mps", loop=True, source=SOURCE,
-        meta=_clip_meta("walk", params, contact, cycle_frames=frames_per_cycle),
+        meta=_clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text="walk", skill="walk"),
     )
 
 
@@ -1063,7 +1063,8 @@ def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach
     default_name = f"stairs_{direction}_h{step_height:.2f}_d{step_depth:.2f}_n{num_steps}_{lead_foot}"
     return MotionClip(
         qpos, fps, name or default_name, loop=False, source=SOURCE,
-        meta=_clip_meta("climb_stairs", params, contact, stairs=stairs),
+        meta=_clip_meta("climb_stairs", params, contact, stairs=stairs, skill="walk",
+                        text="walk up the stairs" if direction == "up" else "walk down the stairs"),
     )
 
 

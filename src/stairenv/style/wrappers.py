@@ -11,6 +11,11 @@ store the agent's windows in a replay buffer and, every ``update_interval``
 transitions, train the discriminator for ``updates_per_round`` minibatches of
 reference windows against replayed agent windows.
 
+With reference windows that carry conditions (``ReferenceWindows(conditions=...)``, e.g.
+text embeddings of each clip's description as in SIMS), the discriminator judges
+``[amp_obs, amp_condition]``: the env's ``info["amp_condition"]`` (a SIMS env's caption
+embedding) is appended to its window, so style can be conditioned on text.
+
 - ``AMPVecEnvWrapper``: Stable-Baselines3 ``VecEnv`` (``DummyVecEnv``, ``SubprocVecEnv``).
 - ``AMPVectorWrapper``: ``gymnasium.vector.VectorEnv`` (next-step autoreset).
 
@@ -70,8 +75,9 @@ class AMPStyleReward:
         """Combined reward and style reward of a batch of transitions; also learns from them."""
         if amp_obs.shape[1] != self.reference.dim:
             raise ValueError(
-                f"info['amp_obs'] has {amp_obs.shape[1]} numbers per env but the reference windows have "
-                f"{self.reference.dim}: make the env's amp_history equal the reference's num_frames"
+                f"info['amp_obs'] has {amp_obs.shape[1] - self.reference.condition_dim} numbers per env but the "
+                f"reference windows have {self.reference.feature_dim}: make the env's amp_history equal the "
+                f"reference's num_frames"
             )
         style = self.disc.reward(amp_obs)
         if self.train:
@@ -81,6 +87,24 @@ class AMPStyleReward:
                 self.pending = 0
                 self.train_round()
         return self.w_task * np.asarray(task_reward, dtype=np.float64) + self.w_style * style, style
+
+    def agent_inputs(self, windows: list | np.ndarray, conditions: list | np.ndarray | None,
+                     out: np.ndarray | None = None) -> np.ndarray:
+        """The discriminator's inputs for a batch of env windows: the windows, followed by the
+        envs' conditions when the reference windows are conditioned."""
+        need = self.reference.condition_dim
+        if need == 0:
+            if out is not None and np.shape(windows[0])[-1] == out.shape[1]:
+                return np.stack(windows, out=out)  # straight into float32, as the discriminator reads them
+            return np.stack(windows)
+        if conditions is None:
+            raise KeyError("the reference windows are conditioned but the envs put no 'amp_condition' in info "
+                           "(SIMS envs do; pass conditions=None to ReferenceWindows for other envs)")
+        conditions = np.asarray(conditions, dtype=np.float32).reshape(len(windows), -1)
+        if conditions.shape[1] != need:
+            raise ValueError(f"info['amp_condition'] has {conditions.shape[1]} numbers per env, "
+                             f"the reference conditions have {need}")
+        return np.concatenate((np.stack(windows).astype(np.float32), conditions), axis=1)
 
     def train_round(self, updates: int | None = None) -> dict[str, float]:
         updates = self.updates_per_round if updates is None else updates
@@ -104,6 +128,7 @@ class AMPStyleReward:
             "update_interval": self.update_interval, "updates_per_round": self.updates_per_round,
             "replay_size": self.config.replay_size, "rounds": self.rounds,
             "reference_num_frames": self.reference.num_frames, "reference_fps": self.reference.fps,
+            "reference_condition_dim": self.reference.condition_dim,
             "config": asdict(self.config),
         }, path)
         return path
@@ -111,6 +136,10 @@ class AMPStyleReward:
     @classmethod
     def load(cls, path: str | Path, reference: ReferenceWindows, train: bool = True, seed: int = 0) -> "AMPStyleReward":
         state = torch.load(Path(path), weights_only=False)
+        saved = int(state.get("reference_condition_dim", 0))
+        if saved != reference.condition_dim:
+            raise ValueError(f"{path} was trained with {saved}-number conditions, the reference windows "
+                             f"carry {reference.condition_dim}: build them with the same conditions")
         disc = AMPDiscriminator.from_state(state["discriminator"])
         style = cls(reference, state["w_task"], state["w_style"], update_interval=state["update_interval"],
                     updates_per_round=state["updates_per_round"], train=train, seed=seed, discriminator=disc)
@@ -131,11 +160,11 @@ class AMPVecEnvWrapper(VecEnvWrapper):
 
     def step_wait(self):
         obs, task_reward, dones, infos = self.venv.step_wait()
-        windows = [info["amp_obs"] for info in infos]
-        if windows[0].shape[-1] == self._amp.shape[1]:  # straight into float32, as the discriminator reads them
-            amp = np.stack(windows, out=self._amp)
-        else:  # AMPStyleReward explains the mismatch
-            amp = np.stack(windows)
+        conditions = ([info.get("amp_condition") for info in infos] if self.style.reference.condition_dim
+                      else None)
+        if conditions is not None and any(c is None for c in conditions):
+            conditions = None  # agent_inputs explains
+        amp = self.style.agent_inputs([info["amp_obs"] for info in infos], conditions, out=self._amp)
         reward, style = self.style(amp, task_reward)
         for info, task, sty in zip(infos, task_reward.tolist(), style.tolist()):
             info["task_reward"] = task
@@ -168,7 +197,10 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
         reward = task_reward.copy()
         style = np.zeros(self.num_envs)
         if live.any():
-            reward[live], style[live] = self.style(np.asarray(info["amp_obs"])[live], task_reward[live])
+            conditions = info.get("amp_condition")
+            amp = self.style.agent_inputs(np.asarray(info["amp_obs"])[live],
+                                          None if conditions is None else np.asarray(conditions)[live])
+            reward[live], style[live] = self.style(amp, task_reward[live])
         info = dict(info)
         info["task_reward"] = task_reward
         info["style_reward"] = style

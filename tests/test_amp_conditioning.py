@@ -1,0 +1,141 @@
+"""Text-conditioned AMP (SIMS): reference windows carry their clip's condition, the wrappers append
+the env's ``info["amp_condition"]``, and the discriminator learns motion *given* its condition."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+import stairenv  # noqa: F401
+from stairenv.environments.sims import reference_captions
+from stairenv.motion import MotionLibrary
+from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, load_reference_library, standing_clips
+from stairenv.motion.synthesis import climb_stairs, walk
+from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
+from stairenv.style.reference import ReferenceWindows, clip_text, text_conditions
+from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+
+FAST_SIMS = {"text_encoder": "hashing", "text_dim": 8}
+
+
+@pytest.fixture(scope="module")
+def two_clips() -> MotionLibrary:
+    return MotionLibrary([walk(1.0, duration=3.0), climb_stairs(0.15, 0.30, 4)])
+
+
+def test_reference_windows_append_their_clips_condition(two_clips):
+    conditions = np.array([[1.0, 0.0], [0.0, 1.0]])
+    plain = ReferenceWindows(two_clips, num_frames=2)
+    conditioned = ReferenceWindows(two_clips, num_frames=2, conditions=conditions)
+    assert plain.condition_dim == 0 and plain.dim == plain.feature_dim
+    assert conditioned.dim == plain.dim + 2 and conditioned.feature_dim == plain.feature_dim
+    samples = conditioned.sample(500, np.random.default_rng(0))
+    assert samples.shape == (500, conditioned.dim)
+    # Every sample is a real window followed by the one-hot of the clip that window belongs to.
+    rows = {tuple(w) for w in plain.windows}
+    assert all(tuple(s[:-2]) in rows for s in samples[:50])
+    first_clip_windows = {tuple(w) for w in plain.windows[plain.clip_index == 0]}
+    for s in samples[:50]:
+        expected = [1.0, 0.0] if tuple(s[:-2]) in first_clip_windows else [0.0, 1.0]
+        assert s[-2:].tolist() == expected
+    with pytest.raises(ValueError, match="one row per clip"):
+        ReferenceWindows(two_clips, conditions=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        ReferenceWindows(two_clips, conditions=np.full((2, 2), np.nan))
+
+
+def test_clip_texts_and_text_conditions(two_clips):
+    assert [clip_text(c) for c in two_clips.clips] == ["walk", "walk up the stairs"]
+    lengths = text_conditions(two_clips, lambda text: np.array([len(text), 1.0]))
+    assert lengths.tolist() == [[4.0, 1.0], [18.0, 1.0]]
+    with pytest.raises(ValueError, match="different sizes"):
+        text_conditions(two_clips, lambda text: np.ones(len(text)))
+
+
+def test_conditioned_discriminator_rejects_motion_with_the_wrong_condition(two_clips):
+    """Same walking windows, two conditions: only the walk's own condition is real. An
+    unconditioned discriminator could not tell these apart; the conditioned one must."""
+    torch.manual_seed(0)
+    rng = np.random.default_rng(0)
+    onehot = np.eye(2, dtype=np.float32)
+    reference = ReferenceWindows(two_clips, num_frames=2, conditions=onehot)
+    walk_windows = reference.windows[reference.clip_index == 0]
+    order = rng.permutation(len(walk_windows))
+    train, held = walk_windows[order[: len(order) // 2]], walk_windows[order[len(order) // 2:]]
+    mislabelled = lambda w: np.concatenate((w, np.repeat(onehot[1:], len(w), 0)), axis=1)  # noqa: E731
+    labelled = lambda w: np.concatenate((w, np.repeat(onehot[:1], len(w), 0)), axis=1)  # noqa: E731
+    disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(batch_size=128))
+    for _ in range(300):
+        disc.update(reference.sample(128, rng), mislabelled(train[rng.integers(0, len(train), 128)]))
+    d_real, d_fake = disc.logits(labelled(held)), disc.logits(mislabelled(held))
+    accuracy = 0.5 * ((d_real > 0).mean() + (d_fake < 0).mean())
+    assert accuracy > 0.9
+    assert disc.reward(labelled(held)).mean() > disc.reward(mislabelled(held)).mean() + 0.2
+
+
+def test_vec_wrapper_appends_the_envs_condition():
+    library = load_reference_library("builtin:sims")
+    probe = gym.make("SIMS-Sit-v0", **FAST_SIMS).unwrapped
+    captions = reference_captions(library, "sit")
+    assert captions == (("neutral", "sit down"),)
+    conditions = text_conditions(library, probe.embed_text)
+    reference = ReferenceWindows(library, num_frames=2, fps=1.0 / probe.dt, conditions=conditions)
+    style = AMPStyleReward(reference, update_interval=8, config=DiscriminatorConfig(hidden=(32, 16), batch_size=16))
+    seen: list[np.ndarray] = []
+    original = style.disc.reward
+    style.disc.reward = lambda x: (seen.append(np.array(x)), original(x))[1]
+    venv = AMPVecEnvWrapper(DummyVecEnv([lambda: gym.make("SIMS-Sit-v0", captions=captions, **FAST_SIMS)] * 2),
+                            style)
+    venv.seed(3)
+    venv.reset()
+    for _ in range(10):
+        _, reward, _, infos = venv.step(np.zeros((2, 28), dtype=np.float32))
+        assert np.all(np.isfinite(reward))
+    # The discriminator saw [window, embedding of "sit down"], and trained on it.
+    sit_down = probe.embed_text("sit down").astype(np.float32)
+    assert seen[-1].shape == (2, reference.dim)
+    np.testing.assert_allclose(seen[-1][:, -8:], np.repeat(sit_down[None], 2, 0), rtol=1e-6)
+    np.testing.assert_allclose(seen[-1][:, :-8], np.stack([i["amp_obs"] for i in infos]), rtol=1e-6)
+    assert style.rounds >= 1
+    venv.close()
+
+
+def test_condition_mismatches_are_explained(two_clips, tmp_path):
+    conditioned = ReferenceWindows(two_clips, conditions=np.eye(2))
+    style = AMPStyleReward(conditioned, config=DiscriminatorConfig(hidden=(16,)))
+    windows = conditioned.windows[:3]
+    with pytest.raises(KeyError, match="amp_condition"):
+        style.agent_inputs(list(windows), None)
+    with pytest.raises(ValueError, match="3 numbers per env"):
+        style.agent_inputs(list(windows), np.zeros((3, 3)))
+    assert style.agent_inputs(list(windows), np.ones((3, 2))).shape == (3, conditioned.dim)
+    path = style.save(tmp_path / "amp.pt")
+    with pytest.raises(ValueError, match="2-number conditions"):
+        AMPStyleReward.load(path, ReferenceWindows(two_clips))
+    assert AMPStyleReward.load(path, conditioned).reference.condition_dim == 2
+
+
+def test_builtin_sets_and_standing_starts():
+    sims = load_reference_library("builtin:sims")
+    skills = {clip.meta["skill"] for clip in sims.clips}
+    assert skills == {"walk", "sit", "getup", "lie", "reach", "idle"}
+    standing = standing_clips(sims)
+    assert {clip.meta["skill"] for clip in standing.clips} == {"walk", "idle"}
+    assert np.isclose(standing.probabilities.sum(), 1.0)
+    assert len(load_reference_library("builtin:stairs").clips) == len(load_reference_library(None).clips)
+    with pytest.raises(ValueError, match="builtin:sims"):
+        load_reference_library("builtin:nope")
+    assert "builtin:sims" in BUILTIN_REFERENCE_SETS
+    with pytest.raises(ValueError, match="no clip"):
+        reference_captions(standing, "sit")
+    with pytest.raises(ValueError, match="skill"):
+        reference_captions(sims, "dance")
+    # SIMS reference starts come from the walk and idle clips only: standing, never seated in mid-air.
+    env = gym.make("SIMS-Walk-v0", init="reference", **FAST_SIMS)
+    for seed in range(6):
+        env.reset(seed=seed)
+        assert env.unwrapped.data.qpos[2] > 0.75
+    env.close()
