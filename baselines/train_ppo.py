@@ -74,7 +74,7 @@ from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy
 from stairenv.motion.rsi import load_reference_library
 from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.sims_evaluation import evaluate_skills, write_reports
-from stairenv.style.discriminator import LOSSES, DiscriminatorConfig
+from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 
@@ -157,6 +157,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--disc-replay-size", type=int, default=100_000, help="agent windows kept for training")
     p.add_argument("--disc-update-interval", type=int, default=2048, help="transitions between training rounds")
     p.add_argument("--disc-updates", type=int, default=2, help="discriminator minibatches per training round")
+    p.add_argument("--disc-background", action="store_true",
+                   help="train the discriminator in a worker thread while the envs step (rewards lag one round)")
+    p.add_argument("--disc-scoring", choices=SCORERS, default="auto",
+                   help="how the discriminator scores each step (numba-parallel: over all cores; bf16: bfloat16)")
     p.add_argument("--log-std-init", type=float, default=0.0,
                    help="initial log std of the Gaussian policy (SB3 default 0: std 1 on actions in [-1, 1])")
     p.add_argument("--torch-threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -273,7 +277,8 @@ def main(argv: list[str] | None = None) -> Path:
         else:
             style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
-                                   config=discriminator_config(args))
+                                   config=discriminator_config(args), background_training=args.disc_background,
+                                   scoring=args.disc_scoring)
         venv = AMPVecEnvWrapper(venv, style)
 
     if args.resume is not None:

@@ -19,6 +19,10 @@ On a 2-core AMD EPYC VM the paper's discriminator stays above the target
 (~1.35-1.5x: its forward pass alone is ~0.3 ms per step in situ, its training
 ~0.23 ms, and the env itself steps ~0.2 ms slower beside it, the cache it
 loses); ``fast`` ([512, 256]) lands at ~1.15-1.26x and ``small`` at ~1.12-1.19x.
+With the second core put to work (``paper-par-bg``: training in a background thread,
+scoring split over both cores) the paper's discriminator lands at ~1.22-1.32x
+(``paper-bg`` alone ~1.22-1.35x); bf16 scoring halves the forward pass's
+arithmetic but not its in-situ time (~0.22 ms: torch's dispatch and cold caches).
 
 Variants (``--variants``, comma-separated; see ``VARIANTS``):
 
@@ -29,6 +33,11 @@ Variants (``--variants``, comma-separated; see ``VARIANTS``):
 - ``paper-aten``: the same, scoring and training with plain torch kernels (MKL, no oneDNN).
 - ``paper-gp64``: gradient penalty estimated on 64 of the 256 reference windows.
 - ``paper-1update``: one minibatch per 2048 transitions.
+- ``paper-bf16``: the paper's, scoring in bfloat16.
+- ``paper-bg``: the paper's, training rounds in a background thread (rewards lag one round).
+- ``paper-bf16-bg``: both.
+- ``paper-par``: the paper's, scoring with the numba kernel split over numba's threads.
+- ``paper-par-bg``: that and background training.
 - ``fast``: MLP [512, 256], otherwise the paper's schedule.
 - ``fast-1update``: MLP [512, 256], one minibatch per 2048 transitions.
 - ``small``: MLP [256, 128], otherwise the paper's schedule.
@@ -58,6 +67,11 @@ VARIANTS: dict[str, tuple[dict, dict, dict]] = {
     "paper-aten": ({}, {}, {"scoring": "torch", "backend": "aten"}),
     "paper-gp64": ({"grad_penalty_batch": 64}, {}, {}),
     "paper-1update": ({}, {"updates_per_round": 1}, {}),
+    "paper-bf16": ({}, {}, {"scoring": "bf16"}),
+    "paper-bg": ({}, {"background_training": True}, {}),
+    "paper-bf16-bg": ({}, {"background_training": True}, {"scoring": "bf16"}),
+    "paper-par": ({}, {}, {"scoring": "numba-parallel"}),
+    "paper-par-bg": ({}, {"background_training": True}, {"scoring": "numba-parallel"}),
     "fast": ({"hidden": (512, 256)}, {}, {}),
     "fast-1update": ({"hidden": (512, 256)}, {"updates_per_round": 1}, {}),
     "small": ({"hidden": (256, 128)}, {}, {}),
@@ -82,7 +96,8 @@ class Timed:
     def __init__(self, wrapper: AMPVecEnvWrapper) -> None:
         self.env = self.scoring = self.training = 0.0
         style = wrapper.style
-        reward, train_round, env_step_wait = style.disc.reward, style.train_round, wrapper.venv.step_wait
+        reward, env_step_wait = style.disc.reward, wrapper.venv.step_wait
+        train_round, start_round = style.train_round, style._start_background_round
 
         def timed_env_step_wait():
             start = time.perf_counter()
@@ -96,14 +111,17 @@ class Timed:
             self.scoring += time.perf_counter() - start
             return out
 
-        def timed_train_round(*args, **kwargs):
-            start = time.perf_counter()
-            out = train_round(*args, **kwargs)
-            self.training += time.perf_counter() - start
-            return out
+        def timed(function):
+            def call(*args, **kwargs):
+                start = time.perf_counter()
+                out = function(*args, **kwargs)
+                self.training += time.perf_counter() - start
+                return out
+            return call
 
         style.disc.reward = timed_reward
-        style.train_round = timed_train_round
+        style.train_round = timed(train_round)
+        style._start_background_round = timed(start_round)  # background: the calling thread's share
         wrapper.venv.step_wait = timed_env_step_wait
 
 

@@ -214,7 +214,7 @@ def test_onednn_backend_is_used_where_it_works():
         AMPDiscriminator(210, backend="cuda")
 
 
-@pytest.mark.parametrize("scoring", ["auto", "numba", "torch"])
+@pytest.mark.parametrize("scoring", ["auto", "numba", "numba-parallel", "torch"])
 def test_scoring_follows_training_loading_and_edits(scoring):
     """The cached scoring plan is rebuilt whenever a weight or a normaliser statistic changes."""
     rng = np.random.default_rng(0)
@@ -256,6 +256,76 @@ def test_numba_and_torch_scoring_agree(reference):
     np.testing.assert_allclose(numba, disc.logits(windows), atol=1e-5)
     with pytest.raises(ValueError, match="scoring"):
         AMPDiscriminator(reference.dim, scoring="numpy")
+
+
+def test_parallel_and_bf16_scoring_match_float32(reference):
+    torch.manual_seed(0)
+    disc = AMPDiscriminator(reference.dim)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        disc.update(reference.sample(256, rng), random_action_windows(256, seed=3))
+    windows = np.concatenate((random_action_windows(40, seed=6), reference.sample(40, rng)))
+    exact = disc.logits(windows)
+    assert exact.std() > 0.1  # trained: the logits spread, so agreement below means something
+    disc.scoring = "numba-parallel"
+    np.testing.assert_allclose(disc.logits(windows), exact, atol=1e-5)
+    disc.scoring_threads = 1
+    np.testing.assert_allclose(disc.logits(windows), exact, atol=1e-5)
+    disc.scoring = "bf16"
+    half = disc.logits(windows)
+    assert half.dtype == np.float32
+    assert np.abs(half - exact).max() < 0.03 * max(1.0, np.abs(exact).max())
+    rewards = style_reward(half, "lsgan") - style_reward(exact, "lsgan")
+    assert np.abs(rewards).max() < 0.02
+
+
+def _constant_feed(style: AMPStyleReward, windows: np.ndarray, calls: int) -> list[np.ndarray]:
+    return [style(windows, np.zeros(len(windows)))[1] for _ in range(calls)]
+
+
+def test_background_training_lags_the_synchronous_schedule_by_one_round(reference):
+    """Same minibatches, same weights in the end; the rewards are the synchronous ones one round later."""
+    windows = random_action_windows(8, seed=4)
+    config = DiscriminatorConfig(hidden=(64, 32), batch_size=32, input_noise=0.5)
+    runs = {}
+    for background in (False, True):
+        torch.manual_seed(1)
+        disc = AMPDiscriminator(reference.dim, config)
+        style = AMPStyleReward(reference, config=config, update_interval=16, seed=2, discriminator=disc,
+                               background_training=background)
+        runs[background] = (style, _constant_feed(style, windows, 12))
+    (sync, r_sync), (bg, r_bg) = runs[False], runs[True]
+    assert not np.allclose(r_sync[0], r_sync[-1])  # the discriminator did learn between rounds
+    calls_per_round = 2  # 16 transitions / 8 envs
+    np.testing.assert_array_equal(r_bg[:calls_per_round], r_sync[:calls_per_round])
+    for i in range(calls_per_round, 12):
+        np.testing.assert_allclose(r_bg[i], r_sync[i - calls_per_round], atol=1e-6)
+    bg.wait()
+    assert bg.rounds == sync.rounds == 6
+    for a, b in zip(sync.disc.parameters(), bg.disc.parameters()):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-5)
+    assert set(bg.last_stats) == set(sync.last_stats)
+    bg.close()
+    assert bg._worker is None
+
+
+def test_background_training_errors_surface_at_the_next_round(reference, tmp_path):
+    style = AMPStyleReward(reference, update_interval=8, background_training=True,
+                           config=DiscriminatorConfig(hidden=(16,), batch_size=8))
+    windows = random_action_windows(8, seed=5)
+
+    def broken(*args):
+        raise RuntimeError("disc exploded")
+
+    style.disc.update = broken
+    style(windows, np.zeros(8))  # starts the round, which fails in the worker
+    with pytest.raises(RuntimeError, match="disc exploded"):
+        style(windows, np.zeros(8))
+    del style.disc.update  # the method again: saving joins the round in flight first
+    style(windows, np.zeros(8))
+    loaded = AMPStyleReward.load(style.save(tmp_path / "amp.pt"), reference)
+    assert loaded.background_training and loaded.rounds == style.rounds == 1
+    style.close()
 
 
 def test_batched_scoring_equals_per_step_scoring(reference):
@@ -318,12 +388,13 @@ def test_train_ppo_discriminator_flags():
                                  "--disc-replay-size", "200000", "--disc-grad-penalty-batch", "64",
                                  "--disc-updates", "1", "--disc-update-interval", "4096",
                                  "--disc-weight-decay", "1e-3", "--disc-logit-reg", "0.05",
-                                 "--disc-input-noise", "0.5"])
+                                 "--disc-input-noise", "0.5", "--disc-background", "--disc-scoring", "bf16"])
     config = train_ppo.discriminator_config(args)
     assert config.hidden == (512, 256) and config.grad_penalty == 10.0 and config.learning_rate == 1e-5
     assert config.weight_decay == 1e-3 and config.logit_reg == 0.05 and config.input_noise == 0.5
     assert config.replay_size == 200_000 and config.grad_penalty_batch == 64
     assert args.disc_updates == 1 and args.disc_update_interval == 4096
+    assert args.disc_background and args.disc_scoring == "bf16"
     with pytest.raises(SystemExit):
         train_ppo.parse_args(["--disc-hidden", "512,x"])
     preset = train_ppo.parse_args(["--preset", "style-short", "--w-style", "0.7"])

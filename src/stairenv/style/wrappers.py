@@ -19,6 +19,14 @@ embedding) is appended to its window, so style can be conditioned on text.
 - ``AMPVecEnvWrapper``: Stable-Baselines3 ``VecEnv`` (``DummyVecEnv``, ``SubprocVecEnv``).
 - ``AMPVectorWrapper``: ``gymnasium.vector.VectorEnv`` (next-step autoreset).
 
+``background_training=True`` runs each training round in a worker thread while
+the envs step (torch releases the GIL in its kernels; on a machine with a spare
+core the round costs the step loop almost nothing). Scoring then uses a snapshot
+of the weights taken when the round started, so the rewards lag the synchronous
+schedule by exactly one round (``update_interval`` transitions), deterministically:
+the minibatches are drawn in the calling thread and a round is joined before the
+next starts. ``scoring="bf16"`` scores in bfloat16 (see ``AMPDiscriminator``).
+
 ``save(path)`` / ``load(path)`` keep the discriminator, its optimiser and input
 normaliser, the weights and the schedule; the replay buffer's contents are not
 saved (its size is), it refills within one round.
@@ -26,6 +34,7 @@ saved (its size is), it refills within one round.
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
@@ -34,9 +43,9 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, ReplayBuffer
+from stairenv.style.discriminator import SCORERS, AMPDiscriminator, DiscriminatorConfig, ReplayBuffer
 from stairenv.style.reference import ReferenceWindows
-from stairenv.validation import check_number
+from stairenv.validation import check_choice, check_number
 
 
 class AMPStyleReward:
@@ -53,6 +62,8 @@ class AMPStyleReward:
         train: bool = True,
         seed: int = 0,
         discriminator: AMPDiscriminator | None = None,
+        background_training: bool = False,
+        scoring: str | None = None,
     ) -> None:
         self.reference = reference
         self.w_task = check_number("w_task", w_task, 0.0)
@@ -62,7 +73,12 @@ class AMPStyleReward:
         self.train = bool(train)
         torch.manual_seed(seed)
         self.rng = np.random.default_rng(seed)
-        self.disc = discriminator if discriminator is not None else AMPDiscriminator(reference.dim, config or DiscriminatorConfig())
+        if discriminator is None:
+            discriminator = AMPDiscriminator(reference.dim, config or DiscriminatorConfig(), scoring=scoring or "auto")
+        elif scoring is not None:
+            discriminator.scoring = check_choice("scoring", scoring, SCORERS)
+        self.disc = discriminator
+        self.disc.noise_generator.manual_seed(seed)
         if self.disc.input_dim != reference.dim:
             raise ValueError(f"discriminator input {self.disc.input_dim} != reference window size {reference.dim}")
         self.config = self.disc.config
@@ -70,6 +86,9 @@ class AMPStyleReward:
         self.pending = 0
         self.rounds = 0
         self.last_stats: dict[str, float] = {}
+        self.background_training = bool(background_training)
+        self._worker: ThreadPoolExecutor | None = None
+        self._job: Future | None = None
 
     def __call__(self, amp_obs: np.ndarray, task_reward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Combined reward and style reward of a batch of transitions; also learns from them."""
@@ -79,13 +98,18 @@ class AMPStyleReward:
                 f"reference windows have {self.reference.feature_dim}: make the env's amp_history equal the "
                 f"reference's num_frames"
             )
+        if self._job is not None:  # a round trains in the background: leave its core to it
+            self.disc.scoring_threads = None if self._job.done() else 1
         style = self.disc.reward(amp_obs)
         if self.train:
             self.replay.add(amp_obs)
             self.pending += len(amp_obs)
             if self.pending >= self.update_interval:
                 self.pending = 0
-                self.train_round()
+                if self.background_training:
+                    self._start_background_round()
+                else:
+                    self.train_round()
         return self.w_task * np.asarray(task_reward, dtype=np.float64) + self.w_style * style, style
 
     def agent_inputs(self, windows: list | np.ndarray, conditions: list | np.ndarray | None,
@@ -106,20 +130,55 @@ class AMPStyleReward:
                              f"the reference conditions have {need}")
         return np.concatenate((np.stack(windows).astype(np.float32), conditions), axis=1)
 
-    def train_round(self, updates: int | None = None) -> dict[str, float]:
+    def _minibatches(self, updates: int | None) -> list[tuple[np.ndarray, np.ndarray]]:
         updates = self.updates_per_round if updates is None else updates
+        if len(self.replay) == 0:
+            return []
         batch = self.config.batch_size
-        stats: list[dict[str, float]] = []
-        for _ in range(updates):
-            if len(self.replay) == 0:
-                break
-            stats.append(self.disc.update(self.reference.sample(batch, self.rng), self.replay.sample(batch, self.rng)))
+        return [(self.reference.sample(batch, self.rng), self.replay.sample(batch, self.rng)) for _ in range(updates)]
+
+    def _train_on(self, minibatches: list[tuple[np.ndarray, np.ndarray]]) -> list[dict[str, float]]:
+        return [self.disc.update(reference, agent) for reference, agent in minibatches]
+
+    def _record(self, stats: list[dict[str, float]]) -> None:
         if stats:
             self.rounds += 1
             self.last_stats = {k: float(np.mean([s[k] for s in stats])) for k in stats[0]}
+
+    def train_round(self, updates: int | None = None) -> dict[str, float]:
+        """Train the discriminator now (after any background round in flight); returns its statistics."""
+        self.wait()
+        self.disc.unfreeze_scoring()  # scoring follows this round at once
+        self._record(self._train_on(self._minibatches(updates)))
         return self.last_stats
 
+    def _start_background_round(self) -> None:
+        self.wait()  # the previous round, whose weights the snapshot below then holds
+        minibatches = self._minibatches(None)
+        if not minibatches:
+            return
+        self.disc.freeze_scoring()
+        if self._worker is None:
+            self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="amp-discriminator")
+        self._job = self._worker.submit(self._train_on, minibatches)
+
+    def wait(self) -> None:
+        """Finish a background training round in flight (its errors are raised here). Scoring keeps
+        the snapshot it uses until the next round starts, so waiting changes no reward."""
+        job, self._job = self._job, None
+        self.disc.scoring_threads = None
+        if job is not None:
+            self._record(job.result())
+
+    def close(self) -> None:
+        """Finish any background round and stop the worker thread."""
+        self.wait()
+        if self._worker is not None:
+            self._worker.shutdown()
+            self._worker = None
+
     def save(self, path: str | Path) -> Path:
+        self.wait()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         torch.save({
@@ -129,6 +188,7 @@ class AMPStyleReward:
             "replay_size": self.config.replay_size, "rounds": self.rounds,
             "reference_num_frames": self.reference.num_frames, "reference_fps": self.reference.fps,
             "reference_condition_dim": self.reference.condition_dim,
+            "background_training": self.background_training, "scoring": self.disc.scoring,
             "config": asdict(self.config),
         }, path)
         return path
@@ -142,7 +202,8 @@ class AMPStyleReward:
                              f"carry {reference.condition_dim}: build them with the same conditions")
         disc = AMPDiscriminator.from_state(state["discriminator"])
         style = cls(reference, state["w_task"], state["w_style"], update_interval=state["update_interval"],
-                    updates_per_round=state["updates_per_round"], train=train, seed=seed, discriminator=disc)
+                    updates_per_round=state["updates_per_round"], train=train, seed=seed, discriminator=disc,
+                    background_training=state.get("background_training", False), scoring=state.get("scoring"))
         style.rounds = state["rounds"]
         return style
 
@@ -157,6 +218,10 @@ class AMPVecEnvWrapper(VecEnvWrapper):
 
     def reset(self):
         return self.venv.reset()
+
+    def close(self) -> None:
+        self.style.close()
+        super().close()
 
     def step_wait(self):
         obs, task_reward, dones, infos = self.venv.step_wait()
@@ -187,6 +252,10 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
     def reset(self, **kwargs):
         self._resetting[:] = False
         return self.env.reset(**kwargs)
+
+    def close(self, **kwargs) -> None:
+        self.style.close()
+        super().close(**kwargs)
 
     def step(self, actions):
         obs, task_reward, terminated, truncated, info = self.env.step(actions)
