@@ -71,7 +71,9 @@ class MotionClip:
             raise MotionFileError(f"clip {self.name or '<unnamed>'}: {problem}")
         # One sign per quaternion hemisphere, continuous in time (q and -q are the same rotation).
         quat = self.qpos[:, 3:7]
-        quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        norms = np.linalg.norm(quat, axis=1)
+        off = np.abs(norms - 1.0) > 1e-12  # unit already: left alone, so that save + load is exact
+        quat[off] /= norms[off, None]
         flips = np.cumprod(np.where(np.sum(quat[1:] * quat[:-1], axis=1) < 0, -1.0, 1.0))
         quat[1:] *= flips[:, None]
 

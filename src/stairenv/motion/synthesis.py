@@ -126,6 +126,11 @@ _ARM_SWING_GAIN = 0.55          # shoulder y (rad) per metre of foot lead
 _ELBOW_BASE = 0.25              # elbow flexion (rad) with the arm hanging
 _ELBOW_SWING_GAIN = 0.7         # extra elbow flexion per radian of forward arm swing
 _SHOULDER_ABDUCTION = 0.10      # rad; keeps the arms off the trunk
+_SHOULDER_ABDUCTION_SWING = 0.04  # extra abduction (rad) as the arm swings out of the hanging pose
+_SHOULDER_ROTATION_GAIN = 0.3   # shoulder z (rad, inward) per radian of forward arm swing
+_PELVIC_OBLIQUITY = 0.05        # rad; the pelvis drops towards the swinging leg (about 3 degrees)
+_OBLIQUITY_RATE = 1.0           # m/s of foot lead change at which the drop is ~76% of full
+_THORAX_COUNTER_ROLL = 0.8      # abdomen x = -this * pelvic roll (the thorax stays nearly level)
 _HEIGHT_SMOOTHING = 0.12        # s; half-width of the pelvis-height smoothing window
 _LEAN_SMOOTHING = 0.35          # s; sigma of the walk-to-stairs blend of lean and gaze
 _RANGE_TOLERANCE = math.radians(0.5)  # joint-limit excursions clipped silently; larger ones raise
@@ -618,9 +623,11 @@ def _smooth_from_below(values: np.ndarray, radius: int) -> np.ndarray:
 
 
 def _pelvis_height(hips_xy: np.ndarray, feet: _FootTracks, nominal_over_support: float,
-                   monotone: str | None, level_reference: np.ndarray | None, radius: int) -> np.ndarray:
+                   monotone: str | None, level_reference: np.ndarray | None, radius: int,
+                   hips_dz: np.ndarray | None = None) -> np.ndarray:
     """Pelvis height (T,): as high as ``nominal_over_support`` above the ground the feet stand
-    on, but never higher than both legs reach with ``LegGeometry.max_leg_length``.
+    on, but never higher than both legs reach with ``LegGeometry.max_leg_length``
+    (``hips_dz`` (T, 2): each hip's height above the pelvis centre, from the pelvic roll).
 
     ``monotone`` is "up" (non-decreasing; the support is the higher foot's ground), "down"
     (non-increasing; the lower foot's ground) or None (flat walking, support = the ground).
@@ -633,7 +640,8 @@ def _pelvis_height(hips_xy: np.ndarray, feet: _FootTracks, nominal_over_support:
     horizontal = np.linalg.norm(hips_xy - feet.ankle[:, :, :2], axis=2)
     if np.any(horizontal >= reach):
         raise ValueError("a footstep is out of the legs' reach: shorten the steps")
-    bound = np.min(feet.ankle[:, :, 2] + np.sqrt(reach**2 - horizontal**2), axis=1)
+    lift = 0.0 if hips_dz is None else hips_dz
+    bound = np.min(feet.ankle[:, :, 2] + np.sqrt(reach**2 - horizontal**2) - lift, axis=1)
     if monotone == "down":
         support = np.nanmin(feet.ground, axis=1)
     else:
@@ -737,9 +745,14 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         lateral = np.stack((-np.sin(yaw), np.cos(yaw)), axis=1)
         hips_xy = np.stack([pelvis_xy + _SIDE_SIGN[s] * geo.hip_offset[1] * lateral for s in (RIGHT, LEFT)],
                            axis=1)
-        pelvis_z = _pelvis_height(hips_xy, feet, nominal_height, monotone, level_reference, radius)
+        # Pelvic obliquity: the pelvis drops towards the swinging leg (roll > 0 lifts the left
+        # hip), most at mid-swing, when the feet's lead changes fastest.
+        lead_rate = np.gradient(left_lead, times)
+        roll = -_PELVIC_OBLIQUITY * np.tanh(lead_rate / _OBLIQUITY_RATE)
+        hips_dz = np.stack([_SIDE_SIGN[s] * geo.hip_offset[1] * np.sin(roll) for s in (RIGHT, LEFT)], axis=1)
+        pelvis_z = _pelvis_height(hips_xy, feet, nominal_height, monotone, level_reference, radius, hips_dz)
         pelvis_pos = np.column_stack((pelvis_xy, pelvis_z))
-        pelvis_rot = Rotation.from_euler("ZY", np.column_stack((yaw, pelvis_pitch)))
+        pelvis_rot = Rotation.from_euler("ZYX", np.column_stack((yaw, pelvis_pitch, roll)))
 
         joints = np.zeros((len(times), len(DOF_NAMES)))
         shin_pitch = np.zeros((len(times), 2))
@@ -760,9 +773,12 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
                 shin = np.interp(_SWING_SAMPLES, feet.swing_phase[rows, side], shin_pitch[rows, side])
                 swing_pitch[int(target)] = _relaxed_swing_pitch(plan.push_off[target - 2], shin)
 
-    # Trunk and head: lean, thorax counter-rotation, head level with the heading, gaze down.
+    # Trunk and head: lean, thorax counter-rotation and counter-roll, head level with the
+    # heading, gaze down.
+    joints[:, _dof("abdomen_x")] = -_THORAX_COUNTER_ROLL * roll
     joints[:, _dof("abdomen_y")] = abdomen_pitch
     joints[:, _dof("abdomen_z")] = -_THORAX_COUNTER_ROTATION * pelvic_rotation
+    joints[:, _dof("neck_x")] = -(roll + joints[:, _dof("abdomen_x")])
     joints[:, _dof("neck_y")] = gaze - lean
     joints[:, _dof("neck_z")] = -(pelvic_rotation + joints[:, _dof("abdomen_z")])
 
@@ -770,7 +786,11 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     for name, sign in (("right", 1.0), ("left", -1.0)):
         swing_forward = sign * _ARM_SWING_GAIN * left_lead
         joints[:, _dof(f"{name}_shoulder_y")] = -swing_forward
-        joints[:, _dof(f"{name}_shoulder_x")] = -sign * _SHOULDER_ABDUCTION
+        # The arm swings slightly out (abduction) the further it leaves the hanging pose, and
+        # turns inward as it swings forward.
+        out = np.sqrt(swing_forward**2 + 0.05**2) - 0.05  # smooth |swing|
+        joints[:, _dof(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
+        joints[:, _dof(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
         forward = 0.5 * (swing_forward + np.sqrt(swing_forward**2 + 0.05**2))  # smooth max(0, .)
         joints[:, _dof(f"{name}_elbow")] = -(_ELBOW_BASE + _ELBOW_SWING_GAIN * forward)
 
