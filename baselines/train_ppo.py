@@ -171,9 +171,19 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _explicit(argv: list[str] | None) -> set[str]:
+    """The flags given on the command line (even when equal to their defaults)."""
+    probe = build_parser()
+    for action in probe._actions:
+        action.default = argparse.SUPPRESS
+    return set(vars(probe.parse_args(argv)))
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """Flags, then ``--config`` keys, then ``--preset`` values: the first that sets a key wins."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    fixed = _explicit(argv)
     if args.config is not None:
         with args.config.open("rb") as f:
             config = tomllib.load(f)
@@ -181,15 +191,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         unknown = set(config) - known - {"env_kwargs"}
         if unknown:
             raise SystemExit(f"--config {args.config}: unknown keys {sorted(unknown)}; valid: {sorted(known)}")
-        defaults = vars(parser.parse_args([]))
         for key, value in config.items():
             if key == "env_kwargs":
                 args.env_kwarg = list(value.items()) + args.env_kwarg
-            elif getattr(args, key) == defaults[key]:
+            elif key not in fixed:
                 setattr(args, key, value)
-    defaults = vars(parser.parse_args([]))
+                fixed.add(key)
     for key, value in PRESETS[args.preset].items():
-        if getattr(args, key) == defaults[key]:
+        if key not in fixed:
             setattr(args, key, value)
     if args.env not in gym.registry:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")

@@ -400,6 +400,8 @@ def test_train_ppo_discriminator_flags():
     preset = train_ppo.parse_args(["--preset", "style-short", "--w-style", "0.7"])
     assert preset.disc_input_noise == 1.0 and preset.learning_rate == 1e-5 and preset.log_std_init == -2.0
     assert preset.w_style == 0.7  # explicit flags win over the preset
+    no_noise = train_ppo.parse_args(["--preset", "style-short", "--disc-input-noise", "0"])
+    assert no_noise.disc_input_noise == 0.0  # even when the flag repeats the default
     assert train_ppo.parse_args([]).disc_input_noise == 0.0  # the paper's settings by default
 
 
