@@ -26,7 +26,8 @@ reference clips are synthesised here, as pure functions of a few parameters
    to the shin, toes down after push-off) and is flattened before it lands.
 4. **Pelvis.** Forward: a spline through points between the feet at each double
    support (60% of the way to the leading foot; halfway on descent); sideways: a
-   small sway over the stance foot; yaw: a small pelvic rotation following the legs.
+   small sway over the stance foot; yaw: a small pelvic rotation following the legs;
+   roll: the pelvis drops about 3 degrees towards the swinging leg (most at mid-swing).
    Height: the lowest of (a) what both legs reach with the knees never fully
    straight, (b) a nominal height over the ground the feet stand on; on stairs
    monotone (non-decreasing up, non-increasing down) and equal, over the ground, on
@@ -39,7 +40,11 @@ reference clips are synthesised here, as pure functions of a few parameters
    foot's relaxed pitch depends on the shin, so the legs are solved three times.
 6. **Upper body.** Trunk lean (more on ascent), head level and looking down a little
    more on stairs, arms swinging opposite to the legs with the elbows flexing as the
-   arm comes forward, thorax counter-rotating the pelvis.
+   arm comes forward (swinging slightly out and turning inward as they come forward),
+   thorax counter-rotating the pelvis and leaning against its roll, so that the head
+   stays level. Every degree of freedom the AMP features see moves in the clips
+   (their roll too): a discriminator cannot tell an agent from them by a feature
+   that never varies.
 
 Every joint angle stays inside the model's range; parameters that would need more
 raise ``ValueError`` (validated for step heights 0.05-0.20 m and step depths from
