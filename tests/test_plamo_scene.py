@@ -23,6 +23,26 @@ def test_check_env_and_determinism():
     assert info_a["instructions"] == info_b["instructions"]
 
 
+def test_scene_is_kept_between_unseeded_resets_and_rebuilt_on_a_seed():
+    env = PlaMoSceneEnv(scene_resample_every=3)
+    obs, _ = env.reset(seed=5)
+    first_scene, first_model = env.scene, env.model
+    env.step(np.zeros(28))
+    env.reset()
+    assert env.scene is first_scene and env.model is first_model  # same world, new instructions and start
+    assert env._replans == 0 and env._steps == 0 and env.data.time == 0.0
+    env.reset()
+    assert env.scene is first_scene
+    env.reset()  # the third reset since the build
+    assert env.scene is not first_scene and env.model is not first_model
+    # A seed rebuilds, so a seeded episode does not depend on the ones before it.
+    again, _ = env.reset(seed=5)
+    np.testing.assert_array_equal(again, obs)
+    np.testing.assert_array_equal(env.scene.heights, first_scene.heights)
+    with pytest.raises(ValueError, match="scene_resample_every"):
+        PlaMoSceneEnv(scene_resample_every=0)
+
+
 def test_random_instructions_parse():
     rng = np.random.default_rng(0)
     names = ["tree", "swing", "car", "bench"]

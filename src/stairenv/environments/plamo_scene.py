@@ -56,8 +56,10 @@ class PlaMoSceneEnv(PlaMoEnv):
     r"""A generated scene (terrain patches, walls, low ceilings, a moving ball, 4 landmarks) and
     instructions such as "Walk to the tree, then crawl from the tree to the swing".
 
-    Every reset builds a new scene (``stairenv.world.scenes.generate_scene``), parses the
-    instructions (random ones over the scene's landmarks if ``instructions`` is None),
+    A new scene (``stairenv.world.scenes.generate_scene``) is built every
+    ``scene_resample_every`` resets and whenever ``reset`` gets a seed (so a seeded
+    episode does not depend on the episodes before it; the slalom scene is built once).
+    Each reset parses the instructions (random ones over the scene's landmarks if ``instructions`` is None),
     plans them with ``stairenv.planning.Planner`` (A*, refiner, speed QP) from a start
     landmark, and samples the timed head path. While the episode runs, every
     ``replan_every`` seconds the planner predicts collisions with the ball over
@@ -70,7 +72,8 @@ class PlaMoSceneEnv(PlaMoEnv):
     |---|---|---|
     | instructions | None | instruction text; None = random over the scene's landmarks |
     | scene | None | keyword arguments of ``SceneConfig`` |
-    | scene_kind | "random" | "random" (generated each reset) or "slalom" (the paper's test, "Run to the goal") |
+    | scene_kind | "random" | "random" (generated) or "slalom" (the paper's test, "Run to the goal") |
+    | scene_resample_every | 10 | resets between new random scenes (>= 1; building one costs ~40 ms, planning ~15 ms) |
     | speed_profile | "planned" | "planned" (the QP) or "constant" (``constant_speed`` along the same path) |
     | replan_horizon, replan_every | 1.5, 0.5 | collision look-ahead and check period (s) |
     | success_radius | 0.75 | head distance to the last landmark that counts as arrived (m) |
@@ -83,6 +86,7 @@ class PlaMoSceneEnv(PlaMoEnv):
         instructions: str | None = None,
         scene: dict[str, Any] | None = None,
         scene_kind: str = "random",
+        scene_resample_every: int = 10,
         speed_profile: str = "planned",
         constant_speed: float = 1.5,
         replan_horizon: float = 1.5,
@@ -106,6 +110,8 @@ class PlaMoSceneEnv(PlaMoEnv):
         self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
         self.constant_speed = check_number("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
         self.scene_config = SceneConfig(**(scene or {}))
+        self.scene_resample_every = int(check_number("scene_resample_every", scene_resample_every, 1, 10**9))
+        self._resets = 0
         self.replan_horizon = check_number("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
         self.replan_every = check_number("replan_every", replan_every, 0.0, 10.0, low_open=True)
         self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
@@ -122,16 +128,10 @@ class PlaMoSceneEnv(PlaMoEnv):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super(PlaMoEnv, self).reset(seed=seed)  # gymnasium's seeding only: this env builds its own world
         rng = self.np_random
-        self.close()
-        self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
-        spec = load_humanoid_spec(self._pd_gains)
-        self._scene_handles = add_scene_to_spec(spec, self.scene)
-        self._setup(spec, *self._build_args)
-        self._scene_handles.bind(self.model)
-        self._geoms = humanoid_geoms(self.model, self._idx)
-        self._camera_distance, self._camera_elevation = 7.0, -30.0
-
-        self._planner = Planner(self.scene.planning_grid(cell_size=0.1))
+        if self.scene is None or (self.scene_kind == "random" and (
+                seed is not None or self._resets % self.scene_resample_every == 0)):
+            self._build_scene(rng)
+        self._resets += 1
         # Random instructions are redrawn if the planner finds them impossible in this scene;
         # the user's own instructions raise the PlanningError (it says why).
         for attempt in range(10):
@@ -183,6 +183,18 @@ class PlaMoSceneEnv(PlaMoEnv):
         return obs, reward, bool(terminated or success), truncated, self._scene_info(info, success)
 
     # --- pieces -------------------------------------------------------------
+    def _build_scene(self, rng: np.random.Generator) -> None:
+        """A new scene, compiled with the humanoid into a new model, and its planner."""
+        self.close()
+        self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
+        spec = load_humanoid_spec(self._pd_gains)
+        self._scene_handles = add_scene_to_spec(spec, self.scene)
+        self._setup(spec, *self._build_args)
+        self._scene_handles.bind(self.model)
+        self._geoms = humanoid_geoms(self.model, self._idx)
+        self._camera_distance, self._camera_elevation = 7.0, -30.0
+        self._planner = Planner(self.scene.planning_grid(cell_size=0.1))
+
     def _refresh_path(self) -> None:
         duration = self._trajectory.end_time + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0
         self.path = path_from_trajectory(self._trajectory, self.ground_height, duration)
