@@ -70,9 +70,9 @@ class DiscriminatorConfig:
     # of the double backward's cost.
     grad_penalty_batch: int | None = None
     # Instance noise: Gaussian noise of this std added to every normalised training input,
-    # reference and agent alike (0 = none, the paper). Reference features that never vary
-    # (the built-in synthesised clips hold 22 of 105 per frame constant: no roll, fixed arm
-    # joints) otherwise let the discriminator reject any agent window on a hair's breadth.
+    # reference and agent alike (0 = none, the paper). Without it our short CPU runs saw the
+    # discriminator win within ~100k steps and the style reward fall all run; blurring both
+    # classes keeps it from separating on tiny feature differences (baselines/train_ppo.py).
     # Scoring sees clean inputs.
     input_noise: float = 0.0
 
