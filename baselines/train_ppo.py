@@ -70,7 +70,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.environments.sims import SIMSEnv, reference_captions
-from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy
+from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy, normalizer_beside
 from stairenv.motion.rsi import load_reference_library
 from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.sims_evaluation import evaluate_skills, write_reports
@@ -291,9 +291,10 @@ def main(argv: list[str] | None = None) -> Path:
         venv = AMPVecEnvWrapper(venv, style)
 
     if args.resume is not None:
-        stats = args.resume.with_name(args.resume.stem.replace("ppo_", "ppo_vecnormalize_") + ".pkl")
-        if not stats.exists():
-            stats = args.resume.parent / "vecnormalize.pkl"
+        stats = normalizer_beside(args.resume)
+        if stats is None:
+            raise SystemExit(f"no VecNormalize statistics beside {args.resume} (ppo_vecnormalize_<n>_steps.pkl "
+                             "or vecnormalize.pkl)")
         venv = VecNormalize.load(str(stats), venv)
         model = PPO.load(args.resume, env=venv, device=args.device, tensorboard_log=tensorboard)
         print(f"resumed from {args.resume} ({model.num_timesteps} steps) with statistics {stats}")

@@ -32,6 +32,7 @@ import csv
 import json
 import math
 import os
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -184,6 +185,17 @@ def _sb3_algorithm(name: str) -> type:
     raise ValueError(f"policy algorithm must be a Stable-Baselines3 algorithm {known}, got {name!r}")
 
 
+def normalizer_beside(model_path: str | os.PathLike) -> Path | None:
+    """The VecNormalize statistics saved with a model: a checkpoint's own
+    (SB3's ``CheckpointCallback``: ``ppo_1000_steps.zip`` -> ``ppo_vecnormalize_1000_steps.pkl``),
+    else ``vecnormalize.pkl`` in its folder; None if neither exists."""
+    model_path = Path(model_path)
+    found = re.fullmatch(r"(.*)_(\d+)_steps", model_path.stem)
+    candidates = [model_path.with_name(f"{found[1]}_vecnormalize_{found[2]}_steps.pkl")] if found else []
+    candidates.append(model_path.parent / "vecnormalize.pkl")
+    return next((path for path in candidates if path.is_file()), None)
+
+
 def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cpu") -> Policy:
     """Turn a policy spec into a callable ``obs -> action``.
 
@@ -194,8 +206,8 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     | ``"path/model.zip"`` | ``stable_baselines3.PPO.load(path)``, deterministic ``predict`` |
     | ``"SAC:path/model.zip"`` | the same with another algorithm (SB3, or sb3_contrib if installed) |
 
-    For a model, a ``vecnormalize.pkl`` in the same folder (SB3's ``VecNormalize.save``)
-    normalises the observations before ``predict`` (statistics frozen).
+    For a model, its VecNormalize statistics (``normalizer_beside``) normalise the
+    observations before ``predict`` (statistics frozen).
     ``env`` provides the spaces; it is not stepped. ``device`` is passed to the SB3 loader.
     """
     if not isinstance(spec, (str, os.PathLike)):
@@ -234,8 +246,8 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
         )
 
     normalizer = None
-    stats = model_path.parent / "vecnormalize.pkl"
-    if stats.is_file():
+    stats = normalizer_beside(model_path)
+    if stats is not None:
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
         dummy = DummyVecEnv([lambda: _SpacesEnv(env.observation_space, env.action_space)])
