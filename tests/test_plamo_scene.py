@@ -43,6 +43,27 @@ def test_scene_is_kept_between_unseeded_resets_and_rebuilt_on_a_seed():
         PlaMoSceneEnv(scene_resample_every=0)
 
 
+def test_replanning_keeps_the_route_continuous_and_its_segments_chained():
+    # Seed 47's ball crosses the first of two segments; the detour used to end on another cell of the
+    # landmark (and the whole route was appended again), so the followed path jumped.
+    env = PlaMoSceneEnv()
+    env.reset(seed=47)
+    assert len(env._plans) == 2
+    t = 0.0
+    while t < env._trajectory.end_time:
+        env._maybe_replan(t)
+        t += 0.5
+    assert env._replans >= 1
+    route = env._trajectory
+    assert np.linalg.norm(np.diff(route.xyz[:, :2], axis=0), axis=1).max() < 0.2
+    assert np.all(np.diff(route.t) >= 0) and np.all(np.diff(route.s) >= -1e-9)
+    first, second = (p.trajectory for p in env._plans)
+    assert first.end_time == second.start_time
+    np.testing.assert_allclose(first.xyz[-1, :2], second.xyz[0, :2], atol=0.05)
+    np.testing.assert_allclose(route.xyz[-1], second.xyz[-1])
+    assert route.end_time == second.end_time
+
+
 def test_random_instructions_parse():
     rng = np.random.default_rng(0)
     names = ["tree", "swing", "car", "bench"]

@@ -23,7 +23,13 @@ from stairenv.planning.instructions import Segment, parse_instructions
 from stairenv.planning.locomotion import LOCOMOTIONS, get_locomotion
 from stairenv.planning.planner import Planner, PlannerSettings
 from stairenv.planning.refine import head_profile
-from stairenv.planning.replan import ClosedLoopObstacle, ConstantVelocityObstacle, predict_collision, replan
+from stairenv.planning.replan import (
+    ClosedLoopObstacle,
+    ConstantVelocityObstacle,
+    predict_collision,
+    replan,
+    wait_for_obstacles,
+)
 from stairenv.planning.speed import speed_limits, speed_profile, time_optimal_reference, travel_time
 from stairenv.planning.waypoints import Trajectory, timed_waypoints
 
@@ -427,6 +433,65 @@ def test_replanning_avoids_a_ball_crossing_the_path():
     assert predict_collision(new, [ball], t_now=t_now) is None
     # it still arrives
     assert np.linalg.norm(new.xyz[-1, :2] - plan.trajectory.xyz[-1, :2]) < 0.5
+
+
+def test_replanning_sidesteps_a_ball_coming_head_on():
+    grid = flat_grid(200, 200, landmarks={"a": square(100, 10), "b": square(100, 190)})
+    plan = Planner(grid).plan("b", "walk", start="a")
+    t_now = 6.0
+    here = plan.trajectory.position(t_now)[:2]
+    # rolling straight down the path at the character: its future positions cover the current cell
+    ball = ConstantVelocityObstacle(here + np.array([4.0, 0.0]), (-1.0, 0.0), radius=0.3, t0=t_now)
+    assert predict_collision(plan.trajectory, [ball], t_now=t_now) is not None
+    result = replan(plan, [ball], t_now=t_now)
+    new = result.trajectory
+    times = np.linspace(t_now, t_now + 8.0, 1601)
+    gap = np.linalg.norm(new.position(times)[:, :2] - ball.position(times), axis=1)
+    assert gap.min() >= ball.radius + plan.costmap.body_radius
+    assert np.linalg.norm(new.xyz[-1, :2] - plan.trajectory.xyz[-1, :2]) < 0.2  # ends where the old path ended
+
+
+def test_waiting_lets_a_ball_cross_a_corridor_with_no_detour():
+    # A corridor 1 m wide: the ball (0.3 m + 0.25 m body clearance) fills it, so no detour exists.
+    walls = np.ones((40, 200), bool)
+    walls[15:25] = False
+    grid = PlanningGrid(np.zeros((40, 200)), walls, np.full((40, 200), np.inf), 0.1, (0.0, 0.0),
+                        {"a": square(20, 10), "b": square(20, 190)})
+    plan = Planner(grid).plan("b", "walk", start="a")
+    t_cross = 8.0
+    cross = plan.trajectory.position(t_cross)[:2]
+    ball = ConstantVelocityObstacle(cross - np.array([0.0, 0.5]), (0.0, 0.2), radius=0.3, t0=t_cross - 2.5)
+    t_now = t_cross - 1.4
+    assert predict_collision(plan.trajectory, [ball], t_now=t_now) is not None
+    with pytest.raises(PlanningError):
+        replan(plan, [ball], t_now=t_now)
+    result = wait_for_obstacles(plan, [ball], t_now=t_now)
+    assert result is not None and result.rounds == 0 and 0.0 < result.waited <= 8.0
+    new = result.trajectory
+    assert np.allclose(new.position(t_now), plan.trajectory.position(t_now))
+    # never within contact distance of the ball, from now until long after it has passed
+    times = np.linspace(t_now, new.end_time + 2.0, 4001)
+    gap = np.linalg.norm(new.position(times)[:, :2] - ball.position(times), axis=1)
+    assert gap.min() >= ball.radius + plan.costmap.body_radius
+    # the same path, only later: it still arrives, standing still at the stop for the wait
+    np.testing.assert_allclose(new.xyz[-1], plan.trajectory.xyz[-1])
+    assert new.end_time > plan.trajectory.end_time + result.waited
+    stop = np.flatnonzero((np.diff(new.s) == 0.0) & (np.diff(new.t) > 0.0))
+    assert len(stop) == 1 and np.diff(new.t)[stop[0]] == pytest.approx(result.waited)
+    assert new.v[stop[0]] == 0.0 and new.v[stop[0] + 1] == 0.0
+    # speeds only drop below the old profile; deceleration within the emergency bound, acceleration within a_max
+    ds = np.diff(new.s)
+    moving = ds > 1e-9
+    accel = (new.v[1:] ** 2 - new.v[:-1] ** 2)[moving] / (2 * ds[moving])
+    assert accel.min() >= -1.0 - 1e-9 and accel.max() <= plan.settings.a_max + 1e-9
+    later = new.t >= t_now
+    v_old = np.sqrt(np.interp(new.s[later], plan.trajectory.s, plan.trajectory.v ** 2))  # v^2 is linear in s
+    assert np.all(new.v[later] <= v_old + 1e-9)
+    assert wait_for_obstacles(plan, [], t_now=t_now) is None
+    # a ball that comes down the corridor at the character cannot be waited out
+    head_on = ConstantVelocityObstacle(cross, (-1.0, 0.0), radius=0.3, t0=t_now)
+    with pytest.raises(PlanningError, match="does not clear"):
+        wait_for_obstacles(plan, [head_on], t_now=t_now, max_wait=2.0)
 
 
 def test_closed_loop_obstacle():

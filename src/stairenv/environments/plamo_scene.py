@@ -13,8 +13,8 @@ from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEn
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.motion.rsi import humanoid_geoms
 from stairenv.planning.errors import PlanningError
-from stairenv.planning.planner import Plan, Planner
-from stairenv.planning.replan import predict_collision, replan
+from stairenv.planning.planner import Plan, Planner, plan_path
+from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
 from stairenv.tasks.state import read_state
@@ -66,7 +66,10 @@ class PlaMoSceneEnv(PlaMoEnv):
     ``replan_horizon`` seconds and replans around it. Observation and reward are
     PlaMo-v0's; the episode succeeds (``info["success"]``, terminated) when the head
     is within ``success_radius`` of the last landmark's centre after its planned
-    arrival time. ``info`` also carries ``instructions``, ``replans`` and ``planned_time``.
+    arrival time. When no detour exists, the character stops on its path and waits for the
+    ball to pass (``stairenv.planning.replan.wait_for_obstacles``). ``info`` also carries
+    ``instructions``, ``replans`` (detours and waits), ``waits``, ``replan_failures`` and
+    ``planned_time``.
 
     | keyword | default | meaning |
     |---|---|---|
@@ -154,6 +157,7 @@ class PlaMoSceneEnv(PlaMoEnv):
         self.instructions_text = text
         self._replans = 0
         self._replan_failures = 0
+        self._waits = 0
         self._refresh_path()
         goal = self.scene.landmark(self._plans[-1].segment.target)
         self._goal_xy = np.asarray(goal.center, dtype=float)
@@ -205,27 +209,52 @@ class PlaMoSceneEnv(PlaMoEnv):
         if not obstacles or predict_collision(self._trajectory, obstacles, t_now=t_now,
                                               horizon=self.replan_horizon) is None:
             return
-        # Replan the segment being followed now; later segments shift in time with it.
+        # Replan the segment being followed now (its own trajectory: a detour ends at its
+        # landmark); the later segments shift in time with it.
         index = next((k for k, p in enumerate(self._plans) if p.trajectory.end_time >= t_now), len(self._plans) - 1)
+        segment = self._plans[index]
+        waited = False
         try:
-            result = replan(self._plans[index], obstacles, t_now=t_now, trajectory=self._trajectory,
-                            horizon=self.replan_horizon)
+            result = replan(segment, obstacles, t_now=t_now, horizon=self.replan_horizon)
         except PlanningError:
-            # No detour from here (e.g. the ball already sweeps over the character): keep the plan.
-            self._replan_failures += 1
-            return
+            try:  # no detour (e.g. the ball fills a passage): stop on the path and let it pass
+                result = wait_for_obstacles(segment, obstacles, t_now=t_now, horizon=self.replan_horizon)
+                waited = True
+            except PlanningError:
+                # Waiting does not help either (the ball comes at the character): keep the plan.
+                self._replan_failures += 1
+                return
         if result is None:
             return
-        shift = result.plan.trajectory.end_time - self._plans[index].trajectory.end_time
-        later = [_shifted(p.trajectory, shift) for p in self._plans[index + 1:]]
-        self._plans[index] = result.plan
-        self._trajectory = _concatenate([result.trajectory] + later)
+        self._plans[index] = dataclasses.replace(result.plan, trajectory=result.trajectory)
+        self._chain_later_segments(index)
+        self._trajectory = _concatenate([p.trajectory for p in self._plans])
         self._replans += 1
+        self._waits += int(waited)
         self._refresh_path()
+
+    def _chain_later_segments(self, index: int) -> None:
+        """Start every segment after ``index`` when and where the one before it now ends: shifted in
+        time, or planned again from the new end point if a detour arrived at another cell of the landmark."""
+        before = self._plans[index].trajectory
+        for k in range(index + 1, len(self._plans)):
+            plan = self._plans[k]
+            end_xy = before.xyz[-1, :2]
+            if np.hypot(*(plan.trajectory.xyz[0, :2] - end_xy)) > 0.05:
+                try:
+                    plan = plan_path(plan.costmap, end_xy, plan.target, settings=plan.settings,
+                                     t0=before.end_time, segment=plan.segment)
+                except PlanningError:  # keep the old path (a short jump inside the landmark)
+                    pass
+            if plan.trajectory.start_time != before.end_time:
+                plan = dataclasses.replace(plan, trajectory=_shifted(plan.trajectory,
+                                                                     before.end_time - plan.trajectory.start_time))
+            self._plans[k] = plan
+            before = plan.trajectory
 
     def _scene_info(self, info: dict[str, Any], success: bool) -> dict[str, Any]:
         info.update(success=bool(success), instructions=self.instructions_text, replans=self._replans,
-                    replan_failures=self._replan_failures, planned_time=self._trajectory.end_time)
+                    replan_failures=self._replan_failures, waits=self._waits, planned_time=self._trajectory.end_time)
         return info
 
 

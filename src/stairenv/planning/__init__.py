@@ -33,6 +33,7 @@ _EXPORTS = {
     "ConstantVelocityObstacle": "replan",
     "ClosedLoopObstacle": "replan",
     "predict_collision": "replan",
+    "wait_for_obstacles": "replan",
     "Plan": "planner",
     "Planner": "planner",
     "PlannerSettings": "planner",

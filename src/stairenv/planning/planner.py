@@ -152,7 +152,11 @@ def plan_path(
     return _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment)
 
 
-def _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment) -> Plan:
+def _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment,
+                emergency_brake: float | None = None) -> Plan:
+    """The speed QP along ``path`` and the timed plan. ``emergency_brake`` (m/s^2, < 0; replanning
+    only): speeds on the braking curve from ``v_start`` at that rate are allowed even where the
+    path's curvature or slope bound is lower, so a swerve that starts at speed stays feasible."""
     loc = costmap.locomotion
     if len(path.s) < 2:
         speed = SpeedProfile(path.s, np.array([v_start]), np.array([loc.speed_max]), path.s.copy(),
@@ -161,6 +165,13 @@ def _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, ext
         v_upper = speed_limits(path.s, path.curvature, path.ground, loc.speed_max, a_lat=settings.a_lat,
                                uphill_gain=settings.uphill_gain, downhill_gain=settings.downhill_gain,
                                min_speed_fraction=settings.min_speed_fraction)
+        if emergency_brake is not None:
+            # the envelope of braking at 80 % of the rate, two knots late: the QP bounds each knot by
+            # the lowest bound one knot either side, and keeps slack at the full rate
+            knot = max(settings.knot_spacing, float(path.s[-1] - path.s[0]) / max(settings.max_knots - 1, 1))
+            late = np.maximum(path.s - path.s[0] - 2.0 * knot, 0.0)
+            braking = np.sqrt(np.maximum(v_start * v_start + 1.6 * emergency_brake * late, 0.0))
+            v_upper = np.maximum(v_upper, braking)
         speed = speed_profile(path.s, v_upper, a_max=settings.a_max, a_min=settings.a_min, v_start=v_start,
                               v_end=v_end, knot_spacing=settings.knot_spacing, max_knots=settings.max_knots)
     xyz = np.column_stack((path.xy, path.z_head))

@@ -12,12 +12,17 @@ its future location as an added constraint."
   at which |body(t) - obstacle(t)| < radius + body_radius.
 - ``replan``: block the cells within radius + body_radius of the obstacle's positions from
   the predicted collision time to ``sweep`` s later, A* from the current position to a point of the old path
-  ``rejoin`` metres past the collision (or to the target if that is closer), string-pull,
+  ``rejoin`` metres past the collision (or to the old path's end if that is closer, to any
+  target cell if the obstacle covers that end), string-pull,
   smooth the new part together with the rest of the old path, and plan the speed from
   the current speed (if the paper's gentle a_min cannot brake in time, ``emergency_a_min``
-  is allowed). If the new trajectory is again predicted to collide, the obstacle's
+  is allowed; if even that cannot slow down for a sharp swerve, the braking curve may
+  exceed the curvature bound until it meets it). If the new trajectory is again predicted to collide, the obstacle's
   position at that time is blocked too (up to ``max_rounds``). The new trajectory is
   spliced onto the old one at t_now.
+- ``wait_for_obstacles``: the fallback when no detour exists (a ball sweeping across a
+  corridor): brake to a stop on the same path, wait the shortest multiple of
+  ``wait_step`` after which no contact is predicted, and go on.
 """
 
 from __future__ import annotations
@@ -92,8 +97,9 @@ class Replan:
     plan: Plan                  # the new plan from t_now to the target
     trajectory: Trajectory      # old trajectory up to t_now, then the new one
     collision: Collision        # the collision that triggered the replan
-    rounds: int                 # A* runs needed until no collision was predicted
+    rounds: int                 # A* runs needed until no collision was predicted (0: waited instead)
     blocked_discs: list         # [(xy, radius)] blocked for the final search
+    waited: float = 0.0         # seconds standing still on the old path (``wait_for_obstacles``)
 
 
 def predict_collision(trajectory: Trajectory, obstacles: Sequence[DynamicObstacle], *, t_now: float,
@@ -180,7 +186,10 @@ def replan(
         obstacle = obstacles[collision.obstacle]
         times = collision.time + np.linspace(0.0, sweep, math.ceil(sweep / dt) + 1)
         for xy in np.asarray(obstacle.position(times), dtype=np.float64).reshape(-1, 2):
-            discs.append((xy, obstacle.radius + body_radius))
+            # A position over the character's current cell is skipped: the character leaves before
+            # the obstacle arrives (a ball coming at it must be sidestepped, not walled in).
+            if np.linalg.norm(xy - start_xy) > obstacle.radius + body_radius + grid.cell_size:
+                discs.append((xy, obstacle.radius + body_radius))
         extra = _blocked_mask(grid.shape, grid, discs)
         _, _, s_hit = traj.sample(collision.time)
         after = np.nonzero(old_s >= float(s_hit) + rejoin)[0]
@@ -191,7 +200,9 @@ def replan(
                 rejoin_idx = int(idx)
                 break
         if rejoin_idx is None:
-            target = plan.target
+            # end where the old path ended (the next segment starts there) unless the obstacle is in the way
+            end = tuple(int(x) for x in grid.cell_of(old_xy[-1]))
+            target = np.array([end], dtype=np.int64) if _free(cm, extra, *end) else plan.target
         else:
             target = np.array([grid.cell_of(old_xy[rejoin_idx])], dtype=np.int64)
         search = astar(cm, start, target, reach=plan.settings.reach, extra_blocked=extra,
@@ -216,8 +227,15 @@ def replan(
             if err.reason != "speed":
                 raise
             settings = replace(plan.settings, a_min=min(emergency_a_min, plan.settings.a_min))
-            new = _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, float(t_now), extra,
-                              plan.segment)
+            try:
+                new = _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, float(t_now), extra,
+                                  plan.segment)
+            except PlanningError as err2:
+                if err2.reason != "speed":
+                    raise
+                # a sharp swerve at speed: brake as hard as allowed, even where the curve asks for less
+                new = _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, float(t_now), extra,
+                                  plan.segment, emergency_brake=settings.a_min)
         again = predict_collision(new.trajectory, obstacles, t_now=t_now, horizon=horizon, body_radius=body_radius,
                                   dt=dt)
         if again is None or rounds == int(max_rounds):
@@ -230,6 +248,87 @@ def replan(
         old_xy = traj.xyz[:, :2]
         old_s = traj.s
     raise AssertionError("unreachable")
+
+
+def wait_for_obstacles(
+    plan: Plan,
+    obstacles: Sequence[DynamicObstacle],
+    *,
+    t_now: float,
+    trajectory: Trajectory | None = None,
+    horizon: float = 1.5,
+    max_wait: float = 8.0,
+    wait_step: float = 0.25,
+    emergency_a_min: float = -1.0,
+    dt: float = 0.05,
+) -> Replan | None:
+    """Stop on the path and let ``obstacles`` pass, if a collision is predicted within ``horizon`` s.
+
+    The character brakes at ``emergency_a_min`` (m/s^2, < 0) to a stop, stands there
+    for the shortest wait in 0, ``wait_step``, ..., ``max_wait`` s after which no contact
+    is predicted until ``horizon`` s after it has passed the first predicted contact point,
+    then follows the same path from
+    rest (accelerating at the plan's ``a_max``, never faster than the old profile, so
+    the curvature and slope limits still hold). The path is unchanged; only its timing
+    is. Returns None when no collision is predicted; raises ``PlanningError("blocked")``
+    when even the longest wait does not clear the way (e.g. the obstacle comes at the
+    stopping point).
+    """
+    horizon = check_range("horizon", horizon, 0.0, math.inf, high_open=True)
+    max_wait = check_range("max_wait", max_wait, 0.0, math.inf, high_open=True)
+    wait_step = check_range("wait_step", wait_step, 0.0, math.inf, low_open=True, high_open=True)
+    emergency_a_min = check_range("emergency_a_min", emergency_a_min, -math.inf, 0.0, low_open=True, high_open=True)
+    traj = plan.trajectory if trajectory is None else trajectory
+    body_radius = plan.costmap.body_radius
+    first = predict_collision(traj, obstacles, t_now=t_now, horizon=horizon, body_radius=body_radius, dt=dt)
+    if first is None:
+        return None
+    xyz_now, v_now, s_now = (np.asarray(x, dtype=np.float64) for x in traj.sample(float(t_now)))
+    v_now, s_now = float(v_now), float(s_now)
+    ahead = traj.s > s_now + 1e-9
+    s_rest = np.r_[s_now, traj.s[ahead]]
+    xyz_rest = np.vstack((xyz_now, traj.xyz[ahead]))
+    v_rest = np.r_[v_now, traj.v[ahead]]
+    # Stop where braking from the current speed ends (or at the path's end).
+    s_stop = min(s_now + v_now * v_now / (2.0 * -emergency_a_min), float(s_rest[-1]))
+    xyz_stop = np.array([np.interp(s_stop, s_rest, xyz_rest[:, k]) for k in range(3)])
+    before = s_rest < s_stop - 1e-9
+    after = s_rest > s_stop + 1e-9
+    s_a, xyz_a = np.r_[s_rest[before], s_stop], np.vstack((xyz_rest[before], xyz_stop))
+    v_a = np.minimum(np.r_[v_rest[before], 0.0],
+                     np.sqrt(np.maximum(v_now * v_now + 2.0 * emergency_a_min * (s_a - s_now), 0.0)))
+    v_a[-1] = 0.0
+    braking = Trajectory.from_profile(s_a, xyz_a, v_a, t0=float(t_now))
+    s_b, xyz_b = np.r_[s_stop, s_rest[after]], np.vstack((xyz_stop, xyz_rest[after]))
+    v_b = np.minimum(np.r_[0.0, v_rest[after]], np.sqrt(2.0 * plan.settings.a_max * (s_b - s_stop)))
+    # The old profile may itself stop just ahead (at a landmark between segments).
+    s_b, xyz_b, v_b = _bridge_stops(s_b, xyz_b, v_b, min(plan.settings.a_max, -plan.settings.a_min))
+    _, _, s_hit = traj.sample(first.time)
+    s_clear = float(s_hit) + obstacles[first.obstacle].radius + body_radius
+    for wait in np.arange(0.0, max_wait + 0.5 * wait_step, wait_step):
+        going = Trajectory.from_profile(s_b, xyz_b, v_b, t0=braking.end_time + float(wait))
+        new = Trajectory(np.r_[braking.t, going.t], np.r_[braking.s, going.s],
+                         np.vstack((braking.xyz, going.xyz)), np.r_[braking.v, going.v])
+        # look until `horizon` after the character has passed the point of the first predicted contact
+        t_pass = float(np.interp(s_clear, going.s, going.t)) if s_clear < going.s[-1] else going.end_time
+        look = max(t_pass, going.start_time) + horizon - float(t_now)
+        if predict_collision(new, obstacles, t_now=t_now, horizon=look, body_radius=body_radius, dt=dt) is None:
+            return Replan(replace(plan, trajectory=new), splice(traj, new, float(t_now)), first, 0, [],
+                          waited=float(wait))
+    raise PlanningError("blocked", f"waiting up to {max_wait:g} s on the path does not clear the way: "
+                        f"obstacle {first.obstacle} still meets the character (e.g. it comes to the stopping point)")
+
+
+def _bridge_stops(s: np.ndarray, xyz: np.ndarray, v: np.ndarray, accel: float):
+    """Insert a midpoint between consecutive samples that are both at rest (no constant-acceleration
+    motion joins them): speed up at ``accel`` over the first half and slow down over the second."""
+    both = np.flatnonzero((v[:-1] == 0.0) & (v[1:] == 0.0) & (np.diff(s) > 0.0))
+    if len(both) == 0:
+        return s, xyz, v
+    mid_s = 0.5 * (s[both] + s[both + 1])
+    mid_v = np.sqrt(accel * (s[both + 1] - s[both]))
+    mid_xyz = 0.5 * (xyz[both] + xyz[both + 1])
+    return (np.insert(s, both + 1, mid_s), np.insert(xyz, both + 1, mid_xyz, axis=0), np.insert(v, both + 1, mid_v))
 
 
 def _free(costmap, extra: np.ndarray, i: int, j: int) -> bool:
