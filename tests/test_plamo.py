@@ -78,6 +78,14 @@ def test_coupled_max_speed_formula():
     np.testing.assert_allclose(task.coupled_max_speed([0.4, 0.8, 1.2, 1.47]), [1.0, 3.0, 5.0, 5.0])
 
 
+def test_the_locomotion_table_obeys_the_height_speed_coupling():
+    from stairenv.planning.locomotion import LOCOMOTIONS
+
+    for loc in LOCOMOTIONS.values():
+        heads = np.linspace(loc.head_min, loc.head_height, 50)
+        assert np.all(loc.speed_max <= task.coupled_max_speed(heads) + 1e-9), loc.name
+
+
 def test_locomotion_restricts_paths():
     env = gym.make("PlaMo-v0", locomotion="crawl").unwrapped
     env.reset(seed=0)

@@ -22,6 +22,9 @@ sprint        1.40 .. 1.47         1.47         4.0 .. 5.0  sprint, sprinting, d
 - The speed range's high end is the speed QP's upper bound; the low end is the slowest
   speed the style is meant for (the QP starts and ends at rest, so it only reports it).
 - sprint's 5 m/s is PlaMo's V_max.
+- Over each locomotion's head range its top speed never exceeds PlaMo's coupled
+  v_max(z) (``stairenv.tasks.plamo.coupled_max_speed``; tested), so a plan that ducks
+  within the range obeys the coupling without a separate head-height bound in the QP.
 """
 
 from __future__ import annotations
