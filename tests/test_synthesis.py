@@ -16,11 +16,20 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import DOF_NAMES, FOOT_BODIES, load_humanoid_spec
 from stairenv.motion.clip import MotionClip, humanoid_model
 from stairenv.motion.library import MotionLibrary
-from stairenv.motion.synthesis import climb_stairs, reference_set, save_reference_set, walk
+from stairenv.motion.synthesis import (
+    WALK_STYLES,
+    WalkStyle,
+    climb_stairs,
+    reference_set,
+    save_reference_set,
+    styled_walk,
+    walk,
+)
 from stairenv.world.stairs import Staircase, StairsSlots
 
 # (direction, step height, step depth, lead foot): every paper test height, both directions,
@@ -236,6 +245,71 @@ def test_walk_loops_and_keeps_its_speed(speed):
         drift = np.linalg.norm(poses.centre[frames, side, :2] - poses.centre[frames[0], side, :2], axis=1)
         assert drift.max() < 0.01
         assert np.abs(poses.corners[frames, side][..., 2].min(axis=1)).max() < 0.01
+
+
+@pytest.fixture(scope="module")
+def styled_walks() -> dict[str, MotionClip]:
+    return {name: styled_walk(name, duration=3.0, lead_foot=("right", "left")[i % 2])
+            for i, name in enumerate(WALK_STYLES)}
+
+
+@pytest.mark.parametrize("name", list(WALK_STYLES))
+def test_styled_walks_loop_keep_their_speed_and_plant_the_feet(styled_walks, name):
+    clip, style = styled_walks[name], WALK_STYLES[name]
+    q = clip.qpos
+    assert clip.loop and clip.meta["style"] == name and clip.meta["text"] == style.text
+    assert clip.meta["skill"] == "walk"
+    np.testing.assert_allclose(q[-1, 1:], q[0, 1:], atol=1e-6)
+    assert q[-1, 0] - q[0, 0] == pytest.approx(style.speed * clip.duration, rel=1e-6)
+    model = humanoid_model()
+    ranges = np.array([model.jnt_range[model.joint(n).id] for n in DOF_NAMES])
+    assert np.all(q[:, 7:] >= ranges[:, 0] - 1e-9) and np.all(q[:, 7:] <= ranges[:, 1] + 1e-9)
+    qvel = clip.qvel()
+    assert np.isfinite(qvel).all() and np.abs(qvel[:, 6:]).max() < 15.0
+    poses = foot_poses(clip)
+    assert poses.corners[..., 2].min() > -0.005, "feet above the floor"
+    for side, frames in frame_sets(clip, "stance_frames"):
+        drift = np.linalg.norm(poses.centre[frames, side, :2] - poses.centre[frames[0], side, :2], axis=1)
+        assert drift.max() < 0.01
+        assert np.abs(poses.corners[frames, side][..., 2].min(axis=1)).max() < 0.01
+    # the caption is one of the script database's walking captions of that style
+    from stairenv.scripts.database import load_database
+
+    captions = {(kf.style, kf.caption) for script in load_database() for kf in script.keyframes
+                if kf.skill == "walk"}
+    if name != "neutral":
+        assert (name, style.text) in captions
+
+
+def test_styles_show_in_the_motion(styled_walks):
+    def trunk_pitch(clip):  # pelvis pitch + abdomen pitch, mean over the clip
+        pitch = np.array([Rotation.from_quat(q[3:7], scalar_first=True).as_euler("ZYX")[1] for q in clip.qpos])
+        return float(np.mean(pitch + clip.qpos[:, 7 + DOF_NAMES.index("abdomen_y")]))
+
+    def head_down(clip):  # head pitch below level: trunk pitch + neck
+        return trunk_pitch(clip) + float(np.mean(clip.qpos[:, 7 + DOF_NAMES.index("neck_y")]))
+
+    def arm_swing(clip):
+        shoulder = clip.qpos[:, 7 + DOF_NAMES.index("right_shoulder_y")]
+        return float(shoulder.max() - shoulder.min())
+
+    def sway(clip):  # pelvis roll amplitude
+        roll = np.array([Rotation.from_quat(q[3:7], scalar_first=True).as_euler("ZYX")[2] for q in clip.qpos])
+        return float(roll.max() - roll.min())
+
+    neutral = styled_walks["neutral"]
+    assert trunk_pitch(styled_walks["tired"]) > trunk_pitch(neutral) + 0.1
+    assert head_down(styled_walks["sad"]) > head_down(neutral) + 0.3
+    assert head_down(styled_walks["happy"]) < head_down(neutral) - 0.1
+    assert arm_swing(styled_walks["happy"]) > 1.3 * arm_swing(neutral)
+    assert arm_swing(styled_walks["sad"]) < 0.5 * arm_swing(neutral)
+    assert sway(styled_walks["drunk"]) > 1.8 * sway(neutral)
+    elbow = 7 + DOF_NAMES.index("right_elbow")
+    assert styled_walks["stressed"].qpos[:, elbow].mean() < neutral.qpos[:, elbow].mean() - 0.4  # arms held bent
+    with pytest.raises(ValueError, match="style must be one of"):
+        styled_walk("sleepy")
+    with pytest.raises(ValueError, match="lean"):
+        WalkStyle(lean=1.0)
 
 
 # --- the default set -------------------------------------------------------------------------

@@ -4,8 +4,9 @@
 discriminator learns from: a folder or list of ``.npz`` clips, or a built-in set
 synthesised in about a second and cached per process: ``None`` / ``"builtin:stairs"``
 (``stairenv.motion.synthesis``: flat walks and stair ascents for step heights
-0.05-0.20 m) or ``"builtin:sims"`` (the flat walks plus
-``stairenv.motion.interactions``' sit, stand-up, lie, get-up, reach and idle clips).
+0.05-0.20 m) or ``"builtin:sims"`` (the flat walks, a walk in each of the eight SIMS
+styles (``synthesis.WALK_STYLES``) and ``stairenv.motion.interactions``' sit, stand-up,
+lie, get-up, reach and idle clips).
 ``place_reference_state`` puts a sampled frame at a start position and
 heading with its lowest point just above the floor, so nothing penetrates.
 """
@@ -40,8 +41,11 @@ def _load_cached(source: str | None, include_descents: bool) -> MotionLibrary:
         return MotionLibrary(reference_set(descents=include_descents))
     if source == "builtin:sims":
         from stairenv.motion.interactions import interaction_reference_set
+        from stairenv.motion.synthesis import WALK_STYLES, styled_walk
 
-        return MotionLibrary(reference_set(step_heights=(), descents=False) + interaction_reference_set())
+        styled = [styled_walk(name, lead_foot=("right", "left")[i % 2])
+                  for i, name in enumerate(WALK_STYLES) if name != "neutral"]
+        return MotionLibrary(reference_set(step_heights=(), descents=False) + styled + interaction_reference_set())
     if source.startswith("builtin:"):
         raise ValueError(f"reference_motion {source!r} is not a built-in set; known: {list(BUILTIN_REFERENCE_SETS)}")
     return MotionLibrary.load(source)

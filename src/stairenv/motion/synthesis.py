@@ -46,6 +46,11 @@ reference clips are synthesised here, as pure functions of a few parameters
    (their roll too): a discriminator cannot tell an agent from them by a feature
    that never varies.
 
+Walking styles (``styled_walk``, ``WALK_STYLES``): the eight SIMS styles as gait and
+posture numbers (speed, step length and width, foot lift, trunk lean, head drop, arm
+swing, elbow bend, hip sway) through the same pipeline, each captioned with a walking
+caption of its style from the script database.
+
 Every joint angle stays inside the model's range; parameters that would need more
 raise ``ValueError`` (validated for step heights 0.05-0.20 m and step depths from
 the foot length + 1 cm to 0.5 m; 0.25 m steps work for ascents).
@@ -127,13 +132,10 @@ _LEAD_SHARE = 0.6               # pelvis at mid double support: share of the way
 _DESCENT_LEAD_SHARE = 0.5       # the same when the leading foot is lower (descent)
 _PELVIC_ROTATION_GAIN = 0.12    # pelvis yaw (rad) per metre the left foot leads the right
 _THORAX_COUNTER_ROTATION = 1.6  # abdomen z = -this * pelvic rotation (thorax turns the other way)
-_ARM_SWING_GAIN = 0.55          # shoulder y (rad) per metre of foot lead
-_ELBOW_BASE = 0.25              # elbow flexion (rad) with the arm hanging
 _ELBOW_SWING_GAIN = 0.7         # extra elbow flexion per radian of forward arm swing
 _SHOULDER_ABDUCTION = 0.10      # rad; keeps the arms off the trunk
 _SHOULDER_ABDUCTION_SWING = 0.04  # extra abduction (rad) as the arm swings out of the hanging pose
 _SHOULDER_ROTATION_GAIN = 0.3   # shoulder z (rad, inward) per radian of forward arm swing
-_PELVIC_OBLIQUITY = 0.05        # rad; the pelvis drops towards the swinging leg (about 3 degrees)
 _OBLIQUITY_RATE = 1.0           # m/s of foot lead change at which the drop is ~76% of full
 _THORAX_COUNTER_ROLL = 0.8      # abdomen x = -this * pelvic roll (the thorax stays nearly level)
 _HEIGHT_SMOOTHING = 0.12        # s; half-width of the pelvis-height smoothing window
@@ -709,6 +711,9 @@ class _Style:
     walk_gaze: float = 0.12         # head pitch (down) on flat ground
     stairs_gaze: float = 0.12       # head pitch (down) on the stairs
     pelvis_share: float = 0.6       # share of the trunk lean taken by the pelvis, the rest by the abdomen
+    arm_swing: float = 0.55         # shoulder y (rad) per metre of foot lead
+    elbow: float = 0.25             # elbow flexion (rad) with the arm hanging
+    obliquity: float = 0.05         # pelvic drop towards the swinging leg (rad)
 
 
 def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, style: _Style,
@@ -753,7 +758,7 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         # Pelvic obliquity: the pelvis drops towards the swinging leg (roll > 0 lifts the left
         # hip), most at mid-swing, when the feet's lead changes fastest.
         lead_rate = np.gradient(left_lead, times)
-        roll = -_PELVIC_OBLIQUITY * np.tanh(lead_rate / _OBLIQUITY_RATE)
+        roll = -style.obliquity * np.tanh(lead_rate / _OBLIQUITY_RATE)
         hips_dz = np.stack([_SIDE_SIGN[s] * geo.hip_offset[1] * np.sin(roll) for s in (RIGHT, LEFT)], axis=1)
         pelvis_z = _pelvis_height(hips_xy, feet, nominal_height, monotone, level_reference, radius, hips_dz)
         pelvis_pos = np.column_stack((pelvis_xy, pelvis_z))
@@ -789,7 +794,7 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
 
     # Arms swing opposite to the legs: the right arm forward (shoulder y < 0) when the left foot leads.
     for name, sign in (("right", 1.0), ("left", -1.0)):
-        swing_forward = sign * _ARM_SWING_GAIN * left_lead
+        swing_forward = sign * style.arm_swing * left_lead
         joints[:, _dof(f"{name}_shoulder_y")] = -swing_forward
         # The arm swings slightly out (abduction) the further it leaves the hanging pose, and
         # turns inward as it swings forward.
@@ -797,7 +802,7 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         joints[:, _dof(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
         joints[:, _dof(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
         forward = 0.5 * (swing_forward + np.sqrt(swing_forward**2 + 0.05**2))  # smooth max(0, .)
-        joints[:, _dof(f"{name}_elbow")] = -(_ELBOW_BASE + _ELBOW_SWING_GAIN * forward)
+        joints[:, _dof(f"{name}_elbow")] = -(style.elbow + _ELBOW_SWING_GAIN * forward)
 
     # Safety net: the plan keeps every joint inside its range; clip rounding-level excursions.
     excess = np.maximum(geo.dof_low - joints, joints - geo.dof_high)[crop]
@@ -912,6 +917,86 @@ def walk(speed: float = 1.0, step_length: float | None = None, duration: float =
     than about 0.6 m (speeds above about 1.5 m/s with the default step length) lower the
     pelvis into a crouched gait; there is no flight phase (no running).
     """
+    return _walk_clip(speed, step_length, duration, fps, step_width, swing_height, timing, lead_foot, name,
+                      _Style(), text="walk", style="neutral")
+
+
+@dataclass(frozen=True)
+class WalkStyle:
+    """A walking style as gait and posture numbers (``WALK_STYLES``: SIMS' eight styles and neutral).
+
+    Gait: ``speed`` (m/s), ``step_length`` (m; None: :func:`default_step_length`),
+    ``step_width`` and ``swing_height`` (m), as :func:`walk`. Posture (rad): ``lean`` (trunk
+    pitch forward), ``gaze`` (head pitch down from level; < 0 looks up), ``arm_swing``
+    (shoulder swing per metre of foot lead), ``elbow`` (flexion with the arm hanging),
+    ``obliquity`` (pelvic drop towards the swinging leg: the hip sway). ``text``: the
+    clip's caption (``meta["text"]``), one of the script database's walking captions.
+    """
+
+    speed: float = 1.0
+    step_length: float | None = None
+    step_width: float = 0.16
+    swing_height: float = 0.05
+    lean: float = 0.06
+    gaze: float = 0.12
+    arm_swing: float = 0.55
+    elbow: float = 0.25
+    obliquity: float = 0.05
+    text: str = "walks calmly with an easy, smooth gait"
+
+    def __post_init__(self) -> None:
+        _check_number("speed", self.speed, 0.0, 3.0)
+        _check_number("lean", self.lean, -0.2, 0.4, low_open=False)
+        _check_number("gaze", self.gaze, -0.3, 0.6, low_open=False)
+        _check_number("arm_swing", self.arm_swing, 0.0, 1.2, low_open=False)
+        _check_number("elbow", self.elbow, 0.0, 1.5, low_open=False)
+        _check_number("obliquity", self.obliquity, 0.0, 0.15, low_open=False)
+
+
+#: The eight SIMS styles (and neutral) as walks: how fast, how long and wide the steps, how
+#: high the feet, how far the trunk leans and the head drops, how much the arms swing.
+WALK_STYLES: dict[str, WalkStyle] = {
+    "neutral": WalkStyle(),
+    "happy": WalkStyle(speed=1.25, swing_height=0.08, lean=0.0, gaze=-0.05, arm_swing=0.8, obliquity=0.07,
+                       text="walks with light, springy steps"),
+    "angry": WalkStyle(speed=1.35, step_width=0.2, lean=0.14, gaze=0.02, arm_swing=0.75, elbow=0.7,
+                       text="stomps heavily with clenched fists"),
+    "hurried": WalkStyle(speed=1.5, lean=0.16, gaze=0.1, arm_swing=0.7, elbow=0.5,
+                         text="hurries over, leaning forward"),
+    "tired": WalkStyle(speed=0.55, step_width=0.2, swing_height=0.03, lean=0.22, gaze=0.3, arm_swing=0.2,
+                       elbow=0.1, text="trudges in slowly, body bent forward"),
+    "sad": WalkStyle(speed=0.6, step_length=0.36, swing_height=0.03, lean=0.18, gaze=0.45, arm_swing=0.15,
+                     elbow=0.1, text="walks slowly with the head bowed"),
+    "stressed": WalkStyle(speed=1.1, step_length=0.42, lean=0.1, gaze=0.2, arm_swing=0.25, elbow=0.9,
+                          text="walks with tight shoulders and short steps"),
+    "drunk": WalkStyle(speed=0.7, step_width=0.3, lean=-0.04, gaze=0.0, arm_swing=0.6, obliquity=0.12,
+                       text="staggers drunkenly, swaying from side to side"),
+    "relaxed": WalkStyle(speed=0.85, lean=0.03, gaze=0.05, arm_swing=0.6, elbow=0.2,
+                         text="ambles with loose, easy arms"),
+}
+
+
+def styled_walk(style: str | WalkStyle, duration: float = 4.0, fps: float = 30.0, lead_foot: str = "right",
+                timing: GaitTiming = GaitTiming(), name: str | None = None) -> MotionClip:
+    """A looping walk in a style (a name in :data:`WALK_STYLES` or a :class:`WalkStyle`), like
+    :func:`walk` with the style's gait and posture; ``meta["style"]`` and ``meta["text"]`` say which."""
+    if isinstance(style, str):
+        if style not in WALK_STYLES:
+            raise ValueError(f"style must be one of {sorted(WALK_STYLES)} or a WalkStyle, got {style!r}")
+        label, style = style, WALK_STYLES[style]
+    elif isinstance(style, WalkStyle):
+        label = "custom"
+    else:
+        raise TypeError(f"style must be a style name or a WalkStyle, got {type(style).__name__}")
+    posture = _Style(walk_lean=style.lean, stairs_lean=style.lean, walk_gaze=style.gaze, stairs_gaze=style.gaze,
+                     arm_swing=style.arm_swing, elbow=style.elbow, obliquity=style.obliquity)
+    return _walk_clip(style.speed, style.step_length, duration, fps, style.step_width, style.swing_height, timing,
+                      lead_foot, name or f"walk_{label}", posture, text=style.text, style=label)
+
+
+def _walk_clip(speed: float, step_length: float | None, duration: float, fps: float, step_width: float,
+               swing_height: float, timing: GaitTiming, lead_foot: str, name: str | None, posture: _Style,
+               *, text: str, style: str) -> MotionClip:
     speed = _check_number("speed", speed, 0.0, 3.0)
     fps = _check_number("fps", fps, 0.0, 1000.0)
     step_length = default_step_length(speed) if step_length is None else _check_number(
@@ -937,7 +1022,7 @@ def walk(speed: float = 1.0, step_length: float | None = None, duration: float =
     pad_frames = int(round(1.5 * fps))
     times = start + np.arange(-pad_frames, num_frames + pad_frames) / fps
     qpos, contact = _synthesise(
-        plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=_Style(),
+        plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=posture,
         on_stairs=None, nominal_height=_WALK_PELVIS_HEIGHT, monotone=None, level_reference=None,
         clearance=_Clearance(edge=swing_height, horizontal=0.0, min_lift=swing_height),
     )
@@ -949,7 +1034,8 @@ def walk(speed: float = 1.0, step_length: float | None = None, duration: float =
                   **asdict(timing))
     return MotionClip(
         qpos, fps, name or f"walk_{speed:.2f}mps", loop=True, source=SOURCE,
-        meta=_clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text="walk", skill="walk"),
+        meta=_clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text=text, skill="walk",
+                       style=style),
     )
 
 
