@@ -201,6 +201,21 @@ def test_observation_layout_and_text():
     assert np.all(off.reset(seed=0)[0][off.observation_structure["text"]] == 0)
 
 
+def test_target_speed_follows_the_captions_style():
+    sad = SIMSEnv(skill="walk", captions=[("sad", "walks slowly with the head bowed")], **FAST)
+    hurried = SIMSEnv(skill="walk", captions=[("hurried", "hurries over, leaning forward")], **FAST)
+    neutral = SIMSEnv(skill="walk", captions=[("neutral", "walks over")], target_speed=(0.9, 1.0), **FAST)
+    fixed = SIMSEnv(skill="walk", captions=[("sad", "walks slowly")], speed_from_style=False,
+                    target_speed=(1.4, 1.5), **FAST)
+    for seed in range(5):
+        sad.reset(seed=seed), hurried.reset(seed=seed), neutral.reset(seed=seed), fixed.reset(seed=seed)
+        assert 0.48 <= sad._target_speed <= 0.72          # 0.6 m/s +- 20%
+        assert 1.2 <= hurried._target_speed <= 1.8        # 1.5 m/s +- 20%
+        assert 0.9 <= neutral._target_speed <= 1.0
+        assert 1.4 <= fixed._target_speed <= 1.5
+    assert sad.speed_range("tired") == pytest.approx((0.44, 0.66))
+
+
 def test_heightmap_sees_the_furniture():
     env = SIMSEnv(skill="sit", families=("bed",), start_distance=(1.4, 1.6), **FAST)
     obs, _ = env.reset(seed=0)

@@ -143,6 +143,7 @@ class SIMSEnv(HumanoidEnv):
     | start_distance | (1.0, 4.0) | start distance from the furniture centre (m), object scenes |
     | walk_distance | (1.0, 5.0) | walk target distance from the start (m) |
     | target_speed | (0.8, 1.5) | v* per episode (m/s) |
+    | speed_from_style | True | v* within +-20% of the caption's style's walking speed (``synthesis.WALK_STYLES``: sad 0.6, hurried 1.5 m/s ...); neutral: ``target_speed`` |
     | getup_from | "any" | get up from "sit", "lie" (on lying families) or "any" |
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | fall_height | 0.25 | head height (m) below which the episode ends |
@@ -169,6 +170,7 @@ class SIMSEnv(HumanoidEnv):
         start_distance: tuple[float, float] = (1.0, 4.0),
         walk_distance: tuple[float, float] = (1.0, 5.0),
         target_speed: tuple[float, float] = (0.8, 1.5),
+        speed_from_style: bool = True,
         getup_from: str = "any",
         heightmap_size: int = 16,
         heightmap_extent: float = 2.0,
@@ -206,6 +208,7 @@ class SIMSEnv(HumanoidEnv):
         self.start_distance = check_range("start_distance", start_distance, 0.0, 50.0)
         self.walk_distance = check_range("walk_distance", walk_distance, 0.0, 50.0)
         self.target_speed = check_range("target_speed", target_speed, 0.0, 10.0)
+        self.speed_from_style = bool(speed_from_style)
         self.getup_from = check_choice("getup_from", getup_from, GETUP_FROM)
         self.heightmap_size = int(check_number("heightmap_size", heightmap_size, 1, 128))
         self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
@@ -323,7 +326,7 @@ class SIMSEnv(HumanoidEnv):
         self._needs_reset = False
         pool = self._caption_pool(None if target is None or self.skill == "walk" else target.family)
         style, caption = pool[int(rng.integers(0, len(pool)))]
-        return self._begin(goal, caption, style, float(rng.uniform(*self.target_speed)))
+        return self._begin(goal, caption, style, float(rng.uniform(*self.speed_range(style))))
 
     def set_task(self, skill: str, furniture: str | None = None, *, part: str | None = None,
                  hand: str | None = None, caption: str | None = None, style: str = "neutral",
@@ -350,8 +353,19 @@ class SIMSEnv(HumanoidEnv):
         goal = task.contact_goal(skill, placed, rng, part=part, hand=hand, walk_target=walk_target,
                                  details=self.details)
         # self.skill stays the episode skill that reset() draws; the goal carries the current one
-        speed = float(np.mean(self.target_speed)) if target_speed is None else float(target_speed)
+        speed = float(np.mean(self.speed_range(style))) if target_speed is None else float(target_speed)
         return self._begin(goal, caption if caption is not None else skill, style, speed)
+
+    def speed_range(self, style: str) -> tuple[float, float]:
+        """The target speeds (m/s) an episode in ``style`` draws from: +-20% around the style's
+        walking speed with ``speed_from_style`` (the styles of ``synthesis.WALK_STYLES`` but
+        neutral), else ``target_speed``."""
+        from stairenv.motion.synthesis import WALK_STYLES
+
+        if self.speed_from_style and style in WALK_STYLES and style != "neutral":
+            speed = WALK_STYLES[style].speed
+            return (0.8 * speed, 1.2 * speed)
+        return self.target_speed
 
     def approach_point(self, placed: PlacedFurniture, distance: float = 0.45) -> np.ndarray:
         """(x, y) where a character stands to use ``placed``: in front of it, on free floor if known."""
