@@ -143,7 +143,7 @@ class SIMSEnv(HumanoidEnv):
     | start_distance | (1.0, 4.0) | start distance from the furniture centre (m), object scenes |
     | walk_distance | (1.0, 5.0) | walk target distance from the start (m) |
     | target_speed | (0.8, 1.5) | v* per episode (m/s) |
-    | speed_from_style | True | v* within +-20% of the caption's style's walking speed (``synthesis.WALK_STYLES``: sad 0.6, hurried 1.5 m/s ...); neutral: ``target_speed`` |
+    | speed_from_style | True | v* +-20% around the style's walking speed (``WALK_STYLES``); neutral: target_speed |
     | getup_from | "any" | get up from "sit", "lie" (on lying families) or "any" |
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | fall_height | 0.25 | head height (m) below which the episode ends |
