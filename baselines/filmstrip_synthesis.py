@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Render a filmstrip of a synthesised stair climb: evenly spaced frames side by side (PNG).
+"""Render a filmstrip of a synthesised stair climb (or styled walk): evenly spaced frames side by side (PNG).
 
 Kinematic playback: each frame's ``qpos`` is written into a model holding our humanoid
 and the clip's staircase (``StairsSlots``), ``mj_forward`` places the bodies, and an
@@ -11,6 +11,7 @@ Examples::
     python baselines/filmstrip_synthesis.py --out filmstrip.png
     python baselines/filmstrip_synthesis.py --step-height 0.20 --step-depth 0.28 --direction down
     python baselines/filmstrip_synthesis.py --frames 12 --columns 6 --out climb.png
+    python baselines/filmstrip_synthesis.py --walk-style tired --out tired.png   # a SIMS style, on flat ground
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from stairenv.humanoid import load_humanoid_spec  # noqa: E402
-from stairenv.motion.synthesis import climb_stairs  # noqa: E402
+from stairenv.motion.synthesis import WALK_STYLES, climb_stairs, styled_walk  # noqa: E402
 from stairenv.world.stairs import Staircase, StairsSlots  # noqa: E402
 
 
@@ -39,6 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--step-depth", type=float, default=0.30, help="m (default: %(default)s)")
     parser.add_argument("--num-steps", type=int, default=5, help="risers, the landing's included (default: %(default)s)")
     parser.add_argument("--direction", choices=("up", "down"), default="up")
+    parser.add_argument("--walk-style", choices=sorted(WALK_STYLES), default=None,
+                        help="show a walk in this SIMS style on flat ground instead of a climb")
     parser.add_argument("--lead-foot", choices=("right", "left"), default="right")
     parser.add_argument("--frames", type=int, default=8, help="frames in the strip (default: %(default)s)")
     parser.add_argument("--columns", type=int, default=None, help="frames per row (default: all in one row)")
@@ -54,9 +57,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def render_filmstrip(args: argparse.Namespace) -> np.ndarray:
     """The strip as an (H, W, 3) uint8 image."""
-    clip = climb_stairs(args.step_height, args.step_depth, args.num_steps, direction=args.direction,
-                        lead_foot=args.lead_foot)
-    stairs = Staircase(**clip.meta["stairs"])
+    if args.walk_style is not None:
+        clip = styled_walk(args.walk_style, duration=2.0, lead_foot=args.lead_foot)
+        # no stairs in a walk: park the staircase far behind the camera
+        stairs = Staircase(step_height=args.step_height, step_depth=args.step_depth, width=2.0,
+                           num_steps=args.num_steps, landing_depth=1.0, yaw=0.0, distance=-100.0)
+    else:
+        clip = climb_stairs(args.step_height, args.step_depth, args.num_steps, direction=args.direction,
+                            lead_foot=args.lead_foot)
+        stairs = Staircase(**clip.meta["stairs"])
     spec = load_humanoid_spec()
     slots = StairsSlots(spec, max_steps=stairs.num_steps)
     spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, args.width)
