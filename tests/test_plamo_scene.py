@@ -119,6 +119,7 @@ def test_slalom_speed_profiles_and_scene_evaluation(tmp_path):
     env = gym.make("PlaMoScene-v0")
     row = scene_episodes(ZeroPolicy(env.action_space), episodes=2, max_episode_steps=10, label="zero")
     assert row["episodes"] == 2 and 0.0 <= row["success_pct"] <= 100.0
+    assert row["waits_per_episode"] >= 0.0 and row["replan_failures_per_episode"] >= 0.0
     assert "zero" in format_scene_rows([row])
     out = plot_planned_path({}, seed=1, path=tmp_path / "plan.png")
     assert out.stat().st_size > 10_000

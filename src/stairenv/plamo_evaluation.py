@@ -100,14 +100,15 @@ def scene_episodes(
     max_episode_steps: int | None = None,
     label: str = "",
 ) -> dict[str, Any]:
-    """Run ``PlaMoScene-v0`` episodes: success rate, mean completion time of successes, replans."""
+    """Run ``PlaMoScene-v0`` episodes: success rate, mean completion time of successes, replans
+    (detours and waits), waits, and checks where neither a detour nor a wait avoided the ball."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     make_kwargs = dict(env_kwargs or {})
     if max_episode_steps is not None:
         make_kwargs["max_episode_steps"] = max_episode_steps
     env = gym.make("PlaMoScene-v0", **make_kwargs)
-    successes, times, replans, planned = 0, [], [], []
+    successes, times, replans, waits, failures, planned = 0, [], [], [], [], []
     for episode in range(episodes):
         if callable(getattr(policy, "reset", None)):
             policy.reset(seed + episode)
@@ -121,11 +122,14 @@ def scene_episodes(
         if info["success"]:
             times.append(info["time"])
         replans.append(info["replans"])
+        waits.append(info["waits"])
+        failures.append(info["replan_failures"])
     env.close()
     return {
         "label": label, "episodes": episodes, "success_pct": 100.0 * successes / episodes,
         "completion_time_s": float(np.mean(times)) if times else None,
         "planned_time_s": float(np.mean(planned)), "replans_per_episode": float(np.mean(replans)),
+        "waits_per_episode": float(np.mean(waits)), "replan_failures_per_episode": float(np.mean(failures)),
     }
 
 
@@ -142,12 +146,14 @@ def slalom_comparison(policy: Callable[[np.ndarray], Any], episodes: int = 10, s
 
 
 def format_scene_rows(rows: Sequence[dict[str, Any]]) -> str:
-    header = f"{'run':22s} {'n':>4s} {'success (%)':>11s} {'time (s)':>9s} {'planned (s)':>11s} {'replans':>8s}"
+    header = (f"{'run':22s} {'n':>4s} {'success (%)':>11s} {'time (s)':>9s} {'planned (s)':>11s} {'replans':>8s} "
+              f"{'waits':>6s} {'no way':>7s}")
     lines = [header, "-" * len(header)]
     for r in rows:
         time_s = "-" if r["completion_time_s"] is None else f"{r['completion_time_s']:.2f}"
         lines.append(f"{r['label']:22s} {r['episodes']:4d} {r['success_pct']:11.1f} {time_s:>9s} "
-                     f"{r['planned_time_s']:11.2f} {r['replans_per_episode']:8.2f}")
+                     f"{r['planned_time_s']:11.2f} {r['replans_per_episode']:8.2f} {r['waits_per_episode']:6.2f} "
+                     f"{r['replan_failures_per_episode']:7.2f}")
     return "\n".join(lines)
 
 
