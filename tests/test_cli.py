@@ -8,6 +8,7 @@ import sys
 
 import imageio.v3 as iio
 import numpy as np
+import pytest
 
 
 def _run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
@@ -39,6 +40,19 @@ def test_one_second_defaults(tmp_path):
     result = _run("--seconds", "1", "--width", "160", "--height", "120", "--out", str(out))
     assert result.returncode == 0, result.stderr
     assert 28 <= iio.imread(out).shape[0] <= 32
+
+
+@pytest.mark.parametrize("env_id", ["PlaMoScene-v0", "SIMS-Sit-v0"])
+def test_videos_of_the_other_envs(tmp_path, env_id):
+    """Envs without InterLevel's stair progress render too (the summary leaves progress out)."""
+    from stairenv.__main__ import record
+
+    extra = {"text_encoder": "hashing"} if env_id.startswith("SIMS") else {}
+    summary = record(env_id, seconds=0.5, out=tmp_path / "v.mp4", width=96, height=72, env_kwargs=extra,
+                     progress_bar=False)
+    assert summary["best_progress"] is None and summary["steps"] == summary["frames"] - 1
+    frames = iio.imread(tmp_path / "v.mp4")
+    assert frames.shape[1:] == (72, 96, 3) and frames.std() > 5
 
 
 def test_bad_arguments(tmp_path):

@@ -58,7 +58,8 @@ def record(
     progress_bar: bool = True,
 ) -> dict[str, Any]:
     """Render ``seconds`` of ``policy`` in ``env_id`` to the MP4 ``out``; returns a summary dict
-    (``path``, ``frames``, ``fps``, ``steps``, ``episodes``, ``best_progress``, ``successes``,
+    (``path``, ``frames``, ``fps``, ``steps``, ``episodes``, ``best_progress`` (None unless the env
+    reports InterLevel's ``progress``), ``successes``,
     ``falls``, ``unstable``, ``pngs``). Raises ``ValueError`` for bad arguments."""
     import gymnasium as gym
     import imageio.v2 as imageio
@@ -92,7 +93,8 @@ def record(
             png_dir = Path(frames_png)
             png_dir.mkdir(parents=True, exist_ok=True)
 
-        stats = {"steps": 0, "episodes": 1, "best_progress": 0.0, "successes": 0, "falls": 0, "unstable": 0}
+        # best_progress: InterLevel's stair progress; None for envs that report none (PlaMo, SIMS)
+        stats = {"steps": 0, "episodes": 1, "best_progress": None, "successes": 0, "falls": 0, "unstable": 0}
         pngs: list[str] = []
         episode_seed = seed
 
@@ -100,8 +102,12 @@ def record(
             if callable(getattr(act, "reset", None)):
                 act.reset(episode_seed)
             obs, info = env.reset(seed=episode_seed)
-            stats["best_progress"] = max(stats["best_progress"], float(info["progress"]))
+            note_progress(info)
             return obs
+
+        def note_progress(info: dict) -> None:
+            if "progress" in info and not info.get("physics_unstable", False):
+                stats["best_progress"] = max(stats["best_progress"] or 0.0, float(info["progress"]))
 
         obs = reset()
         # libx264 needs even frame sizes; macro_block_size=2 rounds odd ones up without a warning.
@@ -112,8 +118,7 @@ def record(
                 if k > 0:
                     obs, _, terminated, truncated, info = env.step(np.asarray(act(obs)))
                     stats["steps"] += 1
-                    if not info.get("physics_unstable", False):
-                        stats["best_progress"] = max(stats["best_progress"], float(info["progress"]))
+                    note_progress(info)
                     if terminated or truncated:
                         stats["successes"] += bool(info.get("success"))
                         stats["falls"] += bool(info.get("fell"))
@@ -157,9 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {summary['path']} ({summary['frames']} frames, {summary['frames'] / summary['fps']:.1f} s at {summary['fps']} fps)")
     if summary["pngs"]:
         print(f"wrote {len(summary['pngs'])} PNG stills to {Path(summary['pngs'][0]).parent}")
+    progress = "" if summary["best_progress"] is None else f"best progress {100 * summary['best_progress']:.1f}%, "
     print(
         f"{args.policy} on {args.env}: {summary['steps']} steps, {summary['episodes']} episode(s), "
-        f"best progress {100 * summary['best_progress']:.1f}%, {summary['successes']} success(es), "
+        f"{progress}{summary['successes']} success(es), "
         f"{summary['falls']} fall(s)" + (f", {summary['unstable']} unstable" if summary["unstable"] else "")
     )
     return 0
