@@ -17,9 +17,11 @@ its future location as an added constraint."
   smooth the new part together with the rest of the old path, and plan the speed from
   the current speed (if the paper's gentle a_min cannot brake in time, ``emergency_a_min``
   is allowed; if even that cannot slow down for a sharp swerve, the braking curve may
-  exceed the curvature bound until it meets it). If the new trajectory is again predicted to collide, the obstacle's
-  position at that time is blocked too (up to ``max_rounds``). The new trajectory is
-  spliced onto the old one at t_now.
+  exceed the curvature bound until it meets it). If the new trajectory is again
+  predicted to collide, the obstacle's position at that time is blocked too (up to
+  ``max_rounds``). Obstacle positions over the character's current cell are not blocked
+  (a ball coming at it is sidestepped). The new trajectory is spliced onto the old one
+  at t_now.
 - ``wait_for_obstacles``: the fallback when no detour exists (a ball sweeping across a
   corridor): brake to a stop on the same path, wait the shortest multiple of
   ``wait_step`` after which no contact is predicted, and go on.
@@ -264,13 +266,13 @@ def wait_for_obstacles(
 ) -> Replan | None:
     """Stop on the path and let ``obstacles`` pass, if a collision is predicted within ``horizon`` s.
 
-    The character brakes at ``emergency_a_min`` (m/s^2, < 0) to a stop, stands there
-    for the shortest wait in 0, ``wait_step``, ..., ``max_wait`` s after which no contact
-    is predicted until ``horizon`` s after it has passed the first predicted contact point,
-    then follows the same path from
-    rest (accelerating at the plan's ``a_max``, never faster than the old profile, so
-    the curvature and slope limits still hold). The path is unchanged; only its timing
-    is. Returns None when no collision is predicted; raises ``PlanningError("blocked")``
+    The character brakes at ``emergency_a_min`` (m/s^2, < 0) to a stop, stands there for
+    the shortest wait in 0, ``wait_step``, ..., ``max_wait`` s after which no contact is
+    predicted until ``horizon`` s after it has passed the first predicted contact point,
+    then follows the same path from rest (accelerating at the plan's ``a_max``, never
+    faster than the old profile, so the curvature and slope limits still hold). The path
+    is unchanged, only its timing (the returned ``plan`` keeps the old path and speed
+    profile; its ``trajectory`` is the new timing). Returns None when no collision is predicted; raises ``PlanningError("blocked")``
     when even the longest wait does not clear the way (e.g. the obstacle comes at the
     stopping point).
     """
@@ -298,11 +300,13 @@ def wait_for_obstacles(
     v_a = np.minimum(np.r_[v_rest[before], 0.0],
                      np.sqrt(np.maximum(v_now * v_now + 2.0 * emergency_a_min * (s_a - s_now), 0.0)))
     v_a[-1] = 0.0
+    gentle = min(plan.settings.a_max, -plan.settings.a_min)
+    # The old profile may itself stop on the way (at a landmark between segments).
+    s_a, xyz_a, v_a = _bridge_stops(s_a, xyz_a, v_a, gentle)
     braking = Trajectory.from_profile(s_a, xyz_a, v_a, t0=float(t_now))
     s_b, xyz_b = np.r_[s_stop, s_rest[after]], np.vstack((xyz_stop, xyz_rest[after]))
     v_b = np.minimum(np.r_[0.0, v_rest[after]], np.sqrt(2.0 * plan.settings.a_max * (s_b - s_stop)))
-    # The old profile may itself stop just ahead (at a landmark between segments).
-    s_b, xyz_b, v_b = _bridge_stops(s_b, xyz_b, v_b, min(plan.settings.a_max, -plan.settings.a_min))
+    s_b, xyz_b, v_b = _bridge_stops(s_b, xyz_b, v_b, gentle)
     _, _, s_hit = traj.sample(first.time)
     s_clear = float(s_hit) + obstacles[first.obstacle].radius + body_radius
     for wait in np.arange(0.0, max_wait + 0.5 * wait_step, wait_step):
