@@ -272,7 +272,8 @@ def wait_for_obstacles(
     then follows the same path from rest (accelerating at the plan's ``a_max``, never
     faster than the old profile, so the curvature and slope limits still hold). The path
     is unchanged, only its timing (the returned ``plan`` keeps the old path and speed
-    profile; its ``trajectory`` is the new timing). Returns None when no collision is predicted; raises ``PlanningError("blocked")``
+    profile; its ``trajectory`` is the new timing). Returns None when no collision is
+    predicted; raises ``PlanningError("blocked")``
     when even the longest wait does not clear the way (e.g. the obstacle comes at the
     stopping point).
     """
