@@ -3,8 +3,10 @@
     python benchmarks/bench_amp.py [--n-envs 8] [--steps 1024] [--rounds 5] [--vec dummy|subproc]
                                    [--variants paper,fast,...]
     python benchmarks/bench_amp.py --steps 512 --rounds 15   # more, shorter rounds on a busy machine
+    python benchmarks/bench_amp.py --env PlaMo-v0 --variants paper,paper-par-bg   # another env
 
-Every run steps the same ``InterLevel-v0`` vec env with the same random actions.
+Every run steps the same vec env (``--env``, default ``InterLevel-v0``, our fastest
+env and so the hardest case for the ratio) with the same random actions.
 A wrapped run includes the discriminator's forward pass on every step and its
 training rounds (paper schedule: 2 minibatches of 256 reference + 256 agent
 windows every 2048 transitions), so the ratio is the whole price of AMP. Target: below 1.25x.
@@ -142,6 +144,7 @@ def run(venv, actions: np.ndarray, timed: Timed | None = None) -> tuple[float, f
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--env", default="InterLevel-v0", help="registered env id (default: %(default)s)")
     parser.add_argument("--n-envs", type=int, default=8)
     parser.add_argument("--steps", type=int, default=1024)
     parser.add_argument("--rounds", type=int, default=5)
@@ -160,7 +163,7 @@ def main() -> None:
     reference = reference_windows()
 
     def vec_env():
-        return make_vec_env("InterLevel-v0", n_envs=args.n_envs, seed=0, vec_env_cls=vec_cls)
+        return make_vec_env(args.env, n_envs=args.n_envs, seed=0, vec_env_cls=vec_cls)
 
     envs: dict[str, tuple] = {"bare": (vec_env(), None, None)}
     for name in names:
@@ -186,7 +189,7 @@ def main() -> None:
 
     bare = [t[0] for t in times["bare"]]
     onednn = any(style.disc.onednn for _, style, _ in envs.values() if style is not None)
-    print(f"{args.vec} vec env, {args.n_envs} x InterLevel-v0, {args.steps} steps x {args.rounds} rounds, "
+    print(f"{args.vec} vec env, {args.n_envs} x {args.env}, {args.steps} steps x {args.rounds} rounds, "
           f"torch threads {args.torch_threads}, oneDNN {'available' if onednn else 'off'}")
     print(f"{'variant':<14} {'hidden':<9} {'upd':>3} {'ms/step':>8} {'env':>6} {'scoring':>7} {'training':>8} "
           f"{'other':>6} {'ratio':>6} {'(min-max)':>11}  target < 1.25")

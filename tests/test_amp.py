@@ -244,12 +244,13 @@ def test_scoring_follows_training_loading_and_edits(scoring):
         disc.logits(np.zeros((2, 211)))
 
 
-def test_numba_and_torch_scoring_agree(reference):
+@pytest.mark.parametrize("count", [1, 3, 8, 13, 40])  # blocks of 8 windows, of 4, and single ones
+def test_numba_and_torch_scoring_agree(reference, count):
     torch.manual_seed(0)
-    disc = AMPDiscriminator(reference.dim)
+    disc = AMPDiscriminator(reference.dim, scoring="numba")
     rng = np.random.default_rng(0)
     disc.update(reference.sample(256, rng), random_action_windows(256, seed=3))
-    windows = random_action_windows(40, seed=6)
+    windows = random_action_windows(count, seed=6)
     numba = disc.logits(windows)
     disc.scoring = "torch"
     disc._plan = None
