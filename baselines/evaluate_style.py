@@ -101,9 +101,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
     env_id = args.env or args.run.parent.name
     if env_id not in gym.registry:
         parser.error(f"env {env_id!r} (from the run folder) is not registered: give --env")
+    if args.discriminator is not None and not args.discriminator.is_file():
+        parser.error(f"--discriminator: no such file {str(args.discriminator)!r}")
     disc_path = args.discriminator or newest_discriminator(args.run)
-    if disc_path is None or not disc_path.is_file():
-        parser.error(f"no discriminator state: give --discriminator (looked for amp.pt in {str(args.run)!r})")
+    if disc_path is None:
+        parser.error(f"no discriminator state in {str(args.run)!r} (amp.pt or checkpoints/amp_<n>_steps.pt): "
+                     "give --discriminator")
     saved = torch.load(disc_path, weights_only=False)
 
     env_kwargs = {"init": "default", "amp_history": int(saved["reference_num_frames"]), **dict(args.env_kwarg)}
