@@ -1,0 +1,30 @@
+"""The benchmark scripts run (tiny sizes: a smoke test, no timing is asserted)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+CASES = {
+    "bench_amp": ["--steps", "20", "--rounds", "1", "--n-envs", "2", "--variants", "small,paper-par-bg"],
+    "bench_step": ["--steps", "40", "--rounds", "1", "--resets", "4"],
+    "bench_sims": ["--steps", "40", "--rounds", "1", "--resets", "3"],
+    "bench_planning": ["--rounds", "1", "--no-nx-full", "--crop", "60"],
+    "bench_retrieval": ["--rooms", "20", "--stories", "1"],
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(CASES))
+def test_benchmark_runs(name, tmp_path):
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(BENCHMARKS / f"{name}.py"), *CASES[name]], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip(), "prints its measurements"
