@@ -123,6 +123,24 @@ def test_reference_init_places_the_character_on_the_floor():
         assert np.linalg.norm(u.data.qvel[:3]) > 0.05
 
 
+def test_starts_are_drawn_from_level_ground_clips_only():
+    """A stair climb's frame placed on flat ground would start with a foot on no step."""
+    from stairenv.motion.rsi import level_clips, load_reference_library
+
+    library = load_reference_library()
+    level = level_clips(library)
+    assert 0 < len(level.clips) < len(library.clips)
+    assert all(np.ptp(c.qpos[:, 2]) < 0.1 for c in level.clips)
+    assert {c.name for c in library.clips} - {c.name for c in level.clips} == {
+        c.name for c in library.clips if c.meta.get("generator") == "climb_stairs"}
+    np.testing.assert_allclose(level.probabilities.sum(), 1.0)
+    env = gym.make("InterLevel-v0", init="reference").unwrapped
+    assert [c.name for c in env._library.clips] == [c.name for c in level.clips]
+    climbs = MotionLibrary([c for c in library.clips if c.meta.get("generator") == "climb_stairs"])
+    with pytest.raises(ValueError, match="level ground"):
+        level_clips(climbs)
+
+
 def test_hybrid_init_fraction():
     env = gym.make("InterLevel-v0", init="hybrid", hybrid_fraction=0.25)
     starts = [env.reset(seed=i)[1]["reference_start"] for i in range(200)]

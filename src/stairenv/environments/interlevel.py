@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.environments.base import HumanoidEnv
-from stairenv.motion.rsi import load_reference_library, place_reference_state
+from stairenv.motion.rsi import level_clips, load_reference_library, place_reference_state
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
@@ -94,7 +94,7 @@ class InterLevelEnv(HumanoidEnv):
     | frame_skip | 4 | physics steps per action (120 Hz physics -> 30 Hz policy) |
     | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
     | amp_history | 2 | frames of AMP features in ``info["amp_obs"]`` (K x 105, oldest first) |
-    | init | "default" | start pose: "default" (standing), "reference" (a random reference frame), "hybrid" |
+    | init | "default" | start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid" |
     | reference_motion | None | folder / .npz of reference clips; None = the built-in synthesised set |
     | hybrid_fraction | 0.5 | share of episodes that start from a reference frame with init="hybrid" |
     | render_mode | None | "rgb_array" or "human" |
@@ -183,7 +183,8 @@ class InterLevelEnv(HumanoidEnv):
         self.init = check_choice("init", init, INITS)
         self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
         self.reference_motion = reference_motion
-        self._library = None if self.init == "default" else load_reference_library(reference_motion)
+        # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
+        self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))
 
         spec = load_humanoid_spec(pd_gains)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)

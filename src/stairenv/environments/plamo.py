@@ -11,7 +11,13 @@ from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv
 from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import humanoid_geoms, humanoid_lowest_z, load_reference_library, place_reference_state
+from stairenv.motion.rsi import (
+    humanoid_geoms,
+    humanoid_lowest_z,
+    level_clips,
+    load_reference_library,
+    place_reference_state,
+)
 from stairenv.planning.locomotion import get_locomotion
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
@@ -103,7 +109,8 @@ class PlaMoEnv(HumanoidEnv):
         self.min_head_height = check_number("min_head_height", min_head_height, 0.0, 1.0)
         self.init = check_choice("init", init, INITS)
         self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
-        self._library = None if self.init == "default" else load_reference_library(reference_motion)
+        # starts on the ground: level-ground clips only (a climb's frame would start on no step)
+        self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))
         if self.locomotion is not None:
             self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                                speed_range=self.locomotion.speed_range)

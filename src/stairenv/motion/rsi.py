@@ -7,6 +7,8 @@ synthesised in about a second and cached per process: ``None`` / ``"builtin:stai
 0.05-0.20 m) or ``"builtin:sims"`` (the flat walks, a walk in each of the eight SIMS
 styles (``synthesis.WALK_STYLES``) and ``stairenv.motion.interactions``' sit, stand-up,
 lie, get-up, reach and idle clips).
+``level_clips`` / ``standing_clips`` pick the clips a start may be drawn from (a stair
+climb's frame on flat ground would start with a foot on no step).
 ``place_reference_state`` puts a sampled frame at a start position and
 heading with its lowest point just above the floor, so nothing penetrates.
 """
@@ -63,6 +65,23 @@ def standing_clips(library: MotionLibrary) -> MotionLibrary:
     keep = [i for i, clip in enumerate(library.clips) if clip.meta.get("skill", "walk") in STANDING_SKILLS]
     if not keep:
         raise ValueError("the reference motion has no standing clip (meta['skill'] walk or idle) to start from")
+    if len(keep) == len(library.clips):
+        return library
+    return MotionLibrary([library.clips[i] for i in keep], library.probabilities[keep])
+
+
+#: Root height range (m) below which a clip counts as moving on level ground.
+LEVEL_MAX_RISE = 0.1
+
+
+def level_clips(library: MotionLibrary, max_rise: float = LEVEL_MAX_RISE) -> MotionLibrary:
+    """The clips that stay on level ground (root height range below ``max_rise`` m), keeping their
+    weights: the frames a start on a floor may be drawn from. A stair climb's frame placed on flat
+    ground would start with a foot in the air on no step (and fall)."""
+    keep = [i for i, clip in enumerate(library.clips) if float(np.ptp(clip.qpos[:, 2])) < max_rise]
+    if not keep:
+        raise ValueError(f"the reference motion has no clip on level ground (root height range < {max_rise} m) "
+                         "to start episodes from; use init='default'")
     if len(keep) == len(library.clips):
         return library
     return MotionLibrary([library.clips[i] for i in keep], library.probabilities[keep])
