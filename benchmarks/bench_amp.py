@@ -26,7 +26,7 @@ scoring split over both cores) the paper's discriminator lands at ~1.22-1.32x
 (``paper-bg`` alone ~1.22-1.35x); bf16 scoring halves the forward pass's
 arithmetic but not its in-situ time (~0.22 ms: torch's dispatch and cold caches).
 Repeated runs on the same VM spread by +-0.05 (its host is shared): paper-bg and
-paper-par-bg read 1.20-1.28 over five runs in one session. The slower envs pay
+paper-par-bg read 1.20-1.35 over seven runs in one session. The slower envs pay
 less: PlaMo-v0 (0.5 ms per env step) 1.17-1.20x even synchronously, SIMS-Walk-v0
 1.23-1.33x.
 
