@@ -22,6 +22,7 @@ from stairenv.motion.rsi import (
     place_reference_state,
     standing_clips,
 )
+from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
@@ -360,8 +361,6 @@ class SIMSEnv(HumanoidEnv):
         """The target speeds (m/s) an episode in ``style`` draws from: +-20% around the style's
         walking speed with ``speed_from_style`` (the styles of ``synthesis.WALK_STYLES`` but
         neutral), else ``target_speed``."""
-        from stairenv.motion.synthesis import WALK_STYLES
-
         if self.speed_from_style and style in WALK_STYLES and style != "neutral":
             speed = WALK_STYLES[style].speed
             return (0.8 * speed, 1.2 * speed)

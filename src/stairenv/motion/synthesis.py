@@ -937,11 +937,11 @@ class WalkStyle:
     step_length: float | None = None
     step_width: float = 0.16
     swing_height: float = 0.05
-    lean: float = 0.06
-    gaze: float = 0.12
-    arm_swing: float = 0.55
-    elbow: float = 0.25
-    obliquity: float = 0.05
+    lean: float = _Style.walk_lean          # posture defaults: the neutral walk's (_Style)
+    gaze: float = _Style.walk_gaze
+    arm_swing: float = _Style.arm_swing
+    elbow: float = _Style.elbow
+    obliquity: float = _Style.obliquity
     text: str = "walks calmly with an easy, smooth gait"
 
     def __post_init__(self) -> None:
