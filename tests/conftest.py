@@ -18,3 +18,20 @@ def _sb3_logs_in_a_temporary_folder(tmp_path_factory):
         os.environ.pop("SB3_LOGDIR", None)
     else:
         os.environ["SB3_LOGDIR"] = previous
+
+
+@pytest.fixture(scope="session")
+def baseline_script():
+    """Load ``baselines/<name>.py`` as a module (the scripts are not a package)."""
+    import importlib.util
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[1] / "baselines"
+
+    def load(name: str):
+        spec = importlib.util.spec_from_file_location(f"baseline_{name}", folder / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+
+    return load

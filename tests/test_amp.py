@@ -375,14 +375,8 @@ def test_instance_noise_is_training_only(reference):
         DiscriminatorConfig(input_noise=-0.1)
 
 
-def test_train_ppo_discriminator_flags():
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
-    spec = importlib.util.spec_from_file_location("train_ppo_for_test", path)
-    train_ppo = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(train_ppo)
+def test_train_ppo_discriminator_flags(baseline_script):
+    train_ppo = baseline_script("train_ppo")
     default = train_ppo.discriminator_config(train_ppo.parse_args([]))
     assert default == DiscriminatorConfig()  # the paper's discriminator unless asked otherwise
     args = train_ppo.parse_args(["--disc-hidden", "512,256", "--disc-grad-penalty", "10", "--disc-lr", "1e-5",

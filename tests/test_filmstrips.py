@@ -2,27 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import imageio.v3 as iio
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "baselines" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 @pytest.mark.parametrize("extra", [[], ["--walk-style", "tired"]], ids=["climb", "styled-walk"])
-def test_synthesis_filmstrip(tmp_path, extra):
+def test_synthesis_filmstrip(tmp_path, extra, baseline_script):
     out = tmp_path / "strip.png"
-    assert _script("filmstrip_synthesis").main(["--frames", "3", "--width", "64", "--height", "96",
+    assert baseline_script("filmstrip_synthesis").main(["--frames", "3", "--width", "64", "--height", "96",
                                                 "--out", str(out), *extra]) == 0
     image = iio.imread(out)
     assert image.shape == (96, 3 * 64 + 2 * 4, 3)
@@ -31,9 +19,9 @@ def test_synthesis_filmstrip(tmp_path, extra):
     assert not np.array_equal(frames[0], frames[2])  # and it moves
 
 
-def test_interactions_filmstrip(tmp_path):
+def test_interactions_filmstrip(tmp_path, baseline_script):
     out = tmp_path / "strip.png"
-    assert _script("filmstrip_interactions").main(["--clips", "sit_down", "--frames", "2", "--width", "64",
+    assert baseline_script("filmstrip_interactions").main(["--clips", "sit_down", "--frames", "2", "--width", "64",
                                                    "--height-px", "96", "--out", str(out)]) == 0
     image = iio.imread(out)
     assert image.shape[0] >= 96 and image.shape[2] == 3 and image.std() > 5

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,8 +9,6 @@ import pytest
 import stairenv  # noqa: F401
 from stairenv.evaluation import load_policy, normalizer_beside
 from stairenv.style.metrics import MIN_SPREAD, nearest_reference_distance, reference_spread, rollout_windows
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_nearest_reference_distance_by_hand():
@@ -47,14 +42,7 @@ def test_rollout_windows_are_the_envs_amp_obs():
         rollout_windows(policy, env, episodes=0)
 
 
-def _script():
-    spec = importlib.util.spec_from_file_location("evaluate_style", ROOT / "baselines" / "evaluate_style.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_checkpoints_are_ranked_with_their_own_normalisers(tmp_path):
+def test_checkpoints_are_ranked_with_their_own_normalisers(tmp_path, baseline_script):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -77,12 +65,13 @@ def test_checkpoints_are_ranked_with_their_own_normalisers(tmp_path):
     assert normalizer_beside(run / "checkpoints" / "ppo_300_steps.zip").name == "ppo_vecnormalize_300_steps.pkl"
     assert normalizer_beside(tmp_path / "model.zip") is None
 
-    rows = _script().main([str(run), "--episodes", "1", "--max-episode-steps", "4", "--baselines", "zero",
-                           "--csv", str(tmp_path / "style.csv"), "--json", str(tmp_path / "style.json")])
+    evaluate_style = baseline_script("evaluate_style")
+    rows = evaluate_style.main([str(run), "--episodes", "1", "--max-episode-steps", "4", "--baselines", "zero",
+                                "--csv", str(tmp_path / "style.csv"), "--json", str(tmp_path / "style.json")])
     assert [r["checkpoint"] for r in rows] == ["zero", "ppo_100_steps.zip", "ppo_300_steps.zip"]
     assert [r["steps"] for r in rows] == [None, 100, 300]
     for row in rows:
         assert 0.0 <= row["style"] <= 1.0 and row["ref_dist"] > 0.0 and row["episode_length"] == 4.0
     assert (tmp_path / "style.csv").read_text().startswith("checkpoint,steps,")
     with pytest.raises(SystemExit):
-        _script().main([str(tmp_path / "nowhere")])
+        evaluate_style.main([str(tmp_path / "nowhere")])
