@@ -222,22 +222,7 @@ def replan(
         path = replace(path, vertices=vertices)
         v_start = float(v_now)
         v_end = float(plan.trajectory.v[-1])
-        try:
-            new = _timed_plan(cm, search, path, plan.target, plan.settings, v_start, v_end, float(t_now), extra,
-                              plan.segment)
-        except PlanningError as err:
-            if err.reason != "speed":
-                raise
-            settings = replace(plan.settings, a_min=min(emergency_a_min, plan.settings.a_min))
-            try:
-                new = _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, float(t_now), extra,
-                                  plan.segment)
-            except PlanningError as err2:
-                if err2.reason != "speed":
-                    raise
-                # a sharp swerve at speed: brake as hard as allowed, even where the curve asks for less
-                new = _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, float(t_now), extra,
-                                  plan.segment, emergency_brake=settings.a_min)
+        new = _timed_replan(cm, search, path, plan, v_start, v_end, float(t_now), extra, emergency_a_min)
         again = predict_collision(new.trajectory, obstacles, t_now=t_now, horizon=horizon, body_radius=body_radius,
                                   dt=dt)
         if again is None or rounds == int(max_rounds):
@@ -249,6 +234,23 @@ def replan(
         traj = new.trajectory
         old_xy = traj.xyz[:, :2]
         old_s = traj.s
+    raise AssertionError("unreachable")
+
+
+def _timed_replan(cm, search, path, plan: Plan, v_start: float, v_end: float, t_now: float, extra,
+                  emergency_a_min: float) -> Plan:
+    """The speed QP for a detour, from the current speed: with the plan's bounds; if they cannot
+    brake in time, with ``emergency_a_min``; if even that cannot slow down for a sharp swerve,
+    with the braking curve allowed above the curvature bound until it meets it."""
+    emergency = replace(plan.settings, a_min=min(emergency_a_min, plan.settings.a_min))
+    attempts = ((plan.settings, None), (emergency, None), (emergency, emergency.a_min))
+    for k, (settings, brake) in enumerate(attempts):
+        try:
+            return _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, t_now, extra, plan.segment,
+                               emergency_brake=brake)
+        except PlanningError as err:
+            if err.reason != "speed" or k == len(attempts) - 1:
+                raise
     raise AssertionError("unreachable")
 
 
