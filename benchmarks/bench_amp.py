@@ -22,7 +22,7 @@ On a 2-core AMD EPYC VM the paper's discriminator stays above the target
 ~0.23 ms, and the env itself steps ~0.2 ms slower beside it, the cache it
 loses); ``fast`` ([512, 256]) lands at ~1.15-1.26x and ``small`` at ~1.12-1.19x.
 With the second core put to work (``paper-par-bg``: training in a background thread,
-scoring split over both cores) the paper's discriminator lands at ~1.22-1.32x
+scoring split over both cores) the paper's discriminator lands at ~1.20-1.35x
 (``paper-bg`` alone ~1.22-1.35x); bf16 scoring halves the forward pass's
 arithmetic but not its in-situ time (~0.22 ms: torch's dispatch and cold caches).
 Repeated runs on the same VM spread by +-0.05 (its host is shared): paper-bg and
