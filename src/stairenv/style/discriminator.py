@@ -267,7 +267,7 @@ def _dense(x, w, b, out, relu):
     for i in range(n):
         for j in range(m):
             v = out[i, j] + b[j]
-            out[i, j] = (v if v > 0.0 else np.float32(0.0)) if relu else v
+            out[i, j] = (np.float32(0.0) if v <= 0.0 else v) if relu else v  # NaN stays NaN, as in torch
     return out
 
 
@@ -286,8 +286,55 @@ def _dense_parallel(x, w, b, out, relu, parts):
     return out
 
 
+@njit(cache=True, nogil=True, fastmath=_FASTMATH)
+def _window_logit(x, mean, std, clip, weights, biases, a, b):
+    """The logit of one window ``x`` (normalised, then every layer: ReLU but the last), in one call.
+
+    ``weights`` / ``biases``: tuples of the layers' float32 arrays; ``a``, ``b``: scratch
+    vectors as long as the widest layer. One window at a time, so the result does not
+    depend on how windows are grouped: the pipelined scorer (``style.pipeline``) and
+    :meth:`AMPDiscriminator.window_logits` give the same bits."""
+    for t in range(x.shape[0]):
+        v = (x[t] - mean[t]) / std[t]
+        a[t] = clip if v > clip else (-clip if v < -clip else v)  # noqa: FURB136  (NaN stays NaN)
+    last = len(weights) - 1
+    for layer in range(last + 1):
+        w, bias = weights[layer], biases[layer]
+        src, dst = (a, b) if layer % 2 == 0 else (b, a)
+        for j in range(w.shape[0]):
+            v = _row_dot(w, j, src, w.shape[1]) + bias[j]
+            dst[j] = np.float32(0.0) if layer < last and v <= 0.0 else v  # NaN stays NaN, as in torch
+    return b[0] if last % 2 == 0 else a[0]
+
+
+@njit(cache=True, fastmath=_FASTMATH)
+def _window_logits(x, mean, std, clip, weights, biases, a, b, out):
+    """:func:`_window_logit` of each row of ``x`` into ``out``. Keeps the GIL: the calling thread
+    steps envs, and handing the GIL to a training thread for the length of a few windows would
+    cost it more than the windows (see ``style.pipeline``)."""
+    for i in range(x.shape[0]):
+        out[i] = _window_logit(x[i], mean, std, clip, weights, biases, a, b)
+    return out
+
+
+@njit(cache=True, nogil=True, fastmath=_FASTMATH)
+def _row_dot(w, j, h, k):
+    acc = np.float32(0.0)
+    for t in range(k):
+        acc += w[j, t] * h[t]
+    return acc
+
+
 # Layers narrower than this are not worth splitting over threads.
 _MIN_PARALLEL_UNITS = 64
+
+
+@dataclass(frozen=True)
+class _FrozenLinear:
+    """A snapshot of a linear layer's parameters (what scoring plans read of a layer)."""
+
+    weight: torch.Tensor
+    bias: torch.Tensor
 
 
 class RunningNorm(nn.Module):
@@ -395,11 +442,9 @@ class AMPDiscriminator(nn.Module):
         with torch.no_grad():
             self._frozen = None
             live = self._inference_plan()
-            linears = [nn.Linear(layer.in_features, layer.out_features) for layer in live["linears"]]
-            for copy, layer in zip(linears, live["linears"]):
-                copy.weight.copy_(layer.weight)
-                copy.bias.copy_(layer.bias)
-                copy.requires_grad_(False)
+            # Plain copies of the tensors (an nn.Linear would first initialise weights of its own).
+            linears = [_FrozenLinear(layer.weight.detach().clone(), layer.bias.detach().clone())
+                       for layer in live["linears"]]
             self._frozen = {
                 "tracked": (), "versions": (), "mean": live["mean"].clone(), "std": live["std"].clone(),
                 "numba": [(layer.weight.numpy(), layer.bias.numpy(), r) for layer, r in zip(linears, live["relu"])],
@@ -428,6 +473,33 @@ class AMPDiscriminator(nn.Module):
             plan["torch"] = layers
         return plan["torch"]
 
+    def scoring_plan(self) -> dict:
+        """The plan scoring uses now: the snapshot while frozen, else the live one. A new
+        dict whenever what it holds changed (callers may compare plans by identity)."""
+        return self._frozen if self._frozen is not None else self._inference_plan()
+
+    @staticmethod
+    def fused_layers(plan: dict) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """A plan's layers as the tuples of weights and biases that :func:`_window_logit` takes."""
+        if plan.get("fused") is None:
+            plan["fused"] = (tuple(np.ascontiguousarray(w) for w, _, _ in plan["numba"]),
+                             tuple(np.ascontiguousarray(b) for _, b, _ in plan["numba"]))
+        return plan["fused"]
+
+    def window_logits(self, features: np.ndarray, plan: dict | None = None) -> np.ndarray:
+        """Logits of raw feature windows (N, input_dim), one window at a time with the fused
+        kernel: bit for bit what :class:`stairenv.style.pipeline.PipelinedScorer` computes
+        (``logits`` groups windows, so its last bits may differ)."""
+        x = np.ascontiguousarray(features, dtype=np.float32)
+        if x.ndim != 2 or x.shape[1] != self.input_dim:
+            raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
+        plan = self.scoring_plan() if plan is None else plan
+        weights, biases = self.fused_layers(plan)
+        width = max(self.input_dim, *(w.shape[0] for w in weights))
+        a, b = np.empty(width, dtype=np.float32), np.empty(width, dtype=np.float32)
+        mean, std, clip = plan["mean"].numpy(), plan["std"].numpy(), np.float32(self.norm.clip)
+        return _window_logits(x, mean, std, clip, weights, biases, a, b, np.empty(len(x), dtype=np.float32))
+
     def logits(self, features: np.ndarray) -> np.ndarray:
         """Logits of raw feature windows (N, input_dim), without autograd: (N,).
 
@@ -442,7 +514,7 @@ class AMPDiscriminator(nn.Module):
             raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
         if len(x) == 0:
             return np.zeros(0, dtype=np.float32)
-        plan = self._frozen if self._frozen is not None else self._inference_plan()
+        plan = self.scoring_plan()
         clip = self.norm.clip
         if self.scoring == "bf16":
             with torch.inference_mode():
