@@ -25,6 +25,9 @@ class HumanoidEnv(gym.Env):
     - ``_simulate`` steps the physics ``frame_skip`` times and reports divergence
       (MuJoCo resets the data, so the simulation time jumps back);
     - ``self._amp`` keeps the last ``amp_history`` frames of style features;
+    - ``step`` runs the subclass's ``_step`` and hands the step's ``info["amp_obs"]`` (and
+      ``info["amp_condition"]`` if any) to the sink set by ``set_amp_sink``: the AMP wrappers
+      score it on another core while the next envs step (``style.pipeline``);
     - ``render()`` follows the pelvis; subclasses may override ``_render_lines``.
     """
 
@@ -55,6 +58,23 @@ class HumanoidEnv(gym.Env):
         self._camera: FollowCamera | None = None
         self._viewer: HumanViewer | None = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
+        self._amp_sink = None
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self._step(action)
+        if self._amp_sink is not None:
+            self._amp_sink(info["amp_obs"], info.get("amp_condition"))
+        return obs, reward, terminated, truncated, info
+
+    def _step(self, action):
+        raise NotImplementedError
+
+    def set_amp_sink(self, sink) -> None:
+        """``sink(amp_obs, amp_condition_or_None)`` is called at the end of every ``step``
+        (None: no sink). The AMP wrappers set it for in-process vec envs."""
+        if sink is not None and not callable(sink):
+            raise TypeError(f"sink must be callable or None, got {type(sink).__name__}")
+        self._amp_sink = sink
 
     def _hold_pose_ctrl(self) -> None:
         """Servo targets = the current joint angles (an episode starts holding its pose)."""

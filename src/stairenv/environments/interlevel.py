@@ -236,7 +236,7 @@ class InterLevelEnv(HumanoidEnv):
         results[3] = results[4] = 0.0  # nothing has happened yet
         return self._obs, self._info(results)
 
-    def step(self, action):
+    def _step(self, action):
         stable = self._simulate(action)
         self._steps += 1
         if not stable:

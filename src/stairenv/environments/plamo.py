@@ -168,7 +168,7 @@ class PlaMoEnv(HumanoidEnv):
         self._obs = obs
         return obs, self._info(results, terms=None)
 
-    def step(self, action):
+    def _step(self, action):
         stable = self._simulate(action)
         self._steps += 1
         if not stable:

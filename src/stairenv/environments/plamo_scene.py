@@ -175,12 +175,12 @@ class PlaMoSceneEnv(PlaMoEnv):
         self._obs = obs
         return obs, self._scene_info(self._info(results, terms=None), success=False)
 
-    def step(self, action):
+    def _step(self, action):
         self._scene_handles.update(self.model, self.data, self.data.time)
         t = (self._steps + 1) * self.dt
         if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
             self._maybe_replan(self._steps * self.dt)
-        obs, reward, terminated, truncated, info = super().step(action)
+        obs, reward, terminated, truncated, info = super()._step(action)
         head, _ = self._head()
         success = t >= self._trajectory.end_time - 1e-9 and \
             float(np.hypot(*(head[:2] - self._goal_xy))) < self.success_radius

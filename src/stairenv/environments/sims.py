@@ -403,7 +403,7 @@ class SIMSEnv(HumanoidEnv):
                 raise ValueError(f"text_encoder gives {self._encoder.dim}-d vectors, text_dim is {self.text_dim}")
         return np.asarray(self._encoder.encode([text])[0], dtype=np.float64)
 
-    def step(self, action):
+    def _step(self, action):
         stable = self._simulate(action)
         self._steps += 1
         if not stable:
