@@ -27,6 +27,13 @@ schedule by exactly one round (``update_interval`` transitions), deterministical
 the minibatches are drawn in the calling thread and a round is joined before the
 next starts. ``scoring="bf16"`` scores in bfloat16 (see ``AMPDiscriminator``).
 
+``pipeline="auto"`` (both wrappers): with an in-process vec env (SB3 ``DummyVecEnv``,
+gymnasium ``SyncVectorEnv``) of stairenv envs, each env's window is scored on a second core
+while the next envs step (``style.pipeline``), so the forward pass leaves the step loop;
+the rewards are the same bits as ``AMPDiscriminator.window_logits`` gives, whatever the
+timing. "auto" turns it on where it is available (Linux on x86-64, two cores, numba
+scoring) and the vec env allows; "on" insists, "off" scores after the vec env returned.
+
 ``save(path)`` / ``load(path)`` keep the discriminator, its optimiser and input
 normaliser, the weights and the schedule; the replay buffer's contents are not
 saved (its size is), it refills within one round.
@@ -43,7 +50,14 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from stairenv.style.discriminator import SCORERS, AMPDiscriminator, DiscriminatorConfig, ReplayBuffer
+from stairenv.style.discriminator import SCORERS, AMPDiscriminator, DiscriminatorConfig, ReplayBuffer, style_reward
+from stairenv.style.pipeline import (
+    PIPELINE_CHOICES,
+    PipelinedScorer,
+    in_process_envs,
+    pipeline_recommended,
+    pipeline_unavailable_reason,
+)
 from stairenv.style.reference import ReferenceWindows
 from stairenv.validation import check_choice, check_number
 
@@ -90,17 +104,22 @@ class AMPStyleReward:
         self._worker: ThreadPoolExecutor | None = None
         self._job: Future | None = None
 
-    def __call__(self, amp_obs: np.ndarray, task_reward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Combined reward and style reward of a batch of transitions; also learns from them."""
+    def __call__(self, amp_obs: np.ndarray, task_reward: np.ndarray,
+                 logits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Combined reward and style reward of a batch of transitions; also learns from them.
+        ``logits``: the discriminator's logits of ``amp_obs`` if already computed (a pipeline)."""
         if amp_obs.shape[1] != self.reference.dim:
             raise ValueError(
                 f"info['amp_obs'] has {amp_obs.shape[1] - self.reference.condition_dim} numbers per env but the "
                 f"reference windows have {self.reference.feature_dim}: make the env's amp_history equal the "
                 f"reference's num_frames"
             )
-        if self._job is not None:  # a round trains in the background: leave its core to it
-            self.disc.scoring_threads = None if self._job.done() else 1
-        style = self.disc.reward(amp_obs)
+        if logits is not None:
+            style = style_reward(logits, self.config.loss)
+        else:
+            if self._job is not None:  # a round trains in the background: leave its core to it
+                self.disc.scoring_threads = None if self._job.done() else 1
+            style = self.disc.reward(amp_obs)
         if self.train:
             self.replay.add(amp_obs)
             self.pending += len(amp_obs)
@@ -162,6 +181,10 @@ class AMPStyleReward:
             self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="amp-discriminator")
         self._job = self._worker.submit(self._train_on, minibatches)
 
+    def training_in_background(self) -> bool:
+        """Whether a background training round is running now."""
+        return self._job is not None and not self._job.done()
+
     def wait(self) -> None:
         """Finish a background training round in flight (its errors are raised here). Scoring keeps
         the snapshot it uses until the next round starts, so waiting changes no reward."""
@@ -208,18 +231,51 @@ class AMPStyleReward:
         return style
 
 
-class AMPVecEnvWrapper(VecEnvWrapper):
-    """Stable-Baselines3 VecEnv wrapper adding the AMP style reward."""
+def _attach_pipeline(mode: str, venv, style: AMPStyleReward, num_envs: int) -> PipelinedScorer | None:
+    """A pipelined scorer with every env's sink set, or None; ``mode`` as the wrappers' ``pipeline``."""
+    check_choice("pipeline", mode, PIPELINE_CHOICES)
+    if mode == "off":
+        return None
+    envs = in_process_envs(venv)
+    reasons = [pipeline_unavailable_reason()]
+    if envs is None:
+        reasons.append("pipelined scoring needs an in-process vec env (DummyVecEnv or SyncVectorEnv), "
+                       f"not {type(venv).__name__}")
+    elif not all(callable(getattr(env.unwrapped, "set_amp_sink", None)) for env in envs):
+        reasons.append("pipelined scoring needs stairenv envs (they post their windows through set_amp_sink)")
+    if style.disc.scoring not in ("auto", "numba"):
+        reasons.append(f"pipelined scoring runs the numba kernel; scoring={style.disc.scoring!r} asks otherwise")
+    reasons = [r for r in reasons if r]
+    if reasons:
+        if mode == "on":
+            raise ValueError("pipeline='on': " + "; ".join(reasons))
+        return None
+    if mode == "auto" and not pipeline_recommended():
+        return None
+    scorer = PipelinedScorer(style.disc, num_envs, style.reference.feature_dim)
+    scorer.attach(envs)
+    return scorer
 
-    def __init__(self, venv: VecEnv, style: AMPStyleReward) -> None:
+
+class AMPVecEnvWrapper(VecEnvWrapper):
+    """Stable-Baselines3 VecEnv wrapper adding the AMP style reward.
+
+    ``pipeline``: "auto" | "on" | "off", see the module docstring; ``self.pipeline`` is the
+    scorer in use (None: scoring after the vec env returned)."""
+
+    def __init__(self, venv: VecEnv, style: AMPStyleReward, pipeline: str = "auto") -> None:
         super().__init__(venv)
         self.style = style
         self._amp = np.empty((self.num_envs, style.reference.dim), dtype=np.float32)
+        self.pipeline = _attach_pipeline(pipeline, venv, style, self.num_envs)
 
     def reset(self):
         return self.venv.reset()
 
     def close(self) -> None:
+        if self.pipeline is not None:
+            self.pipeline.close()
+            self.pipeline = None
         self.style.close()
         super().close()
 
@@ -230,7 +286,11 @@ class AMPVecEnvWrapper(VecEnvWrapper):
         if conditions is not None and any(c is None for c in conditions):
             conditions = None  # agent_inputs explains
         amp = self.style.agent_inputs([info["amp_obs"] for info in infos], conditions, out=self._amp)
-        reward, style = self.style(amp, task_reward)
+        logits = None if self.pipeline is None else self.pipeline.logits(amp)
+        reward, style = self.style(amp, task_reward, logits)
+        if self.pipeline is not None:
+            self.pipeline.refresh()  # the next step's windows are scored with what training left
+            self.pipeline.paused = self.style.training_in_background()
         for info, task, sty in zip(infos, task_reward.tolist(), style.tolist()):
             info["task_reward"] = task
             info["style_reward"] = sty
@@ -242,18 +302,23 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
 
     With next-step autoreset, the step after an episode ends only resets that env
     (reward 0): those entries get no style reward and are not learned from.
+    ``pipeline`` as for :class:`AMPVecEnvWrapper` (in-process: ``SyncVectorEnv``).
     """
 
-    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward) -> None:
+    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward, pipeline: str = "auto") -> None:
         super().__init__(env)
         self.style = style
         self._resetting = np.zeros(self.num_envs, dtype=bool)
+        self.pipeline = _attach_pipeline(pipeline, env, style, self.num_envs)
 
     def reset(self, **kwargs):
         self._resetting[:] = False
         return self.env.reset(**kwargs)
 
     def close(self, **kwargs) -> None:
+        if self.pipeline is not None:
+            self.pipeline.close()
+            self.pipeline = None
         self.style.close()
         super().close(**kwargs)
 
@@ -269,7 +334,11 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
             conditions = info.get("amp_condition")
             amp = self.style.agent_inputs(np.asarray(info["amp_obs"])[live],
                                           None if conditions is None else np.asarray(conditions)[live])
-            reward[live], style[live] = self.style(amp, task_reward[live])
+            logits = None if self.pipeline is None else self.pipeline.logits(amp, np.flatnonzero(live))
+            reward[live], style[live] = self.style(amp, task_reward[live], logits)
+            if self.pipeline is not None:
+                self.pipeline.refresh()
+                self.pipeline.paused = self.style.training_in_background()
         info = dict(info)
         info["task_reward"] = task_reward
         info["style_reward"] = style
