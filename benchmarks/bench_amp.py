@@ -66,21 +66,25 @@ from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 
-# name -> (DiscriminatorConfig keywords, AMPStyleReward keywords, AMPDiscriminator keywords)
-VARIANTS: dict[str, tuple[dict, dict, dict]] = {
-    "paper": ({}, {}, {}),
-    "paper-torch": ({}, {}, {"scoring": "torch"}),
-    "paper-aten": ({}, {}, {"scoring": "torch", "backend": "aten"}),
-    "paper-gp64": ({"grad_penalty_batch": 64}, {}, {}),
-    "paper-1update": ({}, {"updates_per_round": 1}, {}),
-    "paper-bf16": ({}, {}, {"scoring": "bf16"}),
-    "paper-bg": ({}, {"background_training": True}, {}),
-    "paper-bf16-bg": ({}, {"background_training": True}, {"scoring": "bf16"}),
-    "paper-par": ({}, {}, {"scoring": "numba-parallel"}),
-    "paper-par-bg": ({}, {"background_training": True}, {"scoring": "numba-parallel"}),
-    "fast": ({"hidden": (512, 256)}, {}, {}),
-    "fast-1update": ({"hidden": (512, 256)}, {"updates_per_round": 1}, {}),
-    "small": ({"hidden": (256, 128)}, {}, {}),
+# name -> (DiscriminatorConfig keywords, AMPStyleReward keywords, AMPDiscriminator keywords, wrapper keywords)
+VARIANTS: dict[str, tuple[dict, dict, dict, dict]] = {
+    "paper": ({}, {}, {}, {}),
+    "paper-bg": ({}, {"background_training": True}, {}, {}),
+    "paper-nopipe": ({}, {}, {}, {"pipeline": "off"}),
+    "paper-nopipe-bg": ({}, {"background_training": True}, {}, {"pipeline": "off"}),
+    "paper-notrain": ({}, {"train": False}, {}, {}),
+    "paper-nopipe-notrain": ({}, {"train": False}, {}, {"pipeline": "off"}),
+    "paper-torch": ({}, {}, {"scoring": "torch"}, {}),
+    "paper-aten": ({}, {}, {"scoring": "torch", "backend": "aten"}, {}),
+    "paper-gp64": ({"grad_penalty_batch": 64}, {}, {}, {}),
+    "paper-1update": ({}, {"updates_per_round": 1}, {}, {}),
+    "paper-bf16": ({}, {}, {"scoring": "bf16"}, {}),
+    "paper-bf16-bg": ({}, {"background_training": True}, {"scoring": "bf16"}, {}),
+    "paper-par": ({}, {}, {"scoring": "numba-parallel"}, {}),
+    "paper-par-bg": ({}, {"background_training": True}, {"scoring": "numba-parallel"}, {}),
+    "fast": ({"hidden": (512, 256)}, {}, {}, {}),
+    "fast-1update": ({"hidden": (512, 256)}, {"updates_per_round": 1}, {}, {}),
+    "small": ({"hidden": (256, 128)}, {}, {}, {}),
 }
 
 
@@ -97,38 +101,30 @@ def reference_windows() -> ReferenceWindows:
 
 
 class Timed:
-    """Accumulates the wall time of the wrapped vec env's own step and of the style's scoring and training."""
+    """Accumulates the wall time of the wrapped vec env's own step and of the style's scoring and training.
+
+    Pipelined scoring (``wrapper.pipeline``) counts as scoring only what the calling thread
+    spends in it: waiting for the last window, or scoring a window itself."""
 
     def __init__(self, wrapper: AMPVecEnvWrapper) -> None:
         self.env = self.scoring = self.training = 0.0
         style = wrapper.style
-        reward, env_step_wait = style.disc.reward, wrapper.venv.step_wait
-        train_round, start_round = style.train_round, style._start_background_round
 
-        def timed_env_step_wait():
-            start = time.perf_counter()
-            out = env_step_wait()
-            self.env += time.perf_counter() - start
-            return out
-
-        def timed_reward(features):
-            start = time.perf_counter()
-            out = reward(features)
-            self.scoring += time.perf_counter() - start
-            return out
-
-        def timed(function):
+        def timed(function, field: str):
             def call(*args, **kwargs):
                 start = time.perf_counter()
                 out = function(*args, **kwargs)
-                self.training += time.perf_counter() - start
+                setattr(self, field, getattr(self, field) + time.perf_counter() - start)
                 return out
             return call
 
-        style.disc.reward = timed_reward
-        style.train_round = timed(train_round)
-        style._start_background_round = timed(start_round)  # background: the calling thread's share
-        wrapper.venv.step_wait = timed_env_step_wait
+        wrapper.venv.step_wait = timed(wrapper.venv.step_wait, "env")
+        style.disc.reward = timed(style.disc.reward, "scoring")
+        if wrapper.pipeline is not None:
+            wrapper.pipeline.logits = timed(wrapper.pipeline.logits, "scoring")
+        style.train_round = timed(style.train_round, "training")
+        # background: the calling thread's share
+        style._start_background_round = timed(style._start_background_round, "training")
 
 
 def run(venv, actions: np.ndarray, timed: Timed | None = None) -> tuple[float, float, float, float]:
@@ -171,11 +167,11 @@ def main() -> None:
 
     envs: dict[str, tuple] = {"bare": (vec_env(), None, None)}
     for name in names:
-        config_kw, style_kw, disc_kw = VARIANTS[name]
+        config_kw, style_kw, disc_kw, wrapper_kw = VARIANTS[name]
         torch.manual_seed(0)
         disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(**config_kw), **disc_kw)
         style = AMPStyleReward(reference, discriminator=disc, **style_kw)
-        wrapper = AMPVecEnvWrapper(vec_env(), style)
+        wrapper = AMPVecEnvWrapper(vec_env(), style, **wrapper_kw)
         envs[name] = (wrapper, style, Timed(wrapper))
     actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, args.n_envs, 28)).astype(np.float32)
 
