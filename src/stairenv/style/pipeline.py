@@ -286,14 +286,19 @@ class PipelinedScorer:
         if self.paused or not self.active or plan is not self._loaded:
             self.stats["rescored"] += len(windows)
             return self.disc.window_logits(windows, plan)
-        _wait_scored(self.posted, self.scored, TAKEOVER_POLLS)
         every = slots is None
+        all_scored = _wait_scored(self.posted, self.scored, TAKEOVER_POLLS)
+        if every and all_scored:  # the usual case: every env posted, every window scored
+            out = self._logits.copy()  # read after the numbers: the worker stores the logits first
+            if np.array_equal(self.windows, windows):
+                self.stats["pipelined"] += len(windows)
+                return out
         slots = self._slots if every else np.asarray(slots)
         # Windows the worker has not reached: score them here from the last one down while it
         # works up from the first (it may score one of them too: the same bits, unused).
         here = np.zeros(len(windows), dtype=bool)
         mine = np.empty(len(windows), dtype=np.float32)
-        while True:
+        while not all_scored:
             waiting = np.flatnonzero((self.scored[slots] != self.posted[slots]) & ~here)
             if len(waiting) == 0:
                 break
@@ -301,11 +306,8 @@ class PipelinedScorer:
             mine[j] = self.disc.window_logits(windows[j: j + 1], plan)[0]
             here[j] = True
         # Every other window is scored: its logit was stored before the number read above.
-        out = self._logits.copy() if every else self._logits[slots]
-        posted = self.windows if every else self.windows[slots]
-        if not here.any() and np.array_equal(posted, windows):  # the usual case
-            self.stats["pipelined"] += len(windows)
-            return out
+        out = self._logits[slots]
+        posted = self.windows[slots]
         out[here] = mine[here]
         stale = ~here & (posted != windows).any(axis=1)  # NaN windows too: scored here, NaN again
         if stale.any():
