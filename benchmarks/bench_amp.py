@@ -1,9 +1,9 @@
 """Cost of the AMP wrapper per vectorised step, relative to the bare vectorised env.
 
-    python benchmarks/bench_amp.py [--n-envs 8] [--steps 1024] [--rounds 5] [--vec dummy|subproc]
-                                   [--variants paper,fast,...]
-    python benchmarks/bench_amp.py --steps 512 --rounds 15   # more, shorter rounds on a busy machine
-    python benchmarks/bench_amp.py --env PlaMo-v0 --variants paper,paper-par-bg   # another env
+    python benchmarks/bench_amp.py [--n-envs 8] [--steps 256] [--rounds 21] [--vec dummy|subproc]
+                                   [--variants paper,paper-bg,...]
+    python benchmarks/bench_amp.py --rounds 31   # more rounds on a busy machine
+    python benchmarks/bench_amp.py --env PlaMo-v0 --variants paper-bg,paper-nopipe-bg   # another env
 
 Every run steps the same vec env (``--env``, default ``InterLevel-v0``, our fastest
 env and so the hardest case for the ratio) with the same random actions.
@@ -16,34 +16,42 @@ rotates from round to round), and each variant's ratio is the median over
 rounds of wrapped / bare of the same round, so a machine whose load changes
 between rounds skews the ratios little. The wrapped time per step is split
 into the inner vec env's step (``env``), the discriminator's forward pass
-(``scoring``), its training rounds (``training``, amortised) and the rest.
-On a 2-core AMD EPYC VM the paper's discriminator stays above the target
-(~1.35-1.5x: its forward pass alone is ~0.3 ms per step in situ, its training
-~0.23 ms, and the env itself steps ~0.2 ms slower beside it, the cache it
-loses); ``fast`` ([512, 256]) lands at ~1.15-1.26x and ``small`` at ~1.12-1.19x.
-With the second core put to work (``paper-par-bg``: training in a background thread,
-scoring split over both cores) the paper's discriminator lands at ~1.20-1.35x
-(``paper-bg`` alone ~1.22-1.35x); bf16 scoring halves the forward pass's
-arithmetic but not its in-situ time (~0.22 ms: torch's dispatch and cold caches).
-Repeated runs on the same VM spread by +-0.05 (its host is shared): paper-bg and
-paper-par-bg read 1.20-1.35 over seven runs in one session. The slower envs pay
-less: PlaMo-v0 (0.5 ms per env step) 1.17-1.20x even synchronously, SIMS-Walk-v0
-1.23-1.33x.
+(``scoring``: with pipelined scoring, what the calling thread still spends on it:
+waiting for the last window, or scoring windows itself), its training rounds
+(``training``, amortised; with background training, the calling thread's share)
+and the rest (``other``: the wrapper's bookkeeping).
+
+Figures on a 2-core AMD EPYC VM (a shared host: single rounds spread by +-0.2,
+medians by +-0.05 from run to run), 8 envs, ``DummyVecEnv``, bare ~1.7-1.9 ms per
+vectorised step, runs after the pipeline's last change:
+
+- ``paper-bg`` (pipelined scoring + background training): 1.11, 1.25, 1.22, 1.23x,
+  and 1.20x once the replay buffer's pages were touched before timing (as now);
+- ``paper-nopipe-bg`` (background training, scoring after the step): 1.22-1.43x over
+  the day's runs;
+- ``paper`` (pipelined scoring, synchronous training: the round's ~0.37 ms per
+  step stays on the calling thread): 1.31-1.41x; ``paper-nopipe`` 1.44x;
+- scoring alone (no training): ``paper-notrain`` 1.08-1.10x (1.18 in a noisy run),
+  ``paper-nopipe-notrain`` 1.21-1.30x.
+
+Before pipelining, the paper's discriminator cost ~0.3 ms per step to score in
+situ (12 MFLOP, near one core's float32 peak: no faster kernel on this core
+fits the budget; bf16 through oneDNN was ~1.8x faster but inexact) and the best
+setting (background training, scoring split over both cores) read 1.20-1.35x.
 
 Variants (``--variants``, comma-separated; see ``VARIANTS``):
 
 - ``paper``: the defaults: MLP [1024, 512], 2 updates per 2048 transitions,
-  gradient penalty on the whole reference batch.
-- ``paper-torch``: the same, scoring with torch (oneDNN) instead of the numba kernel
-  (what "auto" scoring uses for batches of more than 64 windows).
+  gradient penalty on the whole reference batch, pipelined scoring where available.
+- ``paper-bg``: the same, training rounds in a background thread (rewards lag one round).
+- ``paper-nopipe``, ``paper-nopipe-bg``: those two, scoring after the vec env returned.
+- ``paper-notrain``, ``paper-nopipe-notrain``: scoring only (the discriminator never trains).
+- ``paper-torch``: scoring with torch (oneDNN) after the step instead of the numba kernel.
 - ``paper-aten``: the same, scoring and training with plain torch kernels (MKL, no oneDNN).
 - ``paper-gp64``: gradient penalty estimated on 64 of the 256 reference windows.
 - ``paper-1update``: one minibatch per 2048 transitions.
-- ``paper-bf16``: the paper's, scoring in bfloat16.
-- ``paper-bg``: the paper's, training rounds in a background thread (rewards lag one round).
-- ``paper-bf16-bg``: both.
-- ``paper-par``: the paper's, scoring with the numba kernel split over numba's threads.
-- ``paper-par-bg``: that and background training.
+- ``paper-bf16``, ``paper-bf16-bg``: scoring in bfloat16 after the step (without, with background training).
+- ``paper-par``, ``paper-par-bg``: the numba kernel split over numba's threads after the step.
 - ``fast``: MLP [512, 256], otherwise the paper's schedule.
 - ``fast-1update``: MLP [512, 256], one minibatch per 2048 transitions.
 - ``small``: MLP [256, 128], otherwise the paper's schedule.
@@ -146,11 +154,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--env", default="InterLevel-v0", help="registered env id (default: %(default)s)")
     parser.add_argument("--n-envs", type=int, default=8)
-    parser.add_argument("--steps", type=int, default=1024)
-    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--steps", type=int, default=256)
+    parser.add_argument("--rounds", type=int, default=21)
     parser.add_argument("--vec", choices=("dummy", "subproc"), default="dummy")
     parser.add_argument("--torch-threads", type=int, default=1)
-    parser.add_argument("--variants", default="paper,fast",
+    parser.add_argument("--variants", default="paper-bg,paper-nopipe-bg,paper",
                         help=f"comma-separated, of {', '.join(VARIANTS)}")
     args = parser.parse_args()
     names = [v.strip() for v in args.variants.split(",") if v.strip()]
@@ -172,6 +180,9 @@ def main() -> None:
         disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(**config_kw), **disc_kw)
         style = AMPStyleReward(reference, discriminator=disc, **style_kw)
         wrapper = AMPVecEnvWrapper(vec_env(), style, **wrapper_kw)
+        # A long run's steady state: the replay buffer's pages are already there (its first pass
+        # through 100k windows otherwise takes a page fault every few steps, ~17 us per step).
+        style.replay.data.fill(0.0)
         envs[name] = (wrapper, style, Timed(wrapper))
     actions = np.random.default_rng(0).uniform(-1, 1, (args.steps, args.n_envs, 28)).astype(np.float32)
 
