@@ -77,6 +77,7 @@ from stairenv.motion.rsi import load_reference_library
 from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.sims_evaluation import evaluate_skills, write_reports
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
+from stairenv.style.pipeline import PIPELINE_CHOICES
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 
@@ -127,7 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
     p.add_argument("--n-envs", type=int, default=4)
-    p.add_argument("--vec-env", choices=("subproc", "dummy"), default="subproc")
+    p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy",
+                   help="dummy: the envs step in this process, their style windows scored on the second core while "
+                        "the next envs step (on 2 cores the faster: see docs/reproducing.md); subproc: a process "
+                        "per env")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
@@ -159,10 +163,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--disc-replay-size", type=int, default=100_000, help="agent windows kept for training")
     p.add_argument("--disc-update-interval", type=int, default=2048, help="transitions between training rounds")
     p.add_argument("--disc-updates", type=int, default=2, help="discriminator minibatches per training round")
-    p.add_argument("--disc-background", action="store_true",
-                   help="train the discriminator in a worker thread while the envs step (rewards lag one round)")
+    p.add_argument("--disc-background", action=argparse.BooleanOptionalAction, default=True,
+                   help="train the discriminator in a worker thread while the envs step (rewards lag one round; "
+                        "--no-disc-background: in the step that completes a round)")
     p.add_argument("--disc-scoring", choices=SCORERS, default="auto",
                    help="how the discriminator scores each step (numba-parallel: over all cores; bf16: bfloat16)")
+    p.add_argument("--disc-pipeline", choices=PIPELINE_CHOICES, default="auto",
+                   help="score each env's window on a second core while the next envs step (needs --vec-env dummy; "
+                        "auto: where available)")
     p.add_argument("--log-std-init", type=float, default=0.0,
                    help="initial log std of the Gaussian policy (SB3 default 0: std 1 on actions in [-1, 1])")
     p.add_argument("--torch-threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
@@ -290,7 +298,7 @@ def main(argv: list[str] | None = None) -> Path:
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
                                    config=discriminator_config(args), background_training=args.disc_background,
                                    scoring=args.disc_scoring)
-        venv = AMPVecEnvWrapper(venv, style)
+        venv = AMPVecEnvWrapper(venv, style, pipeline=args.disc_pipeline)
 
     if args.resume is not None:
         stats = normalizer_beside(args.resume)
