@@ -8,12 +8,21 @@ which scores it with the discriminator's one-window kernel while the next env
 steps. When the vec env returns, only the last env's window may still be in
 flight, so the forward pass leaves the step loop's critical path.
 
-The worker never holds the GIL: it lives in one compiled (numba, ``nogil``) call
-that sleeps in a POSIX semaphore between windows (``sem_wait``; each post is a
-``sem_post``, which also orders the window's bytes before the wake-up). Any Python
-code in a second thread would stall the envs: MuJoCo releases the GIL in every
-``mj_step`` and may then wait for the interpreter's switch interval (5 ms) to take
-it back.
+The worker never holds the GIL: it lives in one compiled (numba, ``nogil``) call.
+While envs step it polls the posted counters (a ``sched_yield`` between polls, so
+a post costs the envs no system call); after ~5 ms without work it sleeps in a
+POSIX semaphore that every post also increments (``sem_post``, whose atomics order
+the window before the count). Any Python code in a second thread would stall the
+envs: MuJoCo releases the GIL in every ``mj_step`` and may then wait for the
+interpreter's switch interval (5 ms) to take it back. For the same reason the
+envs' side keeps the GIL in its short calls (``sem_post`` through ``ctypes.PyDLL``,
+the final wait, the windows it scores itself).
+
+When the vec env returns, the caller waits ~25 us for the worker, then scores the
+windows it has not reached itself, from the last one down. The wrappers pause the
+pipeline (``paused``: nothing is posted, the caller scores) while a background
+training round runs: three busy threads on two cores cost the envs more than
+scoring the step in the calling thread.
 
 Correctness does not depend on timing:
 
@@ -290,7 +299,7 @@ class PipelinedScorer:
         all_scored = _wait_scored(self.posted, self.scored, TAKEOVER_POLLS)
         if every and all_scored:  # the usual case: every env posted, every window scored
             out = self._logits.copy()  # read after the numbers: the worker stores the logits first
-            if np.array_equal(self.windows, windows):
+            if np.array_equal(self.windows, windows) and (self.posted > self._posted_at_load).all():
                 self.stats["pipelined"] += len(windows)
                 return out
         slots = self._slots if every else np.asarray(slots)
@@ -309,7 +318,8 @@ class PipelinedScorer:
         out = self._logits[slots]
         posted = self.windows[slots]
         out[here] = mine[here]
-        stale = ~here & (posted != windows).any(axis=1)  # NaN windows too: scored here, NaN again
+        # Also windows posted before the weights were last loaded: scored with the old ones.
+        stale = ~here & ((posted != windows).any(axis=1) | (self.posted[slots] <= self._posted_at_load[slots]))
         if stale.any():
             out[stale] = self.disc.window_logits(windows[stale], plan)
         self.stats["rescored"] += int(here.sum() + stale.sum())
@@ -330,6 +340,7 @@ class PipelinedScorer:
         self._mean[:] = plan["mean"].numpy()
         self._std[:] = plan["std"].numpy()
         self._loaded = plan
+        self._posted_at_load = self.posted.copy()  # logits of earlier posts are of the old weights
 
     def _wait(self) -> bool:
         """Wait until the worker has scored every posted window; False (and off from now on)
