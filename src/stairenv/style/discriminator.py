@@ -288,23 +288,22 @@ def _dense_parallel(x, w, b, out, relu, parts):
 
 @njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def _window_logit(x, mean, std, clip, weights, biases, a, b):
-    """The logit of one window ``x`` (normalised, then every layer: ReLU but the last), in one call.
+    """The logit of one window ``x`` (1, input_dim) (normalised, then every layer: ReLU but the
+    last), in one call.
 
-    ``weights`` / ``biases``: tuples of the layers' float32 arrays; ``a``, ``b``: scratch
-    vectors as long as the widest layer. One window at a time, so the result does not
-    depend on how windows are grouped: the pipelined scorer (``style.pipeline``) and
+    ``weights`` / ``biases``: tuples of the layers' float32 arrays; ``a``, ``b``: scratch rows
+    (1, width) from :meth:`AMPDiscriminator.window_scratch`. One window at a time, so the result
+    does not depend on how windows are grouped: the pipelined scorer (``style.pipeline``) and
     :meth:`AMPDiscriminator.window_logits` give the same bits."""
-    for t in range(x.shape[0]):
-        v = (x[t] - mean[t]) / std[t]
-        a[t] = clip if v > clip else (-clip if v < -clip else v)  # noqa: FURB136  (NaN stays NaN)
+    _normalise(x, mean, std, clip, a[:, : x.shape[1]])
     last = len(weights) - 1
     for layer in range(last + 1):
         w, bias = weights[layer], biases[layer]
         src, dst = (a, b) if layer % 2 == 0 else (b, a)
         for j in range(w.shape[0]):
-            v = _row_dot(w, j, src, w.shape[1]) + bias[j]
-            dst[j] = np.float32(0.0) if layer < last and v <= 0.0 else v  # NaN stays NaN, as in torch
-    return b[0] if last % 2 == 0 else a[0]
+            v = _dot(w, src, j, 0, w.shape[1]) + bias[j]
+            dst[0, j] = np.float32(0.0) if layer < last and v <= 0.0 else v  # NaN stays NaN, as in torch
+    return b[0, 0] if last % 2 == 0 else a[0, 0]
 
 
 @njit(cache=True, fastmath=_FASTMATH)
@@ -313,16 +312,8 @@ def _window_logits(x, mean, std, clip, weights, biases, a, b, out):
     steps envs, and handing the GIL to a training thread for the length of a few windows would
     cost it more than the windows (see ``style.pipeline``)."""
     for i in range(x.shape[0]):
-        out[i] = _window_logit(x[i], mean, std, clip, weights, biases, a, b)
+        out[i] = _window_logit(x[i: i + 1], mean, std, clip, weights, biases, a, b)
     return out
-
-
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _row_dot(w, j, h, k):
-    acc = np.float32(0.0)
-    for t in range(k):
-        acc += w[j, t] * h[t]
-    return acc
 
 
 # Layers narrower than this are not worth splitting over threads.
@@ -486,6 +477,11 @@ class AMPDiscriminator(nn.Module):
                              tuple(np.ascontiguousarray(b) for _, b, _ in plan["numba"]))
         return plan["fused"]
 
+    def window_scratch(self) -> tuple[np.ndarray, np.ndarray]:
+        """Two scratch rows (1, width) for :func:`_window_logit`: as wide as the input or the widest layer."""
+        width = max(self.input_dim, *(layer.out_features for layer in self.linears))
+        return np.empty((1, width), dtype=np.float32), np.empty((1, width), dtype=np.float32)
+
     def window_logits(self, features: np.ndarray, plan: dict | None = None) -> np.ndarray:
         """Logits of raw feature windows (N, input_dim), one window at a time with the fused
         kernel: bit for bit what :class:`stairenv.style.pipeline.PipelinedScorer` computes
@@ -495,8 +491,7 @@ class AMPDiscriminator(nn.Module):
             raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
         plan = self.scoring_plan() if plan is None else plan
         weights, biases = self.fused_layers(plan)
-        width = max(self.input_dim, *(w.shape[0] for w in weights))
-        a, b = np.empty(width, dtype=np.float32), np.empty(width, dtype=np.float32)
+        a, b = self.window_scratch()
         mean, std, clip = plan["mean"].numpy(), plan["std"].numpy(), np.float32(self.norm.clip)
         return _window_logits(x, mean, std, clip, weights, biases, a, b, np.empty(len(x), dtype=np.float32))
 

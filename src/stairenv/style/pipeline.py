@@ -57,6 +57,7 @@ import weakref
 import gymnasium as gym
 import numpy as np
 from numba import njit
+from stable_baselines3.common.vec_env import DummyVecEnv
 
 from stairenv.style.discriminator import AMPDiscriminator, _window_logit
 
@@ -141,7 +142,7 @@ if _SEMAPHORES is not None:
                 if seq == scored[i]:
                     continue
                 _barrier(0)  # read the post's number before its window
-                logits[i] = _window_logit(windows[i], mean, std, clip, weights, biases, a, b)
+                logits[i] = _window_logit(windows[i: i + 1], mean, std, clip, weights, biases, a, b)
                 _barrier(0)  # store the logit before the number that says it is there
                 scored[i] = seq
                 busy = True
@@ -225,10 +226,8 @@ class PipelinedScorer:
         self._std = np.ones(disc.input_dim, dtype=np.float32)
         self._loaded: dict | None = None
         self._load(plan)
-        width = max(disc.input_dim, *(w.shape[0] for w in weights))
-        scratch = (np.empty(width, dtype=np.float32), np.empty(width, dtype=np.float32))
         arrays = (self.windows, self.posted, self.scored, self._logits, self._control, self._mean, self._std,
-                  np.float32(disc.norm.clip), self._weights, self._biases, *scratch, SPIN_POLLS)
+                  np.float32(disc.norm.clip), self._weights, self._biases, *disc.window_scratch(), SPIN_POLLS)
         self._sem = ctypes.create_string_buffer(_SEM_BYTES)
         if _sem_init(self._sem, 0, 0) != 0:
             raise OSError(ctypes.get_errno(), "sem_init failed")
@@ -371,8 +370,6 @@ class PipelinedScorer:
 def in_process_envs(venv) -> list | None:
     """The envs of an in-process vec env (SB3 ``DummyVecEnv``, gymnasium ``SyncVectorEnv``), looked
     for through vec-env wrappers; None for any other (subprocess) vec env."""
-    from stable_baselines3.common.vec_env import DummyVecEnv  # the train extra; wrappers need it anyway
-
     seen: set[int] = set()
     while venv is not None and id(venv) not in seen:
         seen.add(id(venv))

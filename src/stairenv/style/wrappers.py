@@ -118,7 +118,7 @@ class AMPStyleReward:
             style = style_reward(logits, self.config.loss)
         else:
             if self._job is not None:  # a round trains in the background: leave its core to it
-                self.disc.scoring_threads = None if self._job.done() else 1
+                self.disc.scoring_threads = 1 if self.training_in_background() else None
             style = self.disc.reward(amp_obs)
         if self.train:
             self.replay.add(amp_obs)
@@ -257,6 +257,18 @@ def _attach_pipeline(mode: str, venv, style: AMPStyleReward, num_envs: int) -> P
     return scorer
 
 
+def _style_step(style: AMPStyleReward, pipeline: PipelinedScorer | None, amp: np.ndarray,
+                task_reward: np.ndarray, slots: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``style(amp, task_reward)`` with the pipeline's logits (of the envs ``slots``) if there is one;
+    then the pipeline gets what training left and pauses while a background round runs."""
+    if pipeline is None:
+        return style(amp, task_reward)
+    result = style(amp, task_reward, pipeline.logits(amp, slots))
+    pipeline.refresh()
+    pipeline.paused = style.training_in_background()
+    return result
+
+
 class AMPVecEnvWrapper(VecEnvWrapper):
     """Stable-Baselines3 VecEnv wrapper adding the AMP style reward.
 
@@ -286,11 +298,7 @@ class AMPVecEnvWrapper(VecEnvWrapper):
         if conditions is not None and any(c is None for c in conditions):
             conditions = None  # agent_inputs explains
         amp = self.style.agent_inputs([info["amp_obs"] for info in infos], conditions, out=self._amp)
-        logits = None if self.pipeline is None else self.pipeline.logits(amp)
-        reward, style = self.style(amp, task_reward, logits)
-        if self.pipeline is not None:
-            self.pipeline.refresh()  # the next step's windows are scored with what training left
-            self.pipeline.paused = self.style.training_in_background()
+        reward, style = _style_step(self.style, self.pipeline, amp, task_reward)
         for info, task, sty in zip(infos, task_reward.tolist(), style.tolist()):
             info["task_reward"] = task
             info["style_reward"] = sty
@@ -334,11 +342,8 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
             conditions = info.get("amp_condition")
             amp = self.style.agent_inputs(np.asarray(info["amp_obs"])[live],
                                           None if conditions is None else np.asarray(conditions)[live])
-            logits = None if self.pipeline is None else self.pipeline.logits(amp, np.flatnonzero(live))
-            reward[live], style[live] = self.style(amp, task_reward[live], logits)
-            if self.pipeline is not None:
-                self.pipeline.refresh()
-                self.pipeline.paused = self.style.training_in_background()
+            reward[live], style[live] = _style_step(self.style, self.pipeline, amp, task_reward[live],
+                                                    np.flatnonzero(live))
         info = dict(info)
         info["task_reward"] = task_reward
         info["style_reward"] = style
