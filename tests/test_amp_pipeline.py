@@ -75,8 +75,12 @@ def test_pipelined_logits_match_torch(reference):
     venv.reset()
     seen = []
     original = venv.pipeline.logits
-    venv.pipeline.logits = lambda windows, slots=None: seen.append((windows.copy(), original(windows, slots))) \
-        or seen[-1][1]
+
+    def recorded(windows, slots=None):
+        seen.append((windows.copy(), original(windows, slots)))
+        return seen[-1][1]
+
+    venv.pipeline.logits = recorded
     for _ in range(70):  # across training rounds
         venv.step(np.zeros((3, 28), dtype=np.float32))
     style.train = False  # the last steps are scored with the weights compared below
