@@ -2,18 +2,54 @@
 
 from __future__ import annotations
 
+import os
+import zipfile
+from pathlib import Path
+
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.humanoid import NUM_DOFS, HumanoidIndices
+from stairenv.humanoid import NUM_DOFS, PD_GAINS, HumanoidIndices
+from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, load_reference_library
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.style.features import FeatureHistory
-from stairenv.validation import check_choice, check_number
+from stairenv.validation import check_choice, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
+
+
+def check_humanoid_keywords(frame_skip, amp_history, render_mode, width, height,
+                            pd_gains: str = "soft") -> tuple[int, int, str | None, int, int]:
+    """The keywords every env hands to ``load_humanoid_spec`` and ``_setup``, checked; the envs call it
+    first in ``__init__`` so that a bad value fails before any model is built."""
+    check_choice("pd_gains", pd_gains, tuple(PD_GAINS))
+    if render_mode is not None:
+        check_choice("render_mode", render_mode, RENDER_MODES)
+    return (check_int("frame_skip", frame_skip, 1, 100), check_int("amp_history", amp_history, 1, 100),
+            render_mode, check_int("width", width, 16, 4096), check_int("height", height, 16, 4096))
+
+
+def check_reference_motion(source) -> None:
+    """``reference_motion``: None, a built-in set or an existing ``.npz`` clip or folder of them. Files are
+    loaded now (``load_reference_library`` caches them), whatever ``init`` is, so that a bad file fails
+    at construction and not when AMP or a reference start first needs it."""
+    if source is None:
+        return
+    if not isinstance(source, (str, os.PathLike)):
+        raise TypeError(f"reference_motion must be None, a path or one of {list(BUILTIN_REFERENCE_SETS)}, "
+                        f"got {type(source).__name__}")
+    if str(source) in BUILTIN_REFERENCE_SETS:
+        return
+    if not Path(source).exists():
+        raise ValueError(f"reference_motion {str(source)!r} is neither one of {list(BUILTIN_REFERENCE_SETS)} "
+                         "nor an existing .npz file or folder of them")
+    try:
+        load_reference_library(source)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
+        raise ValueError(f"reference_motion {str(source)!r} could not be loaded: {error}") from error
 
 
 class HumanoidEnv(gym.Env):
@@ -37,13 +73,12 @@ class HumanoidEnv(gym.Env):
 
     def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,
                width: int, height: int) -> None:
-        self.frame_skip = int(check_number("frame_skip", frame_skip, 1, 100))
-        self._amp = FeatureHistory(int(check_number("amp_history", amp_history, 1, 100)))
-        if render_mode is not None:
-            check_choice("render_mode", render_mode, RENDER_MODES)
+        frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
+            frame_skip, amp_history, render_mode, width, height)
+        self.frame_skip = frame_skip
+        self._amp = FeatureHistory(amp_history)
         self.render_mode = render_mode
-        self.width = int(check_number("width", width, 16, 4096))
-        self.height = int(check_number("height", height, 16, 4096))
+        self.width, self.height = width, height
         spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
         spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
         self.model = spec.compile()

@@ -10,19 +10,27 @@ import numpy as np
 from gymnasium import spaces
 
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.environments.base import HumanoidEnv
+from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
 from stairenv.motion.rsi import level_clips, load_reference_library, place_reference_state
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.tasks.state import PELVIS, read_state
-from stairenv.validation import check_choice, check_number
+from stairenv.validation import check_bool, check_choice, check_float, check_numbers, check_pair
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
 INITS = ("default", "reference", "hybrid")
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
+# StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw").
+STAIRS_RANGES = {
+    "step_height": (0.01, 0.40),
+    "step_depth": (0.15, 1.0),
+    "step_width": (0.5, 5.0),
+    "stairs_distance": (0.5, 20.0),
+    "stairs_yaw": (-2.0 * math.pi, 2.0 * math.pi),
+}
 
 
 class InterLevelEnv(HumanoidEnv):
@@ -53,6 +61,11 @@ class InterLevelEnv(HumanoidEnv):
     ``reward="interscene"`` replaces the task terms by the InterScene 2-D reward
     (0.7 near + 0.3 far, ``stairenv.tasks.interscene``). Each term is in ``info`` as
     ``reward_*``; the terms sum to the reward.
+
+    **Keywords** are checked at construction, each with its type: ``TypeError`` for a wrong type
+    (``progress_scaling="False"``, ``frame_skip="4"``), ``ValueError`` for a value out of its range or
+    not integral (``frame_skip=2.5``); both name the keyword. ``reference_motion`` is checked (its
+    files loaded) whatever ``init`` is.
 
     **Episode end**: terminated on success (root within ``success_radius`` of M_T,
     standing on the top floor) or a fall (head or a foot within
@@ -148,30 +161,36 @@ class InterLevelEnv(HumanoidEnv):
         width: int = 640,
         height: int = 480,
     ) -> None:
+        frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
+            frame_skip, amp_history, render_mode, width, height, pd_gains)
         self.reward_name = check_choice("reward", reward, REWARDS)
         self._term_names = task.REWARD_TERMS if reward == "interlevel" else interscene.REWARD_TERMS
+        # InterLevelReward checks the ranges under the same names; here the types.
+        weights = {name: check_float(name, value) for name, value in (
+            ("w_location", w_location), ("w_facing", w_facing), ("w_velocity", w_velocity),
+            ("sigma_before", sigma_before), ("sigma_after", sigma_after), ("sigma_across", sigma_across),
+            ("target_speed", target_speed))}
         self.reward_config = task.InterLevelReward(
-            w_location=w_location, w_facing=w_facing, w_velocity=w_velocity,
-            sigma_before=sigma_before, sigma_after=sigma_after, sigma_across=sigma_across,
-            w_scale=w_scale, target_speed=target_speed, progress_scaling=bool(progress_scaling),
+            **weights, w_scale=None if w_scale is None else check_float("w_scale", w_scale),
+            progress_scaling=check_bool("progress_scaling", progress_scaling),
         )
         self._reward_array = self.reward_config.as_array()
-        self.success_reward = check_number("success_reward", success_reward)
-        self.failure_reward = check_number("failure_reward", failure_reward)
-        self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
-        self.terminate_on_success = bool(terminate_on_success)
-        self.termination_height = check_number("termination_height", termination_height, 0.0, 1.0)
-        self.start_radius = check_number("start_radius", start_radius, 0.0, 10.0)
-        self.random_start_heading = bool(random_start_heading)
+        self.success_reward = check_float("success_reward", success_reward)
+        self.failure_reward = check_float("failure_reward", failure_reward)
+        self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
+        self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
+        self.termination_height = check_float("termination_height", termination_height, 0.0, 1.0)
+        self.start_radius = check_float("start_radius", start_radius, 0.0, 10.0)
+        self.random_start_heading = check_bool("random_start_heading", random_start_heading)
         self.stairs_config = StairsConfig(
-            step_height=step_height,
-            step_height_set=step_height_set,
-            step_depth=step_depth,
-            step_width=step_width,
-            num_steps=num_steps,
-            landing_depth=landing_depth,
-            distance=stairs_distance,
-            yaw=stairs_yaw,
+            **{field: check_pair(keyword, value, *STAIRS_RANGES[keyword]) for field, keyword, value in (
+                ("step_height", "step_height", step_height), ("step_depth", "step_depth", step_depth),
+                ("step_width", "step_width", step_width), ("distance", "stairs_distance", stairs_distance),
+                ("yaw", "stairs_yaw", stairs_yaw))},
+            step_height_set=None if step_height_set is None else check_numbers(
+                "step_height_set", step_height_set, *STAIRS_RANGES["step_height"]),
+            num_steps=check_pair("num_steps", num_steps, 1, 30, integer=True),
+            landing_depth=check_float("landing_depth", landing_depth, 1.0, 10.0),
         )
         # The character (a disc of ~0.35 m around its root) must start clear of the stairs.
         if self.stairs_config.distance[0] < self.start_radius + 0.5:
@@ -179,9 +198,10 @@ class InterLevelEnv(HumanoidEnv):
                 f"stairs_distance min {self.stairs_config.distance[0]} must be at least "
                 f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
             )
-        self.reset_noise_scale = check_number("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
+        self.reset_noise_scale = check_float("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
         self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        check_reference_motion(reference_motion)
         self.reference_motion = reference_motion
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
         self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))

@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import HumanoidEnv
+from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
 from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.motion.rsi import (
     humanoid_geoms,
@@ -18,12 +18,12 @@ from stairenv.motion.rsi import (
     load_reference_library,
     place_reference_state,
 )
-from stairenv.planning.locomotion import get_locomotion
+from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.tasks.state import HEAD, PELVIS, read_state
-from stairenv.validation import check_choice, check_number
+from stairenv.validation import check_choice, check_float, check_grid, check_int
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 
 PATH_GENERATORS = ("coupled", "naive")
@@ -31,6 +31,11 @@ INITS = ("default", "reference", "hybrid")
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
+# Bound on a height field's samples (terrain_size / terrain_cell_size + 1 per side, squared): 2001^2,
+# e.g. 200 m at 0.1 m or 20 m at 0.01 m. Building one costs ~52 bytes a sample (the spec's
+# zero list, the model's field, the heights; measured), so ~200 MB at the bound.
+MAX_TERRAIN_CELLS = 2001 ** 2
+TERRAIN_BYTES_PER_CELL = 52
 
 
 class PlaMoEnv(HumanoidEnv):
@@ -62,13 +67,20 @@ class PlaMoEnv(HumanoidEnv):
     physics (``info["physics_unstable"]``). ``info`` has ``xy_error``, ``z_error``,
     the reward terms, ``terrain`` and ``amp_obs``.
 
+    **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
+    value out of range, both naming the keyword). **Memory bound**: the height field has
+    ``terrain_size / terrain_cell_size + 1`` samples per side and may hold at most
+    ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m or 20 m at 0.01 m;
+    building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
+    need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
+
     | keyword | default | meaning |
     |---|---|---|
     | terrain | "mixed" | "flat", "slope", "rough", "stairs" or "mixed" |
     | locomotion | None | restrict paths to one locomotion; None = any height 0.4-1.47 m |
     | path_generator | "coupled" | "coupled" (PlaMo) or "naive" (speed independent of height) |
     | episode_seconds | 10.0 | path length in time (the preset's time limit matches) |
-    | terrain_size, terrain_cell_size | 16.0, 0.1 | height field size and resolution (m) |
+    | terrain_size, terrain_cell_size | 16.0, 0.1 | height field size [2, 200] and resolution [0.01, 1] (m); at most 2001^2 samples |
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
@@ -99,16 +111,27 @@ class PlaMoEnv(HumanoidEnv):
         width: int = 640,
         height: int = 480,
     ) -> None:
+        frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
+            frame_skip, amp_history, render_mode, width, height, pd_gains)
         self.terrain = check_choice("terrain", terrain, TERRAIN_KINDS)
         self.path_generator = check_choice("path_generator", path_generator, PATH_GENERATORS)
-        self.locomotion = None if locomotion is None else get_locomotion(locomotion)
-        self.episode_seconds = check_number("episode_seconds", episode_seconds, 1.0, 600.0)
-        self.heightmap_size = int(check_number("heightmap_size", heightmap_size, 1, 128))
-        self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
-        self.max_xy_error = check_number("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
-        self.min_head_height = check_number("min_head_height", min_head_height, 0.0, 1.0)
+        if locomotion is not None and not isinstance(locomotion, (str, Locomotion)):
+            raise TypeError(f"locomotion must be None, a name ({sorted(LOCOMOTIONS)}) or a Locomotion, "
+                            f"got {type(locomotion).__name__}")
+        self.locomotion = None if locomotion is None else get_locomotion(locomotion)  # ValueError names it
+        self.episode_seconds = check_float("episode_seconds", episode_seconds, 1.0, 600.0)
+        # HeightfieldSlot checks the documented ranges; the grid bound comes first (it allocates).
+        check_grid(("terrain_size", "terrain_cell_size"),
+                   (check_float("terrain_size", terrain_size, 0.0, math.inf, low_open=True),) * 2,
+                   check_float("terrain_cell_size", terrain_cell_size, 0.0, math.inf, low_open=True),
+                   MAX_TERRAIN_CELLS, TERRAIN_BYTES_PER_CELL)
+        self.heightmap_size = check_int("heightmap_size", heightmap_size, 1, 128)
+        self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
+        self.max_xy_error = check_float("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
+        self.min_head_height = check_float("min_head_height", min_head_height, 0.0, 1.0)
         self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        check_reference_motion(reference_motion)
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
         self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))
         if self.locomotion is not None:

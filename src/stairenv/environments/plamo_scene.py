@@ -9,7 +9,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
+from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.motion.rsi import humanoid_geoms
 from stairenv.planning.errors import PlanningError
@@ -18,13 +18,17 @@ from stairenv.planning.replan import predict_collision, replan, wait_for_obstacl
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
 from stairenv.tasks.state import read_state
-from stairenv.validation import check_choice, check_number
+from stairenv.validation import check_choice, check_float, check_grid, check_int, check_mapping, check_str
 from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene, slalom_scene
 
 SCENE_KINDS = ("random", "slalom")
 SPEED_PROFILES = ("planned", "constant")
 LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
 PATH_DT = 0.1  # the followed path is sampled every 0.1 s
+# Bound on the scene's height-map samples, as PlaMoEnv's on its height field (2001^2, e.g. 100 m
+# at 0.05 m); a scene costs ~175 bytes a sample (height map, costmaps, the model's field; measured),
+# so ~670 MB at the bound.
+SCENE_BYTES_PER_CELL = 175
 
 
 def random_instructions(landmarks: list[str], rng: np.random.Generator, segments: int = 2) -> tuple[str, str]:
@@ -35,6 +39,21 @@ def random_instructions(landmarks: list[str], rng: np.random.Generator, segments
     parts = [f"{verbs[0].capitalize()} to the {stops[0]}"]
     parts += [f"{verb} from the {a} to the {b}" for verb, a, b in zip(verbs[1:], stops[:-1], stops[1:])]
     return start, ", then ".join(parts)
+
+
+def scene_config(scene: dict[str, Any] | None) -> SceneConfig:
+    """The ``scene`` keyword (``SceneConfig`` fields) as a config; errors name the keyword, and a
+    height map over ``MAX_TERRAIN_CELLS`` samples is refused before anything allocates it."""
+    fields = [field.name for field in dataclasses.fields(SceneConfig)]
+    try:
+        config = SceneConfig(**check_mapping("scene", {} if scene is None else scene, fields))
+    except (TypeError, ValueError) as error:
+        if str(error).startswith("scene"):
+            raise
+        raise type(error)(f"scene: {error}") from error  # SceneConfig names only its field
+    check_grid(("scene['size']", "scene['cell_size']"), config.size, config.cell_size,
+               MAX_TERRAIN_CELLS, SCENE_BYTES_PER_CELL)
+    return config
 
 
 def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float) -> task.PathSamples:
@@ -71,16 +90,21 @@ class PlaMoSceneEnv(PlaMoEnv):
     ``instructions``, ``replans`` (detours and waits), ``waits``, ``replan_failures`` and
     ``planned_time``.
 
+    Keywords are checked at construction, as ``PlaMoEnv``'s. **Memory bound**: the scene's height
+    map (``size / cell_size + 1`` samples along x and y) may hold at most ``MAX_TERRAIN_CELLS`` =
+    2001^2 samples, e.g. 100 m x 100 m at 0.05 m; a scene costs ~175 bytes a sample, ~670 MB at the bound.
+
     | keyword | default | meaning |
     |---|---|---|
     | instructions | None | instruction text; None = random over the scene's landmarks |
-    | scene | None | keyword arguments of ``SceneConfig`` |
+    | scene | None | keyword arguments of ``SceneConfig`` (a dict); at most 2001^2 height-map samples |
     | scene_kind | "random" | "random" (generated) or "slalom" (the paper's test, "Run to the goal") |
     | scene_resample_every | 10 | resets between new random scenes (>= 1; building one costs ~40 ms, planning ~15 ms) |
     | speed_profile | "planned" | "planned" (the QP) or "constant" (``constant_speed`` along the same path) |
     | replan_horizon, replan_every | 1.5, 0.5 | collision look-ahead and check period (s) |
     | success_radius | 0.75 | head distance to the last landmark that counts as arrived (m) |
     | max_xy_error | 3.0 | head-target distance that ends the episode (m) |
+    | constant_speed | 1.5 | speed with ``speed_profile="constant"`` (m/s) |
     | (others) | | as ``PlaMoEnv`` |
     """
 
@@ -105,19 +129,20 @@ class PlaMoSceneEnv(PlaMoEnv):
         width: int = 640,
         height: int = 480,
     ) -> None:
+        # This env's own keywords first: PlaMoEnv's constructor builds a model.
+        self.instructions = None if instructions is None else check_str("instructions", instructions)
+        self.scene_kind = check_choice("scene_kind", scene_kind, SCENE_KINDS)
+        self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
+        self.constant_speed = check_float("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
+        self.scene_config = scene_config(scene)
+        self.scene_resample_every = check_int("scene_resample_every", scene_resample_every, 1, 10**9)
+        self._resets = 0
+        self.replan_horizon = check_float("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
+        self.replan_every = check_float("replan_every", replan_every, 0.0, 10.0, low_open=True)
+        self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
         super().__init__(terrain="flat", heightmap_size=heightmap_size, heightmap_extent=heightmap_extent,
                          max_xy_error=max_xy_error, pd_gains=pd_gains, frame_skip=frame_skip,
                          amp_history=amp_history, render_mode=render_mode, width=width, height=height)
-        self.instructions = instructions
-        self.scene_kind = check_choice("scene_kind", scene_kind, SCENE_KINDS)
-        self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
-        self.constant_speed = check_number("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
-        self.scene_config = SceneConfig(**(scene or {}))
-        self.scene_resample_every = int(check_number("scene_resample_every", scene_resample_every, 1, 10**9))
-        self._resets = 0
-        self.replan_horizon = check_number("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
-        self.replan_every = check_number("replan_every", replan_every, 0.0, 10.0, low_open=True)
-        self.success_radius = check_number("success_radius", success_radius, 0.0, 10.0, low_open=True)
         self._pd_gains = pd_gains
         self._build_args = (frame_skip, amp_history, render_mode, width, height)
         self.scene = None

@@ -13,7 +13,7 @@ import numpy as np
 from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
-from stairenv.environments.base import HumanoidEnv
+from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.motion.rsi import (
     humanoid_geoms,
@@ -27,7 +27,7 @@ from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.tasks.state import HEAD, PELVIS, read_state
-from stairenv.validation import check_choice, check_number, check_range
+from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
 from stairenv.world.furniture import (
     FAMILIES,
     LYING_FAMILIES,
@@ -49,6 +49,10 @@ SKILL_FAMILIES: dict[str, tuple[str, ...]] = {
     "reach": FAMILIES,
     "getup": (*SEATING_FAMILIES, "bed", "double_bed"),
 }
+# The names ``stairenv.scripts.get_encoder`` takes; the text_dim each gives (hashing: >= 8 buckets).
+TEXT_ENCODERS = ("auto", "minilm", "all-minilm-l6-v2", "hashing")
+MAX_TEXT_DIM = 4096
+HASHING_DIMS = (8, MAX_TEXT_DIM)
 GOAL_SIZE = 4 * task.NUM_CONTACT_JOINTS  # 15 target offsets (3) + 15 mask bits
 _DOF = {name: k for k, name in enumerate(DOF_NAMES)}
 
@@ -87,6 +91,86 @@ def reference_captions(library, skill: str) -> tuple[tuple[str, str], ...]:
     if not pairs:
         raise ValueError(f"the motion library has no clip with meta['skill'] == {skill!r}")
     return tuple(sorted(pairs))
+
+
+def host_families(skill: str, getup_from: str = "any") -> tuple[str, ...]:
+    """The furniture families ``skill`` can be done on (any for walk: there they are obstacles;
+    lying families only to get up from lying)."""
+    families = SKILL_FAMILIES[skill]
+    if skill == "getup" and getup_from == "lie":
+        families = tuple(f for f in families if f in LYING_FAMILIES)
+    return families
+
+
+def check_families(families, skill: str, getup_from: str) -> tuple[str, ...]:
+    """``families``: None (every family that can host ``skill``) or a non-empty list of families that
+    all can: an object scene draws any of them, and one that cannot host the skill has no goal."""
+    hosts = host_families(skill, getup_from)
+    if families is None:
+        return hosts
+    # A list or tuple: a set has no fixed order, so a seeded scene would differ between processes.
+    if isinstance(families, str) or not isinstance(families, Sequence):
+        raise TypeError(f"families must be None or a list or tuple of {list(FAMILIES)}, "
+                        f"got {type(families).__name__}")
+    families = tuple(families)
+    for family in families:
+        check_choice("families", family, FAMILIES)
+    if not families:
+        raise ValueError(f"families must name at least one of {list(hosts)}")
+    unable = [f for f in families if f not in hosts]
+    if unable:
+        purpose = f"{skill} (getup_from={getup_from!r})" if skill == "getup" else skill
+        raise ValueError(f"families {unable} cannot host {purpose}; choose among {list(hosts)}")
+    return families
+
+
+def check_room_hosts(room: Room, families: tuple[str, ...], skill: str) -> None:
+    """A fixed ``room`` must hold a piece of ``families`` for any skill but walk."""
+    if skill != "walk" and not any(p.family in families for p in room.furniture):
+        raise ValueError(f"room has no furniture to {skill} on (families {list(families)}); "
+                         f"it holds {sorted(p.name for p in room.furniture)}")
+
+
+def check_text_encoder(text_encoder, text_dim) -> int:
+    """``text_encoder`` must be a ``get_encoder`` name or an encoder (``model_id``, ``dim``, ``encode``),
+    and ``text_dim`` a size it gives: hashing 8-4096, MiniLM 1-384, an encoder its ``dim``.
+    Returns ``text_dim``. (The encoder itself is built at the first embedding: MiniLM loads slowly.)"""
+    from stairenv.scripts.embeddings import (
+        INSTALL_HINT,
+        EncoderUnavailableError,
+        MiniLMEncoder,
+        TextEncoder,
+        minilm_available,
+    )
+
+    text_dim = check_int("text_dim", text_dim, 1, MAX_TEXT_DIM)
+    if isinstance(text_encoder, str):
+        name = check_choice("text_encoder", text_encoder.lower(), TEXT_ENCODERS)
+        if name == "auto":
+            name = "minilm" if minilm_available() else "hashing"
+        elif name != "hashing" and not minilm_available():
+            raise EncoderUnavailableError(f"text_encoder={text_encoder!r} needs the MiniLM package: {INSTALL_HINT}")
+        low, high = HASHING_DIMS if name == "hashing" else (1, MiniLMEncoder.DIM)
+        if not low <= text_dim <= high:
+            raise ValueError(f"text_dim must lie in [{low}, {high}] with the {name} text_encoder, got {text_dim}")
+        return text_dim
+    if not isinstance(text_encoder, TextEncoder) or not callable(text_encoder.encode):
+        raise TypeError(f"text_encoder must be one of {list(TEXT_ENCODERS)} or an encoder with model_id, dim and "
+                        f"encode(texts), got {type(text_encoder).__name__}")
+    if text_encoder.dim != text_dim:
+        raise ValueError(f"text_encoder gives {text_encoder.dim}-d vectors, text_dim is {text_dim}")
+    return text_dim
+
+
+def check_captions(captions) -> tuple[tuple[str, str], ...]:
+    """``captions``: a non-empty list of (style, caption) pairs of non-empty strings."""
+    pairs = captions if isinstance(captions, Sequence) and not isinstance(captions, str) else None
+    if pairs is None or not all(isinstance(p, Sequence) and not isinstance(p, str) and len(p) == 2 for p in pairs):
+        raise TypeError(f"captions must be None or a list of (style, caption) pairs, got {captions!r:.80}")
+    if not pairs:
+        raise ValueError("captions must hold at least one (style, caption) pair")
+    return tuple((check_str("captions (style)", style), check_str("captions (caption)", text))
+                 for style, text in pairs)
 
 
 def seated_joint_angles() -> np.ndarray:
@@ -129,6 +213,11 @@ class SIMSEnv(HumanoidEnv):
     ``info["success_once"]``, ``info["contact_error"]``); terminated when the head falls below
     ``fall_height`` (or on success with ``terminate_on_success``); truncated by the TimeLimit or on
     diverging physics (``info["physics_unstable"]``). Get up starts seated or lying on the piece.
+
+    **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a bad
+    value, both naming the keyword), among them ``text_encoder`` / ``text_dim`` (a size the encoder
+    gives), ``captions`` and ``families``: every family must be able to host the skill (a fixed ``room``
+    must hold one such piece), so ``reset`` always finds a target.
 
     | keyword | default | meaning |
     |---|---|---|
@@ -187,36 +276,34 @@ class SIMSEnv(HumanoidEnv):
         width: int = 640,
         height: int = 480,
     ) -> None:
+        check_humanoid_keywords(frame_skip, amp_history, render_mode, width, height, pd_gains)
         self.skill = check_choice("skill", skill, task.SKILLS)
         self.scene = check_choice("scene", scene, SCENES)
+        self.getup_from = check_choice("getup_from", getup_from, GETUP_FROM)
         if room is not None and not isinstance(room, Room):
-            raise ValueError(f"room must be a stairenv.world.rooms.Room, got {type(room).__name__}")
+            raise TypeError(f"room must be None or a stairenv.world.rooms.Room, got {type(room).__name__}")
         self.fixed_room = room
-        self.families = tuple(SKILL_FAMILIES[self.skill] if families is None else families)
-        for family in self.families:
-            check_choice("families", family, FAMILIES)
-        if not self.families:
-            raise ValueError(f"families must name at least one of {list(FAMILIES)}")
-        self.scene_resample_every = int(check_number("scene_resample_every", scene_resample_every, 1, 10**9))
-        self.details = bool(details)
-        self.text_conditioned = bool(text_conditioned)
-        self.text_dim = int(check_number("text_dim", text_dim, 1, 4096))
+        self.families = check_families(families, self.skill, self.getup_from)
+        if room is not None:
+            check_room_hosts(room, self.families, self.skill)
+        self.scene_resample_every = check_int("scene_resample_every", scene_resample_every, 1, 10**9)
+        self.details = check_bool("details", details)
+        self.text_conditioned = check_bool("text_conditioned", text_conditioned)
+        self.text_dim = check_text_encoder(text_encoder, text_dim)
         self._encoder_spec = text_encoder
         self._encoder = None
-        self.captions = tuple(captions) if captions is not None else skill_captions(self.skill)
-        if not self.captions:
-            raise ValueError(f"captions must hold at least one (style, caption) pair for {self.skill}")
-        self.start_distance = check_range("start_distance", start_distance, 0.0, 50.0)
-        self.walk_distance = check_range("walk_distance", walk_distance, 0.0, 50.0)
-        self.target_speed = check_range("target_speed", target_speed, 0.0, 10.0)
-        self.speed_from_style = bool(speed_from_style)
-        self.getup_from = check_choice("getup_from", getup_from, GETUP_FROM)
-        self.heightmap_size = int(check_number("heightmap_size", heightmap_size, 1, 128))
-        self.heightmap_extent = check_number("heightmap_extent", heightmap_extent, 0.1, 10.0)
-        self.fall_height = check_number("fall_height", fall_height, 0.0, 1.5)
-        self.terminate_on_success = bool(terminate_on_success)
+        self.captions = skill_captions(self.skill) if captions is None else check_captions(captions)
+        self.start_distance = check_pair("start_distance", start_distance, 0.0, 50.0)
+        self.walk_distance = check_pair("walk_distance", walk_distance, 0.0, 50.0)
+        self.target_speed = check_pair("target_speed", target_speed, 0.0, 10.0)
+        self.speed_from_style = check_bool("speed_from_style", speed_from_style)
+        self.heightmap_size = check_int("heightmap_size", heightmap_size, 1, 128)
+        self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
+        self.fall_height = check_float("fall_height", fall_height, 0.0, 1.5)
+        self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
         self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_number("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        check_reference_motion(reference_motion)
         # Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
         self._library = None if self.init == "default" else standing_clips(
             load_reference_library(reference_motion if reference_motion is not None else self.DEFAULT_REFERENCE_MOTION))
@@ -290,9 +377,7 @@ class SIMSEnv(HumanoidEnv):
         return self._caption_pools[family]
 
     def _candidates(self, skill: str) -> list[PlacedFurniture]:
-        families = set(self.families) & set(SKILL_FAMILIES[skill])
-        if skill == "getup" and self.getup_from == "lie":
-            families &= set(LYING_FAMILIES)
+        families = set(self.families) & set(host_families(skill, self.getup_from))
         return [p for p in self.furniture.values() if p.family in families]
 
     # --- episode ------------------------------------------------------------------------------
