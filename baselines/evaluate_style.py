@@ -81,7 +81,6 @@ def main(argv: list[str] | None = None) -> list[dict]:
     args = parser.parse_args(argv)
     import gymnasium as gym
     import numpy as np
-    import torch
 
     import stairenv  # noqa: F401  (registers the envs)
     from stairenv.environments.sims import SIMSEnv, reference_captions
@@ -89,7 +88,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     from stairenv.motion.rsi import load_reference_library
     from stairenv.style.metrics import nearest_reference_distance, rollout_windows
     from stairenv.style.reference import ReferenceWindows, text_conditions
-    from stairenv.style.wrappers import AMPStyleReward
+    from stairenv.style.wrappers import AMPStateError, AMPStyleReward, read_amp_state
 
     if args.episodes < 1 or args.every < 1:
         parser.error("--episodes and --every must be >= 1")
@@ -107,7 +106,10 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if disc_path is None:
         parser.error(f"no discriminator state in {str(args.run)!r} (amp.pt or checkpoints/amp_<n>_steps.pt): "
                      "give --discriminator")
-    saved = torch.load(disc_path, weights_only=False)
+    try:
+        saved = read_amp_state(disc_path)  # tensors and plain values only: opening it runs nothing
+    except AMPStateError as err:
+        parser.error(str(err))
 
     env_kwargs = {"init": "default", "amp_history": int(saved["reference_num_frames"]), **dict(args.env_kwarg)}
     probe = gym.make(env_id, **env_kwargs).unwrapped

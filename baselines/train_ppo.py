@@ -6,6 +6,7 @@
     python baselines/train_ppo.py --env-kwarg target_speed=0.8 --timesteps 5e6
     python baselines/train_ppo.py --config my_run.toml    # any of the flags below as keys
     python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
+    python baselines/train_ppo.py --resume .../ppo_100000_steps.zip --fresh-discriminator   # AMP state lost
     python baselines/train_ppo.py --preset style-short    # instance noise + stable PPO for short runs (below)
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
 
@@ -53,12 +54,19 @@ Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
 checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
 ``vecnormalize.pkl`` + ``amp.pt`` and the evaluation table
 (``evaluation.csv`` / ``.json``) of the trained policy.
+
+``--resume`` needs the checkpoint's VecNormalize statistics and, with AMP, its
+AMP state (``amp_<n>_steps.pt``, or ``amp.pt`` beside ``final_model.zip``); without
+the AMP state it stops unless ``--fresh-discriminator`` asks for a new one. The
+model .zip and statistics .pkl are pickles (SB3's formats): resume only from files
+you trust. The AMP state is read without running code from it.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import sys
 import tomllib
 from pathlib import Path
 
@@ -72,14 +80,14 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.environments.sims import SIMSEnv, reference_captions
-from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy, normalizer_beside
+from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy, normalizer_beside, read_normalizer
 from stairenv.motion.rsi import load_reference_library
 from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
 from stairenv.sims_evaluation import evaluate_skills, write_reports
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.pipeline import PIPELINE_CHOICES
 from stairenv.style.reference import ReferenceWindows, text_conditions
-from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
 
 PAPER_PPO = {
     "learning_rate": 2e-5,
@@ -136,6 +144,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
     p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from")
+    p.add_argument("--fresh-discriminator", action="store_true",
+                   help="with --resume: train a new discriminator (--disc-* flags) instead of the AMP state "
+                        "saved beside the checkpoint")
     p.add_argument("--eval-episodes", type=int, default=50, help="0 skips the final evaluation")
     p.add_argument("--eval-max-episode-steps", type=int, default=None, help="shorter evaluation episodes")
     p.add_argument("--style", choices=("amp", "none"), default="amp", help="add the AMP style reward")
@@ -214,6 +225,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
     if args.n_envs < 1:
         raise SystemExit("--n-envs must be >= 1")
+    if args.fresh_discriminator and (args.resume is None or args.style != "amp"):
+        raise SystemExit("--fresh-discriminator only applies to --resume with --style amp")
     return args
 
 
@@ -236,13 +249,77 @@ class AMPCallback(BaseCallback):
         return True
 
 
+def _amp_state_candidates(checkpoint: Path) -> list[Path]:
+    """Where the AMP state saved with a checkpoint lies (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
+    own = [checkpoint.with_name("amp_" + checkpoint.stem.removeprefix("ppo_") + ".pt")]
+    return (own if checkpoint.stem.startswith("ppo_") else []) + [checkpoint.parent / "amp.pt"]
+
+
 def _amp_state_beside(checkpoint: Path) -> Path | None:
-    """The AMP state saved with a checkpoint (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
-    for candidate in (checkpoint.with_name(checkpoint.stem.replace("ppo_", "amp_") + ".pt"),
-                      checkpoint.parent / "amp.pt"):
-        if candidate.exists():
+    return next((path for path in _amp_state_candidates(checkpoint) if path.is_file()), None)
+
+
+def _checkpoint_file(resume: Path) -> Path:
+    """The --resume checkpoint as an existing file (SB3 also takes it without its .zip)."""
+    for candidate in (resume, resume.with_name(resume.name + ".zip")):
+        if candidate.is_file():
             return candidate
-    return None
+    raise SystemExit(f"--resume {resume}: no such checkpoint file; give a run's checkpoints/ppo_<n>_steps.zip "
+                     "or its final_model.zip")
+
+
+def _statistics_beside(checkpoint: Path) -> Path:
+    stats = normalizer_beside(checkpoint)
+    if stats is None:
+        raise SystemExit(f"--resume {checkpoint}: no VecNormalize statistics beside it "
+                         "(ppo_vecnormalize_<n>_steps.pkl or vecnormalize.pkl); the policy cannot go on without "
+                         "the observation normalisation it learnt with: copy the file back or resume from "
+                         "another checkpoint")
+    return stats
+
+
+def _required_amp_state(checkpoint: Path) -> Path:
+    """The AMP state beside the checkpoint; missing, resuming would silently restart the discriminator."""
+    found = _amp_state_beside(checkpoint)
+    if found is None:
+        expected = " or ".join(str(path) for path in _amp_state_candidates(checkpoint))
+        raise SystemExit(f"--resume {checkpoint}: no AMP state beside it ({expected}), so the discriminator "
+                         "trained with it is lost: copy it back, or pass --fresh-discriminator to go on "
+                         "with a new discriminator (its style rewards start over), or --style none")
+    return found
+
+
+def _run_env(checkpoint: Path) -> str | None:
+    """The env id of the run folder a checkpoint lies in (<logdir>/<env>/seed<k>/[checkpoints/])."""
+    return next((folder.name for folder in list(checkpoint.parents)[:3] if folder.name in gym.registry), None)
+
+
+def _check_same_spaces(checkpoint: Path, stats: Path, normalizer: VecNormalize, venv, env_id: str) -> None:
+    """Stop when the checkpoint's env (its statistics' spaces) is not --env's."""
+    saved = (normalizer.observation_space.shape, normalizer.action_space.shape)
+    now = (venv.observation_space.shape, venv.action_space.shape)
+    if saved != now:
+        origin = _run_env(checkpoint)
+        hint = f" (its run folder is {origin}'s)" if origin and origin != env_id else ""
+        raise SystemExit(f"--resume {checkpoint}: trained on observations of shape {saved[0]} and actions of shape "
+                         f"{saved[1]} (statistics {stats}){hint}, but --env {env_id} gives {now[0]} and {now[1]}: "
+                         "pass the --env and --env-kwarg it was trained with")
+
+
+def _resumed_style(amp_state: Path, reference: ReferenceWindows, seed: int) -> AMPStyleReward:
+    try:
+        return AMPStyleReward.load(amp_state, reference, seed=seed)
+    except (AMPStateError, ValueError) as err:
+        raise SystemExit(f"--resume: {err}. To go on with a new discriminator instead, pass --fresh-discriminator"
+                         ) from None
+
+
+def _load_checkpoint(checkpoint: Path, venv, device: str, tensorboard: str | None) -> PPO:
+    try:
+        return PPO.load(checkpoint, env=venv, device=device, tensorboard_log=tensorboard)
+    except Exception as err:  # noqa: BLE001  (a truncated .zip, another algorithm's, other spaces: many types)
+        raise SystemExit(f"--resume {checkpoint}: cannot load it as a PPO checkpoint for this env "
+                         f"({type(err).__name__}: {err})") from None
 
 
 def discriminator_config(args: argparse.Namespace) -> DiscriminatorConfig:
@@ -264,10 +341,16 @@ def main(argv: list[str] | None = None) -> Path:
         env_kwargs.setdefault("reference_motion", str(args.reference))
     if args.style == "amp":
         env_kwargs.setdefault("amp_history", args.amp_history)
-    run_dir = args.logdir / args.env / f"seed{args.seed}"
-    run_dir.mkdir(parents=True, exist_ok=True)
     if args.amp_text_condition and args.style != "amp":
         raise SystemExit("--amp-text-condition needs --style amp")
+    checkpoint = stats = amp_state = None
+    if args.resume is not None:  # every file first, before minutes of env setup
+        checkpoint = _checkpoint_file(args.resume)
+        stats = _statistics_beside(checkpoint)
+        if args.style == "amp" and not args.fresh_discriminator:
+            amp_state = _required_amp_state(checkpoint)
+    run_dir = args.logdir / args.env / f"seed{args.seed}"
+    run_dir.mkdir(parents=True, exist_ok=True)
 
     style = None
     reference = None
@@ -289,10 +372,18 @@ def main(argv: list[str] | None = None) -> Path:
     ppo_kwargs = {key: getattr(args, key) for key in PAPER_PPO}
     tensorboard = str(run_dir / "tb") if importlib.util.find_spec("tensorboard") else None
 
+    normalizer = None
+    if checkpoint is not None:
+        try:
+            normalizer = read_normalizer(stats)
+        except ValueError as err:
+            raise SystemExit(f"--resume {checkpoint}: {err}; copy an intact file back or resume from another "
+                             "checkpoint") from None
+        _check_same_spaces(checkpoint, stats, normalizer, venv, args.env)
+
     if reference is not None:
-        amp_state = _amp_state_beside(args.resume) if args.resume is not None else None
         if amp_state is not None:
-            style = AMPStyleReward.load(amp_state, reference, seed=args.seed)
+            style = _resumed_style(amp_state, reference, args.seed)
         else:
             style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
@@ -300,14 +391,18 @@ def main(argv: list[str] | None = None) -> Path:
                                    scoring=args.disc_scoring)
         venv = AMPVecEnvWrapper(venv, style, pipeline=args.disc_pipeline)
 
-    if args.resume is not None:
-        stats = normalizer_beside(args.resume)
-        if stats is None:
-            raise SystemExit(f"no VecNormalize statistics beside {args.resume} (ppo_vecnormalize_<n>_steps.pkl "
-                             "or vecnormalize.pkl)")
-        venv = VecNormalize.load(str(stats), venv)
-        model = PPO.load(args.resume, env=venv, device=args.device, tensorboard_log=tensorboard)
-        print(f"resumed from {args.resume} ({model.num_timesteps} steps) with statistics {stats}")
+    if normalizer is not None:
+        normalizer.set_venv(venv)
+        venv = normalizer
+        model = _load_checkpoint(checkpoint, venv, args.device, tensorboard)
+        discriminator = f", discriminator {amp_state}" if amp_state else ""
+        if args.fresh_discriminator:
+            discriminator = ", a fresh discriminator (--fresh-discriminator)"
+        print(f"resumed from {checkpoint} ({model.num_timesteps} steps) with statistics {stats}{discriminator}")
+        origin = _run_env(checkpoint)
+        if origin is not None and origin != args.env:
+            print(f"note: {checkpoint} comes from a {origin} run; training goes on with --env {args.env}",
+                  file=sys.stderr)
     else:
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=args.gamma)
         model = PPO(

@@ -38,6 +38,17 @@ def test_train_checkpoint_resume_evaluate(tmp_path):
                "--resume", str(run_dir / "checkpoints" / "ppo_512_steps.zip"), *TINY], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
 
+    # Without its AMP state a checkpoint resumes only with an explicit fresh discriminator.
+    checkpoint = run_dir / "checkpoints" / "ppo_512_steps.zip"
+    (run_dir / "checkpoints" / "amp_512_steps.pt").unlink()
+    resume = ["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
+              *TINY]
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(SCRIPT), *resume], check=False, cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode != 0 and "amp_512_steps.pt" in done.stderr and "--fresh-discriminator" in done.stderr
+    assert "a fresh discriminator" in run([*resume, "--fresh-discriminator"], tmp_path)
+
 
 def test_train_sims_with_a_text_conditioned_discriminator(tmp_path):
     """SIMS: the discriminator judges [window, caption embedding]; the final evaluation is Table 1's."""
@@ -49,7 +60,7 @@ def test_train_sims_with_a_text_conditioned_discriminator(tmp_path):
          "--env-kwarg", "text_dim=8", "--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "2",
          "--eval-max-episode-steps", "20", *TINY], tmp_path)
     run_dir = tmp_path / "SIMS-Sit-v0" / "seed0"
-    amp = torch.load(run_dir / "amp.pt", weights_only=False)
+    amp = torch.load(run_dir / "amp.pt", weights_only=True)
     assert amp["reference_condition_dim"] == 8
     report = json.loads((run_dir / "evaluation.json").read_text())[0]
     assert report["table"] == "skills" and report["rows"][0]["group"] == "sit" and report["rows"][0]["n"] == 2

@@ -196,6 +196,26 @@ def normalizer_beside(model_path: str | os.PathLike) -> Path | None:
     return next((path for path in candidates if path.is_file()), None)
 
 
+def read_normalizer(path: str | os.PathLike):
+    """VecNormalize statistics from ``path``, not yet attached to an env (``VecNormalize.load`` is
+    this plus ``set_venv``). The file is a pickle: only open files you trust. ``ValueError`` names the
+    file when it cannot be read."""
+    import pickle
+
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    try:
+        with open(path, "rb") as f:
+            normalizer = pickle.load(f)
+    except Exception as err:  # truncated pickles, wrong magic, ... surface as many types
+        raise ValueError(f"cannot read the VecNormalize statistics {str(path)!r} ({type(err).__name__}: {err}): "
+                         "the file is truncated or not a VecNormalize .pkl") from err
+    if not isinstance(normalizer, VecNormalize):
+        raise ValueError(  # noqa: TRY004  (a wrong file, not a wrong argument)
+            f"{str(path)!r} holds a {type(normalizer).__name__}, not VecNormalize statistics")
+    return normalizer
+
+
 def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cpu") -> Policy:
     """Turn a policy spec into a callable ``obs -> action``.
 
@@ -209,6 +229,7 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     For a model, its VecNormalize statistics (``normalizer_beside``) normalise the
     observations before ``predict`` (statistics frozen).
     ``env`` provides the spaces; it is not stepped. ``device`` is passed to the SB3 loader.
+    A model .zip and its statistics .pkl are pickles (SB3's formats): load only files you trust.
     """
     if not isinstance(spec, (str, os.PathLike)):
         raise _policy_spec_error(spec, "expected a string")
@@ -232,7 +253,11 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
         else:
             raise _policy_spec_error(spec, f"no such file {str(model_path)!r}")
     algorithm = _sb3_algorithm(algo_name)
-    model = algorithm.load(str(model_path), device=device)
+    try:
+        model = algorithm.load(str(model_path), device=device)
+    except Exception as err:  # a truncated .zip, another algorithm's model, ...
+        raise ValueError(f"cannot read the policy model {str(model_path)!r} as {algorithm.__name__} "
+                         f"({type(err).__name__}: {err})") from err
     expected = getattr(env.observation_space, "shape", None)
     if model.observation_space.shape != expected:
         raise ValueError(
@@ -248,10 +273,13 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     normalizer = None
     stats = normalizer_beside(model_path)
     if stats is not None:
-        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+        from stable_baselines3.common.vec_env import DummyVecEnv
 
-        dummy = DummyVecEnv([lambda: _SpacesEnv(env.observation_space, env.action_space)])
-        normalizer = VecNormalize.load(str(stats), dummy)
+        normalizer = read_normalizer(stats)
+        if normalizer.observation_space.shape != expected:
+            raise ValueError(f"VecNormalize statistics {str(stats)!r} are for observations of shape "
+                             f"{normalizer.observation_space.shape}, the env gives {expected}")
+        normalizer.set_venv(DummyVecEnv([lambda: _SpacesEnv(env.observation_space, env.action_space)]))
         normalizer.training = False
         normalizer.norm_reward = False
     return SB3Policy(model, normalizer, str(model_path))

@@ -92,6 +92,21 @@ class DiscriminatorConfig:
             object.__setattr__(self, "grad_penalty_batch", int(self.grad_penalty_batch))
 
 
+def plain_values(value):
+    """``value`` with every numpy scalar in its dicts, lists and tuples turned into a Python number:
+    saved, a numpy scalar is a pickled numpy object, which a weights-only load refuses."""
+    if isinstance(value, dict):
+        return {key: plain_values(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(plain_values(item) for item in value)
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def plain_config(config: DiscriminatorConfig) -> dict:
+    """The config as a dict of Python numbers, strings and tuples."""
+    return plain_values(asdict(config))
+
+
 # --- oneDNN matrix products -------------------------------------------------------
 # Below this size in any dimension a product goes to ATen: oneDNN's setup costs more than it saves.
 _MIN_ONEDNN_DIM = 16
@@ -608,8 +623,9 @@ class AMPDiscriminator(nn.Module):
         }
 
     def state(self) -> dict:
-        return {"config": asdict(self.config), "input_dim": self.input_dim, "model": self.state_dict(),
-                "optimizer": self.optimizer.state_dict()}
+        """Tensors and plain values only, so ``torch.load(weights_only=True)`` reads it back."""
+        return {"config": plain_config(self.config), "input_dim": int(self.input_dim), "model": self.state_dict(),
+                "optimizer": plain_values(self.optimizer.state_dict())}  # its lr is the config's, maybe numpy
 
     @classmethod
     def from_state(cls, state: dict, backend: str = "auto") -> "AMPDiscriminator":

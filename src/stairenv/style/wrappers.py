@@ -36,13 +36,17 @@ scoring) and the vec env allows; "on" insists, "off" scores after the vec env re
 
 ``save(path)`` / ``load(path)`` keep the discriminator, its optimiser and input
 normaliser, the weights and the schedule; the replay buffer's contents are not
-saved (its size is), it refills within one round.
+saved (its size is), it refills within one round. The file holds only tensors and
+plain values, and ``load`` reads it with ``torch.load(weights_only=True)``: a file
+that asks to build any other Python object is refused (``AMPStateError``), so
+opening one runs no code from it.
 """
 
 from __future__ import annotations
 
+import pickle
+import re
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import asdict
 from pathlib import Path
 
 import gymnasium as gym
@@ -50,7 +54,14 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from stairenv.style.discriminator import SCORERS, AMPDiscriminator, DiscriminatorConfig, ReplayBuffer, style_reward
+from stairenv.style.discriminator import (
+    SCORERS,
+    AMPDiscriminator,
+    DiscriminatorConfig,
+    ReplayBuffer,
+    plain_config,
+    style_reward,
+)
 from stairenv.style.pipeline import (
     PIPELINE_CHOICES,
     PipelinedScorer,
@@ -60,6 +71,38 @@ from stairenv.style.pipeline import (
 )
 from stairenv.style.reference import ReferenceWindows
 from stairenv.validation import check_choice, check_number
+
+
+class AMPStateError(ValueError):
+    """An AMP state file that cannot be read, or holds more than tensors and plain values."""
+
+
+def _unpickler_complaint(err: Exception) -> str:
+    """The reason in torch's weights-only error, without its advice to load unsafely."""
+    found = re.search(r"WeightsUnpickler error: (.*?)(?:\n\n|$)", str(err), re.DOTALL)
+    return " ".join((found[1] if found else str(err)).split())
+
+
+def read_amp_state(path: str | Path) -> dict:
+    """The dict ``AMPStyleReward.save`` wrote, read without running code from the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise AMPStateError(f"no AMP state file {str(path)!r}")
+    try:
+        state = torch.load(path, weights_only=True, map_location="cpu")
+    except Exception as err:  # noqa: BLE001  (truncated or foreign files surface as many types)
+        refused = re.search(r"Unsupported global: GLOBAL (\S+)", str(err))
+        if isinstance(err, pickle.UnpicklingError) and refused:
+            raise AMPStateError(
+                f"{path}: refused: it asks to build the Python object {refused[1]}, and AMP states hold only "
+                "tensors and plain values (such a file could run code when opened; nothing from it was run); "
+                "it was not written by AMPStyleReward.save, or has been altered"
+            ) from None
+        raise AMPStateError(f"{path}: cannot read as an AMP state: truncated, or another kind of file? "
+                            f"({type(err).__name__}: {_unpickler_complaint(err)})") from None
+    if not isinstance(state, dict) or "discriminator" not in state:
+        raise AMPStateError(f"{path}: not an AMP state (no 'discriminator' entry; written by AMPStyleReward.save?)")
+    return state
 
 
 class AMPStyleReward:
@@ -201,28 +244,36 @@ class AMPStyleReward:
             self._worker = None
 
     def save(self, path: str | Path) -> Path:
+        """Write the state as tensors and plain values only (``load`` refuses anything else)."""
         self.wait()
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         torch.save({
             "discriminator": self.disc.state(),
-            "w_task": self.w_task, "w_style": self.w_style,
-            "update_interval": self.update_interval, "updates_per_round": self.updates_per_round,
-            "replay_size": self.config.replay_size, "rounds": self.rounds,
-            "reference_num_frames": self.reference.num_frames, "reference_fps": self.reference.fps,
-            "reference_condition_dim": self.reference.condition_dim,
-            "background_training": self.background_training, "scoring": self.disc.scoring,
-            "config": asdict(self.config),
+            "w_task": float(self.w_task), "w_style": float(self.w_style),
+            "update_interval": int(self.update_interval), "updates_per_round": int(self.updates_per_round),
+            "replay_size": int(self.config.replay_size), "rounds": int(self.rounds),
+            "reference_num_frames": int(self.reference.num_frames), "reference_fps": float(self.reference.fps),
+            "reference_condition_dim": int(self.reference.condition_dim),
+            "background_training": bool(self.background_training), "scoring": str(self.disc.scoring),
+            "config": plain_config(self.config),
         }, path)
         return path
 
     @classmethod
     def load(cls, path: str | Path, reference: ReferenceWindows, train: bool = True, seed: int = 0) -> "AMPStyleReward":
-        state = torch.load(Path(path), weights_only=False)
+        """The state ``save`` wrote; raises ``AMPStateError`` for a file it cannot read or that holds
+        more than tensors and plain values (nothing in the file is run)."""
+        state = read_amp_state(path)
         saved = int(state.get("reference_condition_dim", 0))
         if saved != reference.condition_dim:
             raise ValueError(f"{path} was trained with {saved}-number conditions, the reference windows "
                              f"carry {reference.condition_dim}: build them with the same conditions")
+        saved_dim = int(state["discriminator"]["input_dim"])
+        if saved_dim != reference.dim:
+            raise ValueError(f"{path} judges windows of {saved_dim} numbers ({state.get('reference_num_frames')} "
+                             f"frames), the reference windows have {reference.dim} ({reference.num_frames} frames): "
+                             "build them with the saved number of frames")
         disc = AMPDiscriminator.from_state(state["discriminator"])
         style = cls(reference, state["w_task"], state["w_style"], update_interval=state["update_interval"],
                     updates_per_round=state["updates_per_round"], train=train, seed=seed, discriminator=disc,

@@ -1,0 +1,183 @@
+"""Saved files: an AMP state is read without running code from it, and every broken or
+mismatched file given to ``train_ppo.py --resume`` or ``evaluate_style.py`` stops with a
+message that names it and says what to do."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+import stairenv  # noqa: F401  (registers the envs)
+from stairenv.evaluation import _SpacesEnv
+from stairenv.motion.rsi import load_reference_library
+from stairenv.style.discriminator import DiscriminatorConfig
+from stairenv.style.reference import ReferenceWindows
+from stairenv.style.wrappers import AMPStateError, AMPStyleReward
+
+SMALL = DiscriminatorConfig(hidden=(16,), batch_size=8)
+
+
+class WritesAMarker:
+    """Unpickled, this would create a file: stands for any code a crafted file could run."""
+
+    def __init__(self, marker) -> None:
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+@pytest.fixture(scope="module")
+def library():
+    return load_reference_library("builtin:stairs")
+
+
+@pytest.fixture(scope="module")
+def reference(library):
+    return ReferenceWindows(library, num_frames=2, fps=30.0)
+
+
+@pytest.fixture
+def crafted(tmp_path):
+    """An AMP state file whose discriminator entry is a pickled callable, and its marker path."""
+    marker = tmp_path / "code_ran"
+    path = tmp_path / "crafted_amp.pt"
+    torch.save({"discriminator": WritesAMarker(marker), "w_task": 0.5}, path)
+    return path, marker
+
+
+def test_the_amp_state_is_tensors_and_plain_values(reference, tmp_path):
+    config = DiscriminatorConfig(hidden=(16,), batch_size=np.int64(8), learning_rate=np.float64(1e-4))
+    style = AMPStyleReward(reference, w_task=np.float64(0.25), config=config)
+    style.replay.add(reference.sample(16, np.random.default_rng(0)))
+    style.train_round(1)
+    state = torch.load(style.save(tmp_path / "amp.pt"), weights_only=True)
+    assert state["w_task"] == 0.25 and state["config"]["batch_size"] == 8
+    loaded = AMPStyleReward.load(tmp_path / "amp.pt", reference)
+    assert loaded.config == style.config and loaded.rounds == 1
+
+
+def test_a_crafted_amp_state_is_refused_and_runs_nothing(reference, crafted):
+    path, marker = crafted
+    with pytest.raises(AMPStateError, match=rf"{path.name}: refused: .*Python object .*open"):
+        AMPStyleReward.load(path, reference)
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("content", [b"", b"not a torch file", None])
+def test_unreadable_amp_states_name_the_file(reference, tmp_path, content):
+    path = tmp_path / "amp_512_steps.pt"
+    if content is None:  # a real state cut short
+        whole = AMPStyleReward(reference, config=SMALL).save(tmp_path / "whole.pt").read_bytes()
+        content = whole[: len(whole) // 2]
+    path.write_bytes(content)
+    with pytest.raises(AMPStateError, match=r"amp_512_steps\.pt: cannot read as an AMP state"):
+        AMPStyleReward.load(path, reference)
+
+
+def test_other_torch_files_and_other_window_sizes_are_explained(reference, library, tmp_path):
+    torch.save(torch.zeros(3), tmp_path / "tensor.pt")
+    with pytest.raises(AMPStateError, match=r"tensor\.pt: not an AMP state"):
+        AMPStyleReward.load(tmp_path / "tensor.pt", reference)
+    with pytest.raises(AMPStateError, match="no AMP state file"):
+        AMPStyleReward.load(tmp_path / "missing.pt", reference)
+    path = AMPStyleReward(reference, config=SMALL).save(tmp_path / "amp.pt")
+    three_frames = ReferenceWindows(library, num_frames=3, fps=30.0)
+    with pytest.raises(ValueError, match=r"amp\.pt judges windows of .*\(2 frames\).*\(3 frames\)"):
+        AMPStyleReward.load(path, three_frames)
+
+
+def test_evaluate_style_refuses_a_crafted_discriminator(crafted, tmp_path, baseline_script, capsys):
+    path, marker = crafted
+    run = tmp_path / "InterLevel-v0" / "seed0"
+    run.mkdir(parents=True)
+    (run / "final_model.zip").write_bytes(b"")  # never opened: the discriminator is read first
+    with pytest.raises(SystemExit):
+        baseline_script("evaluate_style").main([str(run), "--discriminator", str(path)])
+    assert "refused" in capsys.readouterr().err and not marker.exists()
+
+
+# --- train_ppo.py --resume -------------------------------------------------------
+FAST = ["--n-envs", "1", "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar"]
+
+
+def statistics_for(env_id: str, path) -> None:
+    """VecNormalize statistics as a run of ``env_id`` saves them."""
+    probe = gym.make(env_id)
+    VecNormalize(DummyVecEnv([lambda: _SpacesEnv(probe.observation_space, probe.action_space)])).save(str(path))
+    probe.close()
+
+
+def make_checkpoint(folder, env_id: str):
+    """A checkpoint of an ``env_id`` run under ``folder``: the model .zip is junk (every test stops before
+    it is opened, or checks that it is reported), the statistics are real."""
+    checkpoints = folder / "runs" / env_id / "seed0" / "checkpoints"
+    checkpoints.mkdir(parents=True)
+    (checkpoints / "ppo_512_steps.zip").write_bytes(b"PK junk")
+    statistics_for(env_id, checkpoints / "ppo_vecnormalize_512_steps.pkl")
+    return checkpoints / "ppo_512_steps.zip"
+
+
+@pytest.fixture
+def checkpoint(tmp_path):
+    return make_checkpoint(tmp_path, "InterLevel-v0")
+
+
+def resume(train_ppo, checkpoint, tmp_path, *extra) -> str:
+    """train_ppo.main's message when it stops."""
+    with pytest.raises(SystemExit) as stopped:
+        train_ppo.main(["--resume", str(checkpoint), "--logdir", str(tmp_path / "out"), *FAST, *extra])
+    return str(stopped.value)
+
+
+def test_resume_without_the_amp_state_stops(checkpoint, tmp_path, baseline_script):
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path)
+    assert str(checkpoint.with_name("amp_512_steps.pt")) in message and "--fresh-discriminator" in message
+
+
+def test_resume_from_a_missing_checkpoint_names_it(tmp_path, baseline_script):
+    missing = tmp_path / "runs" / "ppo_100_steps.zip"
+    message = resume(baseline_script("train_ppo"), missing, tmp_path)
+    assert f"--resume {missing}: no such checkpoint file" in message
+
+
+def test_resume_without_statistics_names_them(checkpoint, tmp_path, baseline_script):
+    checkpoint.with_name("ppo_vecnormalize_512_steps.pkl").unlink()
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    assert str(checkpoint) in message and "no VecNormalize statistics" in message
+
+
+def test_resume_with_truncated_statistics_names_them(checkpoint, tmp_path, baseline_script):
+    stats = checkpoint.with_name("ppo_vecnormalize_512_steps.pkl")
+    stats.write_bytes(stats.read_bytes()[:100])
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    assert f"cannot read the VecNormalize statistics {str(stats)!r}" in message and "truncated" in message
+
+
+def test_resume_on_another_env_names_both(tmp_path, baseline_script):
+    plamo = make_checkpoint(tmp_path, "PlaMo-v0")
+    message = resume(baseline_script("train_ppo"), plamo, tmp_path, "--style", "none")  # --env InterLevel-v0
+    assert f"--resume {plamo}: trained on observations of shape (399,)" in message
+    assert "(its run folder is PlaMo-v0's), but --env InterLevel-v0 gives (118,)" in message
+    assert "pass the --env and --env-kwarg it was trained with" in message
+
+
+def test_resume_from_a_broken_model_names_it(checkpoint, tmp_path, baseline_script):
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    assert f"--resume {checkpoint}: cannot load it as a PPO checkpoint" in message
+
+
+def test_resume_refuses_a_crafted_amp_state(checkpoint, crafted, tmp_path, baseline_script):
+    path, marker = crafted
+    path.rename(checkpoint.with_name("amp_512_steps.pt"))
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--disc-pipeline", "off")
+    assert "amp_512_steps.pt: refused" in message and "--fresh-discriminator" in message
+    assert not marker.exists()
+
+
+def test_fresh_discriminator_needs_resume(baseline_script):
+    with pytest.raises(SystemExit, match="--fresh-discriminator only applies to --resume"):
+        baseline_script("train_ppo").parse_args(["--fresh-discriminator"])
