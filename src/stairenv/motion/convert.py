@@ -10,8 +10,9 @@ whose files with those suffixes are converted (not recursively; ``NOTICE``, ``RE
 and ``LICENSE`` text files are skipped). Clips are written to ``DIR/<name>.npz`` and one
 line per clip reports frames, fps, duration, the forward-kinematics check (position error
 against the source for .npy/.txt, limb-direction error for .bvh) and the share of joint
-angles clamped into range. The exit status is 0 if every file converted, 1 if some
-failed (each with its reason on stderr), 2 on bad arguments.
+angles clamped into range. A file or folder that fails, for whatever reason, is reported
+on stderr and the others are still converted; the last line counts the failures. The exit
+status is 0 if every input converted, 1 if some failed, 2 on bad arguments.
 """
 
 from __future__ import annotations
@@ -115,29 +116,39 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if args.skeleton not in SKELETONS:
         parser.error(f"unknown --skeleton {args.skeleton!r}; known: {', '.join(sorted(SKELETONS))}")
-    try:
-        files = collect_inputs(args.inputs)
-    except (FileNotFoundError, ValueError) as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
+    failed: list[str] = []  # inputs that are no file or folder of motion files, then files that failed
+    files: list[Path] = []
+    for item in args.inputs:
+        try:
+            files.extend(collect_inputs([item]))
+        except (FileNotFoundError, ValueError) as err:
+            failed.append(str(item))
+            print(f"error: {err}", file=sys.stderr)
+    total = len(failed) + len(files)
     out_dir = Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     taken: set[str] = set()
-    failures = 0
     for path in files:
         try:
             clip = import_motion(path, fps=args.fps or None, skeleton=args.skeleton,
                                  skip_frames=args.skip_frames, ground=args.ground)
             saved = clip.save(out_dir / f"{_output_name(path, taken)}.npz")
-        except (MotionFileError, OSError) as err:
-            failures += 1
-            print(f"error: {err}", file=sys.stderr)
+        except Exception as err:  # one bad file, or an importer bug it reveals, must not stop the batch
+            failed.append(str(path))
+            print(f"error: {_describe(err, path)}", file=sys.stderr)
             continue
         print(summary_line(clip, saved))
-    if failures:
-        print(f"{failures} of {len(files)} file(s) failed", file=sys.stderr)
+    if failed:
+        print(f"{len(failed)} of {total} input(s) failed: {', '.join(failed)}", file=sys.stderr)
         return 1
     return 0
+
+
+def _describe(err: Exception, path: Path) -> str:
+    """The error's message, led by the file (``MotionFileError`` names it already)."""
+    if isinstance(err, MotionFileError):
+        return str(err)
+    return f"{path}: {type(err).__name__}: {err}"
 
 
 if __name__ == "__main__":

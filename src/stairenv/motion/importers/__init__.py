@@ -40,6 +40,25 @@ Every importer ends in the same place, the shared helpers of this module:
 
 Corrupt or unreadable files raise :class:`~stairenv.motion.clip.MotionFileError`
 naming the file and the fault.
+
+Motion files come from strangers, so reading one runs nothing from it (``.npy`` pickles go
+through an allow-list unpickler, :mod:`.isaac_npy`) and every file is held to the same
+limits, checked before any work that grows with them:
+
+=======================  ===========  =================================================
+limit                    value        applies to
+=======================  ===========  =================================================
+``MAX_FILE_BYTES``       32 MiB       the file (:func:`read_limited`; shipped: <= 1.5 MB)
+``MAX_FRAMES``           100 000      frames of the source and of the clip made
+``MAX_DURATION_S``       3600 s       duration of the source and of the clip
+``MIN_FPS``/``MAX_FPS``  1-1000 fps   frame rate of the source and of the clip
+``MAX_JOINTS``           256          joints of a source skeleton (CMU 31, AMP 15)
+``MAX_ABS_VALUE``        1e6          every number read: angles, offsets, positions
+``MAX_ROOT_DISTANCE_M``  1000 m       root position of the clip, from the origin
+=======================  ===========  =================================================
+
+:func:`check_timing` (frame rate, duration, frames) and :func:`check_values` (finite,
+within a bound) are the shared checks; :func:`make_clip` applies both to every clip.
 """
 
 from __future__ import annotations
@@ -58,9 +77,19 @@ from stairenv.humanoid import BODY_NAMES, DOF_NAMES, FOOT_BODIES, JOINTS, NUM_DO
 from stairenv.motion.clip import QPOS_SIZE, MotionClip, MotionFileError, humanoid_model
 
 __all__ = [
+    "MAX_ABS_VALUE",
+    "MAX_DURATION_S",
+    "MAX_FILE_BYTES",
+    "MAX_FPS",
+    "MAX_FRAMES",
+    "MAX_JOINTS",
+    "MAX_ROOT_DISTANCE_M",
+    "MIN_FPS",
     "SUFFIXES",
     "MotionFileError",
     "body_positions",
+    "check_timing",
+    "check_values",
     "fk_position_error",
     "foot_sole_heights",
     "ground_offset",
@@ -68,8 +97,18 @@ __all__ = [
     "joints_to_qpos",
     "lowest_body_point",
     "make_clip",
+    "read_limited",
     "snap_fps",
 ]
+
+# Limits on what a motion file may ask for (see the module docstring).
+MAX_FILE_BYTES = 32 * 2**20
+MAX_FRAMES = 100_000
+MAX_DURATION_S = 3600.0
+MIN_FPS, MAX_FPS = 1.0, 1000.0
+MAX_JOINTS = 256
+MAX_ABS_VALUE = 1e6
+MAX_ROOT_DISTANCE_M = 1000.0
 
 # suffix -> (module, function name); modules are imported on first use.
 SUFFIXES: dict[str, tuple[str, str]] = {
@@ -99,6 +138,46 @@ def import_motion(path: str | Path, **kwargs: Any) -> MotionClip:
 
     importer = getattr(importlib.import_module(module_name), function)
     return importer(path, **kwargs)
+
+
+# --------------------------------------------------------------------------------------
+# Limits shared by all importers
+# --------------------------------------------------------------------------------------
+def read_limited(path: Path) -> bytes:
+    """The bytes of ``path``; ``MotionFileError`` if unreadable or larger than ``MAX_FILE_BYTES``."""
+    try:
+        with path.open("rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)  # never more, whatever the file claims to be
+    except OSError as err:
+        raise MotionFileError(f"{path}: cannot read ({err})") from err
+    if len(data) > MAX_FILE_BYTES:
+        raise MotionFileError(f"{path}: larger than the limit of {MAX_FILE_BYTES} bytes")
+    return data
+
+
+def check_timing(path: str | Path, frames: int, fps: float, duration: float) -> None:
+    """``MotionFileError`` unless ``frames`` frames over ``duration`` s at ``fps`` are within the limits.
+
+    Importers check their source with it before any work that grows with its length, and
+    ``make_clip`` the clip it is about to make (``duration * fps + 1`` frames), so no file
+    asks for more frames, time or memory than ``MAX_FRAMES`` and ``MAX_DURATION_S`` allow.
+    """
+    if not MIN_FPS <= fps <= MAX_FPS:  # NaN fails too
+        raise MotionFileError(f"{path}: frame rate {fps:g} fps outside [{MIN_FPS:g}, {MAX_FPS:g}]")
+    if not 0.0 <= duration <= MAX_DURATION_S:
+        raise MotionFileError(f"{path}: duration {duration:g} s outside [0, {MAX_DURATION_S:g}] s")
+    needed = max(frames, math.floor(duration * fps + 1e-6) + 1)
+    if needed > MAX_FRAMES:
+        raise MotionFileError(f"{path}: {needed} frames at {fps:g} fps, more than the limit of {MAX_FRAMES}")
+
+
+def check_values(path: str | Path, what: str, values: np.ndarray, limit: float = MAX_ABS_VALUE) -> None:
+    """``MotionFileError`` unless every number of ``values`` is finite and at most ``limit`` in size."""
+    bad = ~(np.abs(values) <= limit)  # NaN fails too
+    if bad.any():
+        index = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise MotionFileError(
+            f"{path}: {what}{list(index)} is {values[index]:g}, not a finite number within +-{limit:g}")
 
 
 # --------------------------------------------------------------------------------------
@@ -429,12 +508,16 @@ def make_clip(
     and ranges (``joints_to_qpos``), so Euler angles are never interpolated and resampled
     frames are in range too. Then the clip is put on the floor (``finish_clip``; measured
     on the output frames) and ``meta`` gains the clamping report of the output frames.
+    A clip beyond the limits (``check_timing`` at ``fps``; root positions within
+    ``MAX_ROOT_DISTANCE_M``) raises ``MotionFileError`` naming ``source`` before any work.
     ``projected``: ``joints_to_qpos`` of the given frames, if already computed (used when
     no resampling is needed).
     """
     times = np.asarray(times, dtype=np.float64)
     if times.ndim != 1 or len(times) != len(root_pos) or np.any(np.diff(times) <= 0):
         raise ValueError("times must be increasing, one per frame")
+    check_timing(source, len(times), fps, float(times[-1] - times[0]))
+    check_values(source, "root position (m)", root_pos, MAX_ROOT_DISTANCE_M)
     n_out = int(math.floor((times[-1] - times[0]) * fps + 1e-6)) + 1
     grid = times[0] + np.arange(n_out) / fps
     resample = len(times) != n_out or not np.allclose(times, grid, atol=1e-6 / fps)

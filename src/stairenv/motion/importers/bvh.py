@@ -5,8 +5,8 @@ Parsing (:func:`parse_bvh`, :func:`read_bvh`)
     (joints) ``CHANNELS n name...``; then ``MOTION``, ``Frames: F``, ``Frame Time: dt``
     and F lines of numbers, one per channel in hierarchy order. Everything is checked:
     braces, channel names and counts, the number of frames and of values per frame,
-    finite numbers. Faults raise ``MotionFileError`` with the file, the line and what
-    is wrong.
+    finite numbers, and the importers' limits (frame rate, duration, frames, joints, size
+    of numbers). Faults raise ``MotionFileError`` with the file (and line) and what is wrong.
 
 Conventions of the BVH itself (:func:`forward_kinematics`)
     A joint's rotation channels, in the order written, compose intrinsically: channels
@@ -74,7 +74,8 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES
 from stairenv.motion.clip import MotionClip, MotionFileError, humanoid_model
-from stairenv.motion.importers import body_positions, joints_to_qpos, make_clip, snap_fps
+from stairenv.motion.importers import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
+                                       joints_to_qpos, make_clip, read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -170,9 +171,9 @@ class _Tokens:
         except ValueError:
             self.pos -= 1
             raise self.error(f"expected a number for {what}, found {tok!r}") from None
-        if not math.isfinite(value):
+        if not abs(value) <= MAX_ABS_VALUE:
             self.pos -= 1
-            raise self.error(f"{what} is not finite ({tok})")
+            raise self.error(f"{what} is {tok[:30]}, not a finite number within +-{MAX_ABS_VALUE:g}")
         return value
 
     def peek(self) -> str | None:
@@ -187,9 +188,9 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, joints: list[BvhJoint]
     if (tokens.peek() or "").upper() == "CHANNELS":
         tokens.next("CHANNELS")
         count_tok = tokens.next(f"channel count of {name}")
-        if not count_tok.isdigit():
+        if not re.fullmatch("[0-6]", count_tok):  # three positions and three rotations at most
             tokens.pos -= 1
-            raise tokens.error(f"channel count of {name} must be an integer, found {count_tok!r}")
+            raise tokens.error(f"channel count of {name} must be an integer from 0 to 6, found {count_tok[:30]!r}")
         names = []
         for _ in range(int(count_tok)):
             tok = tokens.next(f"channel name of {name}")
@@ -203,6 +204,8 @@ def _parse_joint(tokens: _Tokens, name: str, parent: int, joints: list[BvhJoint]
         if len({n.lower() for n in names}) != len(names):
             raise tokens.error(f"joint {name}: repeated channel in {names}")
         channels = tuple(names)
+    if len(joints) >= MAX_JOINTS:
+        raise tokens.error(f"more than {MAX_JOINTS} joints")
     joint = BvhJoint(name, parent, offset, channels, channel_start)
     index = len(joints)
     joints.append(joint)
@@ -259,8 +262,8 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
         return match.group(1)
 
     n_text = header(motion_line + 1, "Frames")
-    if not n_text.isdigit():
-        raise MotionFileError(f"{path}, line {motion_line + 2}: frame count {n_text!r} is not an integer")
+    if not re.fullmatch("[0-9]{1,18}", n_text):
+        raise MotionFileError(f"{path}, line {motion_line + 2}: frame count {n_text[:30]!r} is not an integer")
     declared = int(n_text)
     try:
         frame_time = float(header(motion_line + 2, "Frame Time"))
@@ -268,6 +271,7 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
         raise MotionFileError(f"{path}, line {motion_line + 3}: frame time is not a number") from None
     if not (math.isfinite(frame_time) and frame_time > 0):
         raise MotionFileError(f"{path}, line {motion_line + 3}: frame time must be positive, got {frame_time}")
+    check_timing(path, declared, 1.0 / frame_time, max(declared - 1, 0) * frame_time)
 
     data_lines = [(n, line) for n, line in enumerate(lines[motion_line + 3:], start=motion_line + 4) if line.strip()]
     if len(data_lines) < declared:
@@ -291,9 +295,7 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
         except ValueError:
             bad = next(p for p in parts if not _is_float(p))
             raise MotionFileError(f"{path}, line {line_no}: frame {k}: {bad[:30]!r} is not a number") from None
-    if not np.isfinite(frames).all():
-        k = int(np.argwhere(~np.isfinite(frames))[0, 0])
-        raise MotionFileError(f"{path}, line {data_lines[k][0]}: frame {k} holds NaN or inf")
+    check_values(path, "frame values", frames)
     return BvhMotion(joints, frame_time, frames, path)
 
 
@@ -309,11 +311,9 @@ def read_bvh(path: str | Path) -> BvhMotion:
     """Read and parse a BVH file (``MotionFileError`` on unreadable or corrupt files)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="strict")
+        text = read_limited(path).decode("utf-8")
     except UnicodeDecodeError as err:
         raise MotionFileError(f"{path}: not a text file ({err.reason} at byte {err.start})") from err
-    except OSError as err:
-        raise MotionFileError(f"{path}: cannot read ({err})") from err
     return parse_bvh(text, str(path))
 
 
@@ -458,14 +458,23 @@ def _min_rotation(a: np.ndarray, b: np.ndarray) -> Rotation:
     return Rotation.from_rotvec(axis / s * math.atan2(s, c))
 
 
-def pelvis_frame(left_hip: np.ndarray, right_hip: np.ndarray, trunk_top: np.ndarray) -> Rotation:
+def pelvis_frame(left_hip: np.ndarray, right_hip: np.ndarray, trunk_top: np.ndarray, source: str = "") -> Rotation:
     """Pelvis orientation (T,) from points (T, 3) in our axes: y along the hip line (right to
-    left), z towards the trunk top (made orthogonal to y), x = y cross z (forward)."""
-    left = left_hip - right_hip
-    left /= np.linalg.norm(left, axis=1, keepdims=True)
+    left), z towards the trunk top (made orthogonal to y), x = y cross z (forward).
+
+    ``MotionFileError`` (naming ``source``) where the hips coincide or the trunk top lies on
+    the hip line: no frame is defined there (a file with zero offsets, say).
+    """
+    def unit(vectors: np.ndarray, fault: str) -> np.ndarray:
+        norms = np.linalg.norm(vectors, axis=1, keepdims=True)
+        short = np.flatnonzero(norms[:, 0] < 1e-9)
+        if short.size:
+            raise MotionFileError(f"{source}: frame {short[0]}: {fault} (no pelvis frame)")
+        return vectors / norms
+
+    left = unit(left_hip - right_hip, "the hips coincide")
     up = trunk_top - 0.5 * (left_hip + right_hip)
-    up -= np.sum(up * left, axis=1, keepdims=True) * left
-    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    up = unit(up - np.sum(up * left, axis=1, keepdims=True) * left, "the trunk top lies on the hip line")
     forward = np.cross(left, up)
     return Rotation.from_matrix(np.stack((forward, left, up), axis=2))
 
@@ -490,7 +499,8 @@ def rest_alignment(motion: BvhMotion, skeleton: SourceSkeleton) -> dict[str, Rot
         if name not in rest:
             raise MotionFileError(
                 f"{motion.path}: skeleton {skeleton.name!r} needs joint {name!r}, not in the file")
-    pelvis = pelvis_frame(*(c.apply(rest[n])[None] for n in (*skeleton.hips, skeleton.trunk_top)))[0]
+    rest_points = (c.apply(rest[n])[None] for n in (*skeleton.hips, skeleton.trunk_top))
+    pelvis = pelvis_frame(*rest_points, source=f"{motion.path} (rest pose)")[0]
     align = {"pelvis": pelvis}
     ours = our_bones()
     for body, (start, end) in skeleton.bones.items():
@@ -628,8 +638,10 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
     left_hip = c.apply(positions[:, motion.index(skeleton.hips[0])])
     right_hip = c.apply(positions[:, motion.index(skeleton.hips[1])])
     trunk_top = c.apply(positions[:, motion.index(skeleton.trunk_top)])
-    world["pelvis"] = pelvis_frame(left_hip, right_hip, trunk_top)
+    world["pelvis"] = pelvis_frame(left_hip, right_hip, trunk_top, source=motion.path)
     src_leg = leg_length(motion, skeleton)
+    if not src_leg > 1e-9:
+        raise MotionFileError(f"{motion.path}: the legs have no length in the rest pose")
     scale = our_leg_length() / src_leg
     hinge_twist: dict[str, float] = {}
     if align_hinges:

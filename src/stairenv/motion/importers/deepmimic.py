@@ -33,7 +33,8 @@ C maps z to -y, so an angle theta becomes -theta about our y axis. Bone offsets 
 the AMP humanoid's, i.e. ours to a few millimetres.
 
 The frame rate is 1 / (median frame duration), rounded to an integer when within
-0.05 % (durations are written as 0.033332 s). ``Loop: "wrap"`` sets ``loop``.
+0.05 % (durations are written as 0.033332 s); every frame must last 1 / ``MAX_FPS`` to
+1 / ``MIN_FPS`` s and the clip keep within the importers' other limits. ``Loop: "wrap"`` sets ``loop``.
 DeepMimic's last frame of a looping clip repeats the first pose (with the root moved
 on); it is kept. A file whose frame durations vary (humanoid3d_roll.txt has one double
 frame) is resampled onto a uniform grid, slerping rotations (``importers.make_clip``).
@@ -53,7 +54,8 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES
 from stairenv.motion.clip import MotionClip, MotionFileError, humanoid_model
-from stairenv.motion.importers import fk_position_error, joints_to_qpos, make_clip, snap_fps
+from stairenv.motion.importers import (MAX_FPS, MIN_FPS, check_timing, check_values, fk_position_error, joints_to_qpos,
+                                       make_clip, read_limited, snap_fps)
 
 FRAME_SIZE = 44
 
@@ -85,13 +87,16 @@ def read_deepmimic(path: str | Path) -> tuple[np.ndarray, str]:
     """Frames (T, 44) and the ``Loop`` mode of a DeepMimic file; ``MotionFileError`` on faults."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
+        text = read_limited(path).decode("utf-8")
+    except UnicodeDecodeError as err:
         raise MotionFileError(f"{path}: cannot read ({type(err).__name__}: {err})") from err
     try:
-        data = json.loads(text)
+        # Integers are read as floats: an int of thousands of digits is no frame value.
+        data = json.loads(text, parse_int=float)
     except json.JSONDecodeError as err:
         raise MotionFileError(f"{path}: not valid JSON ({err}); truncated or not a DeepMimic motion?") from err
+    except RecursionError as err:
+        raise MotionFileError(f"{path}: JSON nested too deeply for a DeepMimic motion") from err
     if not isinstance(data, dict) or "Frames" not in data:
         raise MotionFileError(f"{path}: expected a JSON object with 'Frames' (a DeepMimic motion)")
     frames = data["Frames"]
@@ -104,9 +109,7 @@ def read_deepmimic(path: str | Path) -> tuple[np.ndarray, str]:
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in frame):
             raise MotionFileError(f"{path}: frame {i} holds non-numeric values")
     array = np.asarray(frames, dtype=np.float64)
-    if not np.isfinite(array).all():
-        bad = int(np.argwhere(~np.isfinite(array))[0, 0])
-        raise MotionFileError(f"{path}: NaN or inf in frame {bad}")
+    check_values(path, "Frames", array)
     loop = data.get("Loop", "none")
     if loop not in ("wrap", "none"):
         raise MotionFileError(f"{path}: 'Loop' must be 'wrap' or 'none', got {loop!r}")
@@ -195,10 +198,18 @@ def import_deepmimic(
     durations = fields["duration"][:, 0]
     # The last frame's duration is unused by DeepMimic (often 0): time comes from the others.
     steps = durations[:-1] if len(durations) > 1 else durations
-    if np.any(steps <= 0):
-        bad = int(np.flatnonzero(steps <= 0)[0])
-        raise MotionFileError(f"{path}: frame {bad} has duration {steps[bad]} (must be > 0)")
+    out_of_range = ~((steps >= 1.0 / MAX_FPS) & (steps <= 1.0 / MIN_FPS))
+    if out_of_range.any():
+        bad = int(np.flatnonzero(out_of_range)[0])
+        raise MotionFileError(
+            f"{path}: frame {bad} has duration {steps[bad]:g} s (a frame rate outside [{MIN_FPS:g}, {MAX_FPS:g}] fps)")
     source_fps = snap_fps(1.0 / float(np.median(steps)))
+    uniform = bool(np.all(np.abs(steps - np.median(steps)) <= 0.01 * np.median(steps)))
+    if uniform:
+        times = np.arange(len(frames)) / source_fps
+    else:  # frames at their own times, resampled onto a uniform grid by make_clip
+        times = np.concatenate(([0.0], np.cumsum(steps)))[: len(frames)]
+    check_timing(path, len(frames), source_fps, float(times[-1]))
 
     c = Y_UP_TO_Z_UP
     quality: dict[str, Any] = {}
@@ -219,11 +230,7 @@ def import_deepmimic(
                 "reference": "DeepMimic FK (y up) with our bone offsets"}
     meta = {"importer": "deepmimic", "source_fps": round(source_fps, 6), "source_frames": int(len(frames)),
             **quality, "fk_error": fk_error}
-    uniform = bool(np.all(np.abs(steps - np.median(steps)) <= 0.01 * np.median(steps)))
-    if uniform:
-        times = np.arange(len(frames)) / source_fps
-    else:  # frames at their own times, resampled onto a uniform grid by make_clip
-        times = np.concatenate(([0.0], np.cumsum(steps)))[: len(frames)]
+    if not uniform:
         meta["irregular_durations"] = True
     return make_clip(times, root_pos, root_rot, local, fps or source_fps, name=name or path.stem,
                      loop=loop == "wrap", source=str(path), meta=meta, ground=ground,

@@ -1,7 +1,12 @@
 """IsaacGymEnvs / ASE ``.npy`` motions (poselib ``SkeletonMotion``), read without poselib.
 
-The file is a pickled dict (``np.load(path, allow_pickle=True).item()``; only load files
-you trust, pickle can run code):
+The file is a pickled dict (what ``np.load(path, allow_pickle=True).item()`` returns). A
+pickle can name any function to call, so it is never given to ``np.load``: a restricted
+unpickler builds only the dict, list, string and number objects of the pickle itself,
+``OrderedDict``, and stand-ins for numpy's arrays, dtypes and scalars (``_SAFE_GLOBALS``);
+any other name (``os.system``, ``builtins.eval``, ...) is refused before anything runs. The
+arrays are then made from their pickled bytes after checking that shape, type and data
+agree (plain bool, integer and float types only), so no claimed size is ever allocated.
 
 * ``rotation["arr"]``: (T, J, 4) quaternions x, y, z, w. With ``is_local`` true (the
   usual case) each is the joint's body relative to its parent body; the root's is its
@@ -28,6 +33,11 @@ it in the T-pose); the shift is ``meta["root_height_offset"]``.
 
 from __future__ import annotations
 
+import io
+import math
+import pickle
+import re
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +46,130 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES
 from stairenv.motion.clip import MotionClip, MotionFileError, humanoid_model
-from stairenv.motion.importers import fk_position_error, joints_to_qpos, make_clip
+from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, fk_position_error, joints_to_qpos,
+                                       make_clip, read_limited)
+
+# numpy's type codes a poselib file uses: bool, integers, floats; objects for the outer container.
+_TYPE_CODE = re.compile(r"b1|[iu][1248]|f[248]|O8")
+
+
+class _Dtype:
+    """Stands in for ``numpy.dtype`` while unpickling: keeps the type code and byte order only."""
+
+    def __init__(self, code: object = None, align: object = False, copy: object = False) -> None:
+        self.code, self.byteorder = code, "="
+
+    def __setstate__(self, state: object) -> None:
+        if isinstance(state, tuple) and len(state) > 1 and state[1] in ("<", ">"):
+            self.byteorder = state[1]
+
+    def resolve(self) -> np.dtype:
+        if not (isinstance(self.code, str) and _TYPE_CODE.fullmatch(self.code)):
+            raise ValueError(f"unsupported array type {self.code!r}")
+        return np.dtype(self.code).newbyteorder(self.byteorder)
+
+
+class _Array:
+    """Stands in for a pickled ``numpy.ndarray``: keeps its pickled state for ``_array``."""
+
+    state: object = None
+
+    def __setstate__(self, state: object) -> None:
+        self.state = state
+
+
+def _reconstruct(subtype: object, shape: object, typecode: object) -> _Array:
+    """numpy's ``_reconstruct`` allocates ``shape``; the stand-in allocates nothing."""
+    return _Array()
+
+
+def _scalar(dtype: object, data: object) -> np.generic:
+    """numpy's ``scalar(dtype, bytes)``: one bool, integer or float from its bytes."""
+    resolved = dtype.resolve() if isinstance(dtype, _Dtype) else None
+    if resolved is None or resolved.hasobject or not isinstance(data, bytes) or len(data) != resolved.itemsize:
+        raise ValueError("malformed numpy scalar")
+    return np.frombuffer(data, resolved)[0]
+
+
+_SAFE_GLOBALS: dict[tuple[str, str], Any] = {
+    ("collections", "OrderedDict"): OrderedDict,
+    ("numpy", "ndarray"): _Array,
+    ("numpy", "dtype"): _Dtype,
+    **{(module, "_reconstruct"): _reconstruct for module in ("numpy.core.multiarray", "numpy._core.multiarray")},
+    **{(module, "scalar"): _scalar for module in ("numpy.core.multiarray", "numpy._core.multiarray")},
+}
+
+
+class _SafeUnpickler(pickle.Unpickler):
+    """Resolves only the names of ``_SAFE_GLOBALS``: nothing else can be called."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module, name) not in _SAFE_GLOBALS:
+            raise pickle.UnpicklingError(f"refused {module}.{name} (not a numpy array, dtype or dict)")
+        return _SAFE_GLOBALS[(module, name)]
+
+
+def _array(value: _Array) -> np.ndarray:
+    """The array a pickled ndarray state describes, once its shape, type and data agree."""
+    state = value.state
+    if not (isinstance(state, tuple) and len(state) == 5 and isinstance(state[2], _Dtype)):
+        raise ValueError("malformed array")
+    _, shape, dtype, fortran, data = state
+    if not (isinstance(shape, tuple) and len(shape) <= 8 and all(type(n) is int and n >= 0 for n in shape)):
+        raise ValueError(f"malformed array shape {shape!r}")
+    resolved, count = dtype.resolve(), math.prod(shape)
+    order = "F" if fortran else "C"
+    if resolved.hasobject:  # a list of the elements, one per entry
+        if not (isinstance(data, list) and len(data) == count):
+            raise ValueError(f"object array of shape {shape} does not match its data")
+        out = np.empty(count, dtype=object)
+        for i, item in enumerate(data):
+            out[i] = item
+        return out.reshape(shape, order=order)
+    if not (isinstance(data, (bytes, bytearray)) and len(data) == count * resolved.itemsize):
+        raise ValueError(f"array of shape {shape} and type {resolved} does not match its data")
+    return np.frombuffer(data, resolved).reshape(shape, order=order)
+
+
+def _unpickle(path: Path) -> object:
+    """The object a ``.npy`` file's pickle describes, built by ``_SafeUnpickler``."""
+    stream = io.BytesIO(read_limited(path))
+    header_readers = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+    try:
+        version = np.lib.format.read_magic(stream)
+        if version not in header_readers:
+            raise MotionFileError(f"{path}: unsupported .npy format version {version}")
+        shape, _, dtype = header_readers[version](stream)
+        if not dtype.hasobject:
+            raise MotionFileError(
+                f"{path}: expected a pickled dict (poselib SkeletonMotion), got a {dtype} array of shape {shape}")
+        if shape != ():
+            raise MotionFileError(f"{path}: expected one pickled dict, got an object array of shape {shape}")
+        top = _SafeUnpickler(stream).load()
+        return _array(top).item() if isinstance(top, _Array) else top
+    except MotionFileError:
+        raise
+    except Exception as err:  # refused names, truncation, malformed opcodes or arrays: many types
+        raise MotionFileError(f"{path}: cannot read as a numpy pickle ({type(err).__name__}: {err})") from err
+
+
+def _real_number(value: object) -> float | None:
+    """A real number given as int, float, numpy scalar or one-element array, else None (bools too)."""
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(()).item()
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return None
+    try:
+        return float(value)
+    except OverflowError:  # an int of hundreds of digits
+        return math.inf
+
+
+def _flag(value: object) -> bool | None:
+    """A bool given as bool, numpy bool or one-element bool array, else None."""
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype == np.bool_:
+        value = value.reshape(()).item()
+    return bool(value) if isinstance(value, (bool, np.bool_)) else None
 
 
 def read_isaac_npy(path: str | Path) -> dict[str, Any]:
@@ -44,49 +177,54 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
 
     Returns ``rotation`` (T, J, 4) xyzw, ``root_translation`` (T, 3), ``node_names`` (J,),
     ``parent_indices`` (J,), ``local_translation`` (J, 3), ``is_local`` (bool) and ``fps``
-    (float, or None for a ``SkeletonState``). Raises ``MotionFileError`` on any fault.
+    (float, or None for a ``SkeletonState``). Nothing in the file is run (see the module
+    docstring); any fault, or a value beyond the importers' limits, raises ``MotionFileError``.
     """
     path = Path(path)
-    try:
-        raw = np.load(path, allow_pickle=True)
-        data = raw.item() if isinstance(raw, np.ndarray) and raw.dtype == object and raw.shape == () else raw
-    except Exception as err:  # truncated pickles, wrong magic, ... surface as many types
-        raise MotionFileError(f"{path}: cannot read as a numpy pickle ({type(err).__name__}: {err})") from err
+    data = _unpickle(path)
     if not isinstance(data, dict):
         raise MotionFileError(f"{path}: expected a pickled dict (poselib SkeletonMotion), got {type(data).__name__}")
 
-    def arr(key: str, inner: str | None = "arr") -> np.ndarray:
-        if key not in data:
-            raise MotionFileError(f"{path}: missing {key!r} (keys: {sorted(map(str, data))})")
-        value = data[key]
-        if inner is not None:
-            if not isinstance(value, dict) or inner not in value:
-                raise MotionFileError(f"{path}: {key!r} has no {inner!r} array")
-            value = value[inner]
+    def plain(value: object, what: str) -> object:
+        """``value`` with a pickled array made into an ndarray."""
         try:
-            return np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise MotionFileError(f"{path}: {key!r} is not numeric ({err})") from err
+            return _array(value) if isinstance(value, _Array) else value
+        except ValueError as err:
+            raise MotionFileError(f"{path}: {what}: {err}") from err
 
-    rotation = arr("rotation")
-    root_translation = arr("root_translation")
+    def numbers(container: object, key: str, what: str) -> np.ndarray:
+        """The numeric array ``container[key]["arr"]`` (poselib's tensor), as float64."""
+        value = container.get(key) if isinstance(container, dict) else None
+        if not isinstance(value, dict) or "arr" not in value:
+            raise MotionFileError(f"{path}: missing {what} (a dict with an 'arr' array)")
+        array = plain(value["arr"], what)
+        if not isinstance(array, np.ndarray) or array.dtype.hasobject:
+            raise MotionFileError(f"{path}: {what} is not a numeric array ({type(array).__name__})")
+        array = array.astype(np.float64)
+        check_values(path, what, array)
+        return array
+
+    rotation = numbers(data, "rotation", "rotation")
+    root_translation = numbers(data, "root_translation", "root_translation")
     tree = data.get("skeleton_tree")
     if not isinstance(tree, dict):
         raise MotionFileError(f"{path}: missing 'skeleton_tree'")
     names = tree.get("node_names")
     if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
         raise MotionFileError(f"{path}: skeleton_tree has no list of node_names")
-    try:
-        parents = np.asarray(tree["parent_indices"]["arr"], dtype=np.int64)
-        offsets = np.asarray(tree["local_translation"]["arr"], dtype=np.float64)
-    except (KeyError, TypeError, ValueError) as err:
-        raise MotionFileError(f"{path}: skeleton_tree lacks parent_indices/local_translation ({err})") from err
     num_joints = len(names)
+    if not 1 <= num_joints <= MAX_JOINTS:
+        raise MotionFileError(f"{path}: {num_joints} joints; 1 to {MAX_JOINTS} are allowed")
+    parents = numbers(tree, "parent_indices", "skeleton_tree parent_indices")
+    offsets = numbers(tree, "local_translation", "skeleton_tree local_translation")
     if parents.shape != (num_joints,) or offsets.shape != (num_joints, 3):
         raise MotionFileError(
             f"{path}: skeleton_tree has {num_joints} names but parent_indices {parents.shape} "
             f"and local_translation {offsets.shape}"
         )
+    if not np.array_equal(parents, np.round(parents)):
+        raise MotionFileError(f"{path}: skeleton_tree parent_indices are not integers")
+    parents = parents.astype(np.int64)
 
     single = "fps" not in data
     if single and rotation.ndim == 2:
@@ -99,8 +237,6 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
         )
     if rotation.shape[0] < 1:
         raise MotionFileError(f"{path}: no frames")
-    if not (np.isfinite(rotation).all() and np.isfinite(root_translation).all() and np.isfinite(offsets).all()):
-        raise MotionFileError(f"{path}: NaN or inf in the motion")
     norms = np.linalg.norm(rotation, axis=-1)
     if np.any(np.abs(norms - 1.0) > 1e-2):
         worst = np.unravel_index(np.argmax(np.abs(norms - 1.0)), norms.shape)
@@ -110,19 +246,20 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
         )
     fps = None
     if not single:
-        try:
-            fps = float(np.asarray(data["fps"]).reshape(()))
-        except (TypeError, ValueError) as err:
-            raise MotionFileError(f"{path}: fps is not a number ({data['fps']!r})") from err
-        if not (np.isfinite(fps) and fps > 0):
-            raise MotionFileError(f"{path}: fps must be positive, got {fps}")
+        fps = _real_number(plain(data["fps"], "fps"))
+        if fps is None:
+            raise MotionFileError(f"{path}: fps is not a number ({type(data['fps']).__name__})")
+        check_timing(path, rotation.shape[0], fps, (rotation.shape[0] - 1) / fps if fps > 0 else math.nan)
+    is_local = _flag(plain(data.get("is_local", True), "is_local"))
+    if is_local is None:
+        raise MotionFileError(f"{path}: is_local must be true or false, got {type(data['is_local']).__name__}")
     return {
         "rotation": rotation,
         "root_translation": root_translation,
         "node_names": list(names),
         "parent_indices": parents,
         "local_translation": offsets,
-        "is_local": bool(np.asarray(data.get("is_local", True))),
+        "is_local": is_local,
         "fps": fps,
     }
 
