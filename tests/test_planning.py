@@ -21,7 +21,7 @@ from stairenv.planning.errors import InstructionError, PlanningError
 from stairenv.planning.grid import PlanningGrid
 from stairenv.planning.instructions import Segment, parse_instructions
 from stairenv.planning.locomotion import LOCOMOTIONS, get_locomotion
-from stairenv.planning.planner import Planner, PlannerSettings
+from stairenv.planning.planner import Planner, PlannerSettings, plan_path
 from stairenv.planning.refine import head_profile
 from stairenv.planning.replan import (
     ClosedLoopObstacle,
@@ -517,3 +517,135 @@ def test_route_from_instructions():
         assert plan.speed.v.max() <= plan.locomotion.speed_max + 1e-6 and plan.speed.v[-1] == 0.0
     with pytest.raises(InstructionError, match="start"):
         Planner(grid).route("walk to the b")
+
+
+# ------------------------------------------------------------------------------------ bad inputs
+OFF_GRID = r"target cells must lie in rows 0\.\.19 and columns 0\.\.19 of the grid"
+
+
+@pytest.mark.parametrize(("target", "message"), [
+    (np.array([[-1, -1]]), OFF_GRID + r"; 1 of 1 do not, e\.g\. \(-1, -1\)"),  # used to wrap to the far corner
+    (np.array([[100, 100]]), OFF_GRID + r"; 1 of 1 do not, e\.g\. \(100, 100\)"),  # used to be an IndexError
+    (np.array([[5, 5], [5, 20]]), OFF_GRID + r"; 1 of 2 do not, e\.g\. \(5, 20\)"),
+    (np.array([[5.0, 1e300]]), OFF_GRID),
+    (np.zeros((0, 2), np.int64), "target must hold at least one"),  # used to be a numpy reduction error
+    ([], "target must hold at least one"),
+    (np.array([[2.5, 3.0]]), "target must be integer"),
+    (np.array([[np.nan, 3.0]]), "target must be integer"),
+    (np.array([["a", "b"]]), "target must be integer"),
+    (np.array([1, 2, 3]), r"target must be \(i, j\) grid cells"),
+])
+def test_target_cells_are_checked_against_the_grid(target, message):
+    grid = flat_grid(20, 20)
+    cm = build_costmap(grid)
+    with pytest.raises(ValueError, match=message):
+        astar(cm, (2, 2), target)
+    with pytest.raises(ValueError, match=message):
+        plan_path(cm, (0.25, 0.25), target)
+    grid.landmarks["bad"] = target  # set after the grid's own check: the planner checks it again
+    with pytest.raises(ValueError, match=message):
+        Planner(grid).plan("bad", start=(0.25, 0.25))
+
+
+def test_cells_on_the_grid_edge_and_one_cell_pairs_are_accepted():
+    cm = build_costmap(flat_grid(20, 20))
+    assert astar(cm, (0, 0), np.array([[19, 19]])).cells[-1].tolist() == [19, 19]
+    assert astar(cm, np.array([0, 0]), (19, 0)).cells[-1].tolist() == [19, 0]
+    assert astar(cm, (0, 0), np.array([[3.0, 4.0]])).cells[-1].tolist() == [3, 4]
+    with pytest.raises(ValueError, match=r"start cells must lie in rows 0\.\.19"):
+        astar(cm, (-1, 0), np.array([[5, 5]]))
+    with pytest.raises(ValueError, match="start must be one"):
+        astar(cm, np.array([[0, 0], [1, 1]]), np.array([[5, 5]]))
+    with pytest.raises(ValueError, match="extra_blocked must be a bool array of the grid's shape"):
+        astar(cm, (0, 0), np.array([[5, 5]]), extra_blocked=np.zeros((3, 3), bool))
+
+
+@pytest.mark.parametrize("reach", [math.nan, math.inf, -0.1, "far"])
+def test_reach_must_be_a_finite_distance(reach):
+    cm = build_costmap(flat_grid(20, 20))
+    message = r"reach must be a number in \[0.0, inf\)"
+    with pytest.raises(ValueError, match=message):
+        astar(cm, (2, 2), np.array([[10, 10]]), reach=reach)
+    with pytest.raises(ValueError, match=message):
+        PlannerSettings(reach=reach)
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"cell_size": math.inf}, r"cell_size must be a number in \(0.0, inf\), got inf"),
+    ({"cell_size": math.nan}, r"cell_size must be a number in \(0.0, inf\), got nan"),
+    ({"cell_size": 0.0}, r"cell_size must be a number in \(0.0, inf\)"),
+    ({"origin": (math.nan, 0.0)}, r"origin must be two finite numbers"),
+    ({"origin": (0.0, 0.0, 0.0)}, r"origin must be two finite numbers"),
+])
+def test_grid_keywords_are_checked(change, message):
+    h = w = 6
+    kwargs = {"heights": np.zeros((h, w)), "blocked": np.zeros((h, w), bool), "ceiling": np.full((h, w), np.inf),
+              "cell_size": 0.1}
+    with pytest.raises(ValueError, match=message):
+        PlanningGrid(**{**kwargs, **change})
+
+
+@pytest.mark.parametrize(("array", "value", "message"), [
+    ("ceiling", math.nan, (r"ceiling must hold heights \(m\) or inf \(open sky\); 1 cells do not, e\.g\. "
+                           r"cell \(3, 4\) holds nan")),
+    ("ceiling", -math.inf, r"ceiling must hold heights \(m\) or inf \(open sky\)"),
+    ("heights", math.inf, r"heights must hold finite heights \(m\); 1 cells do not, e\.g\. cell \(3, 4\) holds inf"),
+    ("heights", math.nan, r"heights must hold finite heights"),
+])
+def test_non_finite_maps_are_rejected_not_misdiagnosed(array, value, message):
+    values = np.zeros((20, 20)) if array == "heights" else np.full((20, 20), np.inf)
+    values[3, 4] = value
+    maps = {"heights": np.zeros((20, 20)), "blocked": np.zeros((20, 20), bool), "ceiling": np.full((20, 20), np.inf)}
+    with pytest.raises(ValueError, match=message):
+        PlanningGrid(**{**maps, array: values}, cell_size=0.1)
+    # edited in place after the grid was built: the costmap checks again (a NaN ceiling used
+    # to come back as PlanningError "ceiling too low")
+    grid = flat_grid(20, 20, landmarks={"a": square(2, 2), "b": square(15, 15)})
+    getattr(grid, array)[3, 4] = value
+    with pytest.raises(ValueError, match=message):
+        Planner(grid).plan("b", start="a")
+    grid = flat_grid(20, 20)
+    grid.cell_size = math.inf
+    with pytest.raises(ValueError, match="cell_size"):
+        build_costmap(grid)
+    with pytest.raises(TypeError, match="grid must be a PlanningGrid"):
+        build_costmap("grid")
+
+
+def test_landmarks_and_start_points_are_checked():
+    with pytest.raises(ValueError, match=r"landmark 'x' cells must lie in rows 0\.\.5 and columns 0\.\.5"):
+        flat_grid(6, 6, landmarks={"x": np.array([[-1, 2]])})
+    with pytest.raises(ValueError, match="landmark 'x' must hold at least one"):
+        flat_grid(6, 6, landmarks={"x": np.zeros((0, 2))})
+    grid = flat_grid(20, 20, landmarks={"b": square(15, 15)})
+    cm = build_costmap(grid)
+    on_grid = r"must be a point \(x, y\) on the grid, x in \[0.0, 2.0\) and y in \[0.0, 2.0\) m"
+    for start in ((math.nan, 0.5), (2.0, 0.5), (-0.01, 0.5), (0.5, 0.5, 0.5), "here"):
+        with pytest.raises(ValueError, match="start_xy " + on_grid):
+            plan_path(cm, start, grid.landmarks["b"])
+    for start in ((math.nan, 0.5), (0.5, math.inf), (1.0,)):
+        with pytest.raises(ValueError, match="start " + on_grid):
+            Planner(grid).plan("b", start=start)
+        with pytest.raises(ValueError, match="start " + on_grid):
+            Planner(grid).route("walk to the b", start=start)
+    with pytest.raises(ValueError, match=r"t0 must be a number in \(-inf, inf\)"):
+        plan_path(cm, (0.25, 0.25), grid.landmarks["b"], t0=math.nan)
+
+
+@pytest.mark.parametrize(("keyword", "value"), [("head_radius", math.inf), ("slope_window", math.inf),
+                                                ("head_smoothing", math.inf), ("curvature_scale", math.nan)])
+def test_window_widths_must_be_finite(keyword, value):
+    # each becomes a window width in cells: inf used to end in an OverflowError
+    with pytest.raises(ValueError, match=rf"{keyword} must be a number in \[0.0, inf\)"):
+        PlannerSettings(**{keyword: value})
+    if keyword in ("head_radius", "slope_window"):
+        with pytest.raises(ValueError, match=keyword):
+            build_costmap(flat_grid(5, 5), **{keyword: value})
+
+
+def test_collision_prediction_needs_a_finite_time():
+    trajectory = Trajectory.from_profile(np.array([0.0, 1.0]), np.zeros((2, 3)), np.array([1.0, 1.0]))
+    ball = ConstantVelocityObstacle((0.5, 0.0), (0.0, 0.0))
+    assert predict_collision(trajectory, [ball], t_now=0.0) is not None
+    with pytest.raises(ValueError, match=r"t_now must be a number in \(-inf, inf\), got nan"):
+        predict_collision(trajectory, [ball], t_now=math.nan)  # used to predict no collision at all

@@ -3,8 +3,11 @@ the MuJoCo model (height field orientation, walls, moving obstacles) and scene f
 
 from __future__ import annotations
 
+import io
 import json
 import math
+import re
+import tracemalloc
 import zipfile
 
 import mujoco
@@ -15,6 +18,9 @@ from scipy import ndimage
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.world.scenes import (
     DEFAULT_LANDMARK_NAMES,
+    MAX_SCENE_CELLS,
+    MAX_SCENE_HEIGHT,
+    MAX_SCENE_JSON_BYTES,
     TERRAIN_KINDS,
     Box,
     ConstantVelocity,
@@ -545,6 +551,85 @@ def test_corrupt_and_foreign_files(tmp_path):
     assert issubclass(SceneFileError, ValueError)
     with pytest.raises(FileNotFoundError):
         Scene.load(tmp_path / "nowhere.npz")
+
+
+def _npy_head(shape: tuple[int, ...], descr: str = "<f8", data: bytes = b"") -> bytes:
+    """An .npy member's bytes: a header declaring ``shape`` followed by ``data`` (at most a few bytes)."""
+    out = io.BytesIO()
+    np.lib.format.write_array_header_1_0(out, {"descr": descr, "fortran_order": False, "shape": shape})
+    return out.getvalue() + data
+
+
+def _npy(array: np.ndarray) -> bytes:
+    out = io.BytesIO()
+    np.save(out, array)
+    return out.getvalue()
+
+
+def _zip(path, members: dict[str, bytes]):
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, content in members.items():
+            z.writestr(f"{name}.npy", content)
+    return path
+
+
+def test_declared_array_sizes_are_bounded_before_reading(tmp_path):
+    good = tmp_path / "good.npz"
+    slalom_scene(num_walls=2).save(good)
+    with np.load(good) as npz:
+        heights, scene_json = _npy(npz["heights"]), _npy(npz["scene_json"])
+    side = math.isqrt(MAX_SCENE_CELLS) + 1
+    # a few kB that declare gigabytes (3 MB of zeros used to inflate to two 3 GB arrays)
+    cases = {
+        "heights": ({"heights": _npy_head((20000, 20000), data=bytes(1 << 16)), "scene_json": scene_json},
+                    (r"heights declares shape \(20000, 20000\) \(400000000 elements\), more than the 16777216 "
+                     r"Scene.load reads \(MAX_SCENE_CELLS\)")),
+        "just_over": ({"heights": _npy_head((side, side - 1)), "scene_json": scene_json}, "MAX_SCENE_CELLS"),
+        "json": ({"heights": heights, "scene_json": _npy_head((MAX_SCENE_JSON_BYTES + 1,), "|u1")},
+                 "scene_json declares .*MAX_SCENE_JSON_BYTES"),
+        "labels": ({"heights": heights, "scene_json": scene_json,
+                    "terrain_labels": _npy_head((5000, 5000), "|u1")}, "terrain_labels declares .*MAX_SCENE_CELLS"),
+        "three_d": ({"heights": _npy_head((2, 2, 2)), "scene_json": scene_json},
+                    r"heights must be a 2-D numeric array, the file declares shape \(2, 2, 2\)"),
+        "text": ({"heights": _npy(np.array([["a", "b"], ["c", "d"]])), "scene_json": scene_json},
+                 "heights must be a 2-D numeric array"),
+        "not_npy": ({"heights": b"plain bytes, no .npy header", "scene_json": scene_json}, "not a readable scene"),
+    }
+    tracemalloc.start()
+    try:
+        for name, (members, message) in cases.items():
+            path = _zip(tmp_path / f"{name}.npz", members)
+            with pytest.raises(SceneFileError, match=message) as info:
+                Scene.load(path)
+            assert str(path) in str(info.value)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20  # nothing of the declared size was allocated
+
+
+@pytest.mark.parametrize(("value", "shown"), [(1e300, "1e+300"), (math.nan, "nan"), (-math.inf, "-inf"),
+                                              (-(MAX_SCENE_HEIGHT + 1), "-1001.0")])
+def test_loaded_heights_must_be_finite_and_plausible(tmp_path, value, shown):
+    good = tmp_path / "good.npz"
+    slalom_scene(num_walls=2).save(good)
+    with np.load(good) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    arrays["heights"][3, 4] = value
+    path = tmp_path / "tall.npz"
+    np.savez_compressed(path, **arrays)
+    with pytest.raises(SceneFileError, match=rf"heights must be finite with \|h\| <= 1000.0 m \(MAX_SCENE_HEIGHT\); "
+                                             rf"1 cells are not, e.g. cell \(3, 4\) holds {re.escape(shown)}") as info:
+        Scene.load(path)
+    assert str(path) in str(info.value)
+
+
+def test_heights_up_to_the_bound_load(tmp_path):
+    heights = np.full((4, 5), MAX_SCENE_HEIGHT)
+    heights[0, 0] = -MAX_SCENE_HEIGHT
+    scene = Scene(heights, 0.5)
+    scene.save(tmp_path / "high.npz")
+    assert Scene.load(tmp_path / "high.npz") == scene
 
 
 # --- validation ---------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from numba import njit
 from scipy import ndimage
 
 from .costmap import Costmap
-from .errors import PlanningError
+from .errors import PlanningError, check_cells, check_range
 from .locomotion import LOCOMOTIONS
 
 jit = njit(cache=True, nogil=True)
@@ -406,17 +406,25 @@ def astar(
 ) -> AStarResult:
     """Cheapest path from the ``start`` cell to any cell of ``target`` ((K, 2) cells).
 
-    reach (m, >= 0): if no target cell is passable, passable cells within ``reach`` of one
+    reach (m, finite >= 0): if no target cell is passable, passable cells within ``reach`` of one
         are goals. extra_blocked: (H, W) bool cells to avoid as well (dynamic obstacles).
     max_expansions: search budget (default H * W, which never binds).
-    Raises ``PlanningError`` (reason blocked / ceiling / slope / ceiling+slope / budget).
+    Raises ValueError for a start or target cell outside the grid, an empty target or a bad
+    keyword, and ``PlanningError`` (reason blocked / ceiling / slope / ceiling+slope / budget)
+    when no target cell can be reached.
     """
-    if reach < 0:
-        raise ValueError(f"reach must be a distance >= 0 (m), got {reach!r}")
+    reach = check_range("reach", reach, 0.0, math.inf, high_open=True)
     H, W = costmap.grid.shape
-    si, sj = int(start[0]), int(start[1])
-    if not (0 <= si < H and 0 <= sj < W):
-        raise ValueError(f"start must be a cell inside the grid {costmap.grid.shape}, got {start!r}")
+    start_cells = check_cells("start", start, (H, W))
+    if len(start_cells) != 1:
+        raise ValueError(f"start must be one (i, j) cell, got {len(start_cells)} cells")
+    si, sj = (int(v) for v in start_cells[0])
+    target = check_cells("target", target, (H, W))
+    if extra_blocked is not None:
+        extra_blocked = np.asarray(extra_blocked, dtype=bool)
+        if extra_blocked.shape != (H, W):
+            raise ValueError(f"extra_blocked must be a bool array of the grid's shape {(H, W)}, "
+                             f"got shape {extra_blocked.shape}")
     if max_expansions is None:
         max_expansions = H * W
     elif int(max_expansions) < 1:

@@ -99,20 +99,26 @@ def build_costmap(
 
     body_radius (m, >= 0): walls are inflated by it (cells closer to a blocked cell centre
         are impassable). ceiling_margin (m, >= 0): headroom kept above the head.
-    head_radius (m, >= 0): footprint over which the lowest ceiling counts.
+    head_radius (m, finite >= 0): footprint over which the lowest ceiling counts.
     max_slope (>= 0): steepest terrain slope rise/run of an edge; max_step (m, >= 0):
         highest raw height jump between neighbouring cells.
-    slope_window (m, >= 0): width of the terrain's averaging window (0: raw heights).
+    slope_window (m, finite >= 0): width of the terrain's averaging window (0: raw heights).
     height_cost (>= 0) and slope_preference c (>= 0): edge cost
         w = d + height_cost |dh| + d (e^{c |dh| / d} - 1)  (d the edge length, dh the terrain rise).
+    Raises ValueError for a grid whose maps ``PlanningGrid.check_maps`` rejects (they may have
+    been edited since the grid was built).
     """
+    if not isinstance(grid, PlanningGrid):
+        raise TypeError(f"grid must be a PlanningGrid, got {type(grid).__name__}")
+    grid.check_maps()
     loc = get_locomotion(locomotion)
     body_radius = check_range("body_radius", body_radius, 0.0)
     ceiling_margin = check_range("ceiling_margin", ceiling_margin, 0.0)
-    head_radius = check_range("head_radius", head_radius, 0.0)
+    # head_radius and slope_window become window sizes in cells: they must be finite
+    head_radius = check_range("head_radius", head_radius, 0.0, math.inf, high_open=True)
     max_slope = check_range("max_slope", max_slope, 0.0)
     max_step = check_range("max_step", max_step, 0.0)
-    slope_window = check_range("slope_window", slope_window, 0.0)
+    slope_window = check_range("slope_window", slope_window, 0.0, math.inf, high_open=True)
     height_cost = check_range("height_cost", height_cost, 0.0, math.inf, high_open=True)
     slope_preference = check_range("slope_preference", slope_preference, 0.0, 50.0)
     c = grid.cell_size

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 #: Why a goal could not be reached (``PlanningError.reason``).
 REASONS = ("blocked", "ceiling", "slope", "ceiling+slope", "budget", "speed")
 
@@ -47,3 +49,27 @@ def check_range(name: str, value: float, low: float = -math.inf, high: float = m
         interval = f"{'(' if low_open else '['}{low}, {high}{')' if high_open else ']'}"
         raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
     return x
+
+
+def check_cells(name: str, cells: object, shape: tuple[int, int]) -> np.ndarray:
+    """``cells`` as a non-empty (K, 2) int64 array of (i, j) cells of a grid of ``shape``
+    (one cell may be given as a pair), else ValueError naming ``name`` and the valid rows and columns."""
+    array = np.asarray(cells)
+    if array.size == 0:
+        raise ValueError(f"{name} must hold at least one (i, j) cell, got none")
+    if array.ndim == 1 and array.size == 2:
+        array = array.reshape(1, 2)
+    if array.ndim != 2 or array.shape[1] != 2:
+        raise ValueError(f"{name} must be (i, j) grid cells, an array of shape (K, 2), got shape {array.shape}")
+    integral = array.dtype.kind in "iu" or (
+        array.dtype.kind == "f" and bool(np.all(np.isfinite(array))) and bool(np.all(array == np.round(array))))
+    if not integral:
+        raise ValueError(f"{name} must be integer (i, j) cell indices, got {array.dtype} values")
+    rows, cols = shape
+    # checked before the cast: -1 would wrap to the far corner, a huge float would overflow
+    outside = (array[:, 0] < 0) | (array[:, 0] >= rows) | (array[:, 1] < 0) | (array[:, 1] >= cols)
+    if outside.any():
+        first = tuple(array[np.argmax(outside)].tolist())
+        raise ValueError(f"{name} cells must lie in rows 0..{rows - 1} and columns 0..{cols - 1} of the grid; "
+                         f"{int(outside.sum())} of {len(array)} do not, e.g. {first}")
+    return array.astype(np.int64)

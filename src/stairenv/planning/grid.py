@@ -8,9 +8,12 @@ rows are y, columns are x, and a cell's centre is ``cell_center(i, j)``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .errors import check_cells, check_range
 
 
 @dataclass
@@ -26,20 +29,26 @@ class PlanningGrid:
         self.heights = np.asarray(self.heights, dtype=np.float64)
         self.blocked = np.asarray(self.blocked, dtype=bool)
         self.ceiling = np.asarray(self.ceiling, dtype=np.float64)
-        if self.heights.ndim != 2 or self.blocked.shape != self.heights.shape or self.ceiling.shape != self.heights.shape:
+        self.cell_size = check_range("cell_size", self.cell_size, 0.0, math.inf, low_open=True, high_open=True)
+        self.origin = _finite_pair("origin", self.origin)
+        self.check_maps()
+        for name, cells in self.landmarks.items():
+            self.landmarks[name] = check_cells(f"landmark {name!r}", cells, self.heights.shape)
+
+    def check_maps(self) -> None:
+        """Raise ValueError unless the maps are planner-readable: 2-D arrays of one shape, finite
+        heights, ceilings that are heights or +inf (a NaN ceiling would read as "too low"), a
+        finite cell size > 0. Run again by ``build_costmap``: the arrays may be edited in place."""
+        shape = self.heights.shape
+        if len(shape) != 2 or self.blocked.shape != shape or self.ceiling.shape != shape:
             raise ValueError(
                 f"heights, blocked and ceiling must be 2-D arrays of one shape, got "
                 f"{self.heights.shape}, {self.blocked.shape}, {self.ceiling.shape}"
             )
-        if not self.cell_size > 0:
-            raise ValueError(f"cell_size must be > 0, got {self.cell_size!r}")
-        if not np.isfinite(self.heights).all():
-            raise ValueError("heights must be finite")
-        for name, cells in self.landmarks.items():
-            cells = np.asarray(cells, dtype=np.int64).reshape(-1, 2)
-            if len(cells) == 0 or cells.min() < 0 or np.any(cells >= self.heights.shape):
-                raise ValueError(f"landmark {name!r} has no cells or cells outside the grid {self.heights.shape}")
-            self.landmarks[name] = cells
+        check_range("cell_size", self.cell_size, 0.0, math.inf, low_open=True, high_open=True)
+        _check_map("heights", self.heights, "finite heights (m)", np.isfinite(self.heights))
+        _check_map("ceiling", self.ceiling, "heights (m) or inf (open sky)",
+                   np.isfinite(self.ceiling) | (self.ceiling == np.inf))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -57,3 +66,21 @@ class PlanningGrid:
         j = np.floor((xy[..., 0] - self.origin[0]) / self.cell_size).astype(np.int64)
         i = np.floor((xy[..., 1] - self.origin[1]) / self.cell_size).astype(np.int64)
         return np.stack((i, j), axis=-1)
+
+
+def _finite_pair(name: str, value: object) -> tuple[float, float]:
+    try:
+        pair = np.asarray(value, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        pair = np.empty(0)
+    if pair.shape != (2,) or not np.isfinite(pair).all():
+        raise ValueError(f"{name} must be two finite numbers (x, y) in metres, got {value!r}")
+    return float(pair[0]), float(pair[1])
+
+
+def _check_map(name: str, values: np.ndarray, expected: str, ok: np.ndarray) -> None:
+    if not ok.all():
+        bad = np.argwhere(~ok)
+        i, j = bad[0]
+        raise ValueError(f"{name} must hold {expected}; {len(bad)} cells do not, e.g. cell ({i}, {j}) "
+                         f"holds {float(values[i, j])}")

@@ -18,7 +18,7 @@ import numpy as np
 
 from .astar import AStarResult, astar, goal_cells
 from .costmap import Costmap, build_costmap
-from .errors import InstructionError, check_range
+from .errors import InstructionError, check_cells, check_range
 from .grid import PlanningGrid
 from .instructions import Segment, parse_instructions
 from .locomotion import Locomotion, get_locomotion
@@ -64,10 +64,11 @@ class PlannerSettings:
     max_knots: int = 400
 
     def __post_init__(self) -> None:
-        for name in ("body_radius", "ceiling_margin", "head_radius", "max_slope", "max_step", "slope_window",
-                     "reach", "head_smoothing", "curvature_scale"):
+        for name in ("body_radius", "ceiling_margin", "max_slope", "max_step"):
             check_range(name, getattr(self, name), 0.0)
-        for name in ("height_cost", "smoothing", "comfort", "uphill_gain", "downhill_gain"):
+        # finite: these become cell counts, window widths or cost factors
+        for name in ("head_radius", "slope_window", "reach", "head_smoothing", "curvature_scale",
+                     "height_cost", "smoothing", "comfort", "uphill_gain", "downhill_gain"):
             check_range(name, getattr(self, name), 0.0, math.inf, high_open=True)
         check_range("slope_preference", self.slope_preference, 0.0, 50.0)
         check_range("min_speed_fraction", self.min_speed_fraction, 0.0, 1.0, low_open=True)
@@ -134,22 +135,38 @@ def plan_path(
 ) -> Plan:
     """Plan from the world point ``start_xy`` to any of the ``target`` cells ((K, 2)).
 
-    v_start, v_end (m/s): speeds at the ends; t0 (s): the trajectory's start time;
+    v_start, v_end (m/s): speeds at the ends; t0 (s, finite): the trajectory's start time;
     extra_blocked: (H, W) bool cells to avoid as well (dynamic obstacles).
-    Raises ``PlanningError`` (unreachable, see ``astar``; or no speed profile).
+    Raises ValueError for a start off the grid or target cells outside it (see ``astar``), and
+    ``PlanningError`` (unreachable, see ``astar``; or no speed profile).
     """
-    start_xy = np.asarray(start_xy, dtype=np.float64).reshape(2)
     grid = costmap.grid
+    start_xy = _point_on_grid("start_xy", start_xy, grid)
     start = tuple(int(x) for x in grid.cell_of(start_xy))
-    if not (0 <= start[0] < grid.shape[0] and 0 <= start[1] < grid.shape[1]):
-        raise ValueError(f"start_xy must lie on the grid (origin {grid.origin}, {grid.shape} cells of "
-                         f"{grid.cell_size} m), got {start_xy.tolist()}")
+    target = check_cells("target", target, grid.shape)
+    t0 = check_range("t0", t0, -math.inf, math.inf, low_open=True, high_open=True)
     search = astar(costmap, start, target, reach=settings.reach, extra_blocked=extra_blocked,
                    max_expansions=settings.max_expansions)
     path = refine_path(costmap, search.cells, passable=search.passable, start_xy=start_xy, ds=settings.ds,
                        smoothing=settings.smoothing, comfort=settings.comfort, head_slope=settings.head_slope,
                        head_smoothing=settings.head_smoothing, curvature_scale=settings.curvature_scale)
     return _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment)
+
+
+def _point_on_grid(name: str, xy: Sequence[float] | np.ndarray, grid: PlanningGrid) -> np.ndarray:
+    """``xy`` as a finite world point (2,) over the grid, else ValueError naming ``name`` and the grid's extent."""
+    try:
+        point = np.asarray(xy, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        point = np.empty(0)
+    if point.shape == (2,) and np.isfinite(point).all():
+        i, j = grid.cell_of(point)
+        if 0 <= i < grid.shape[0] and 0 <= j < grid.shape[1]:
+            return point
+    x0, y0 = grid.origin
+    x1, y1 = x0 + grid.shape[1] * grid.cell_size, y0 + grid.shape[0] * grid.cell_size
+    raise ValueError(f"{name} must be a point (x, y) on the grid, x in [{x0}, {x1}) and y in [{y0}, {y1}) m, "
+                     f"got {xy!r}")
 
 
 def _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment,
@@ -220,7 +237,10 @@ class Planner:
              t0: float = 0.0) -> Plan:
         """One segment: to the landmark ``target`` from ``start`` (a landmark name or a world point)."""
         loc = get_locomotion(locomotion)
-        start_xy = self.landmark_point(start, loc) if isinstance(start, str) else np.asarray(start, dtype=np.float64)
+        if isinstance(start, str):
+            start_xy = self.landmark_point(start, loc)
+        else:
+            start_xy = _point_on_grid("start", start, self.grid)
         segment = Segment(start if isinstance(start, str) else None, target, loc.name)
         return plan_path(self.costmap(loc), start_xy, self.landmark(target), settings=self.settings,
                          v_start=v_start, v_end=v_end, t0=t0, segment=segment)
@@ -238,7 +258,7 @@ class Planner:
         else:
             segments = list(instructions)
         plans: list[Plan] = []
-        position = None if start is None else np.asarray(start, dtype=np.float64).reshape(2)
+        position = None if start is None else _point_on_grid("start", start, self.grid)
         t0 = 0.0
         for seg in segments:
             loc = get_locomotion(seg.locomotion)

@@ -343,11 +343,11 @@ def head_profile(s: np.ndarray, ground: np.ndarray, ceiling: np.ndarray, nominal
 
     ceiling: (N,) lowest ceiling over the head at each sample (inf: open sky).
     margin (m, >= 0): kept below the ceiling. head_slope (> 0): steepest rise or fall of
-    the head per metre travelled. head_smoothing (m, >= 0): width of the corner rounding.
+    the head per metre travelled. head_smoothing (m, finite >= 0): width of the corner rounding.
     """
     margin = check_range("margin", margin, 0.0)
     head_slope = check_range("head_slope", head_slope, 0.0, math.inf, low_open=True)
-    head_smoothing = check_range("head_smoothing", head_smoothing, 0.0)
+    head_smoothing = check_range("head_smoothing", head_smoothing, 0.0, math.inf, high_open=True)
     s = np.ascontiguousarray(s, dtype=np.float64)
     u = np.minimum(float(nominal), np.asarray(ceiling, dtype=np.float64) - margin - np.asarray(ground, dtype=np.float64))
     u = np.ascontiguousarray(np.broadcast_to(u, s.shape), dtype=np.float64)

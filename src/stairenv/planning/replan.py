@@ -107,10 +107,11 @@ class Replan:
 def predict_collision(trajectory: Trajectory, obstacles: Sequence[DynamicObstacle], *, t_now: float,
                       horizon: float = 1.5, body_radius: float = 0.25, dt: float = 0.05) -> Collision | None:
     """The earliest predicted contact within ``horizon`` seconds of ``t_now`` (None if there is none)."""
+    t_now = check_range("t_now", t_now, -math.inf, math.inf, low_open=True, high_open=True)
     horizon = check_range("horizon", horizon, 0.0, math.inf, high_open=True)
     body_radius = check_range("body_radius", body_radius, 0.0, math.inf, high_open=True)
     dt = check_range("dt", dt, 0.0, math.inf, low_open=True, high_open=True)
-    times = float(t_now) + np.arange(0.0, horizon + 0.5 * dt, dt)
+    times = t_now + np.arange(0.0, horizon + 0.5 * dt, dt)
     body = trajectory.position(times)[:, :2]
     best = None
     for k, obstacle in enumerate(obstacles):

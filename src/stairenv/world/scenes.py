@@ -74,6 +74,16 @@ SCENE_FILE_VERSION = 1
 # Height of a landmark's display position (its marker's top) above the ground (m).
 LANDMARK_MARKER_HEIGHT = 1.0
 
+# What ``Scene.load`` reads at most. A compressed file can declare arrays far larger than
+# itself (3 MB of zeros inflate to 3 GB), so the declared sizes are checked first.
+#: Cells of the height map (and of ``terrain_labels``): 4096 x 4096, 128 MiB of float64
+#: (e.g. 200 m x 200 m at 5 cm).
+MAX_SCENE_CELLS = 4096 * 4096
+#: Bytes of the scene description (``scene_json``).
+MAX_SCENE_JSON_BYTES = 16 * 2**20
+#: Largest |height| (m) of a loaded height map; taller terrain means a corrupt file.
+MAX_SCENE_HEIGHT = 1000.0
+
 
 class SceneFileError(ValueError):
     """A scene file that cannot be read: not an ``.npz``, corrupt, incomplete or of another version."""
@@ -657,7 +667,14 @@ class Scene:
     @classmethod
     def load(cls, path: str | PathLike[str]) -> Scene:
         """Read a file written by ``save``. Raises ``FileNotFoundError`` for a missing file and
-        ``SceneFileError`` (a ``ValueError``) for anything else that is not a valid scene file."""
+        ``SceneFileError`` (a ``ValueError``) naming the file for anything else that is not a
+        valid scene file.
+
+        Sizes are bounded before anything is decompressed, from the shapes the arrays' ``.npy``
+        headers declare: ``heights`` and ``terrain_labels`` at most ``MAX_SCENE_CELLS``
+        (4096 x 4096) cells, ``scene_json`` at most ``MAX_SCENE_JSON_BYTES`` (16 MiB). Heights
+        must be finite with |h| <= ``MAX_SCENE_HEIGHT`` (1000 m).
+        """
         try:
             loaded = np.load(path, allow_pickle=False)
             if not isinstance(loaded, np.lib.npyio.NpzFile):
@@ -666,13 +683,19 @@ class Scene:
                 missing = {"heights", "scene_json"} - set(npz.files)
                 if missing:
                     raise SceneFileError(f"{path}: not a scene file (missing {sorted(missing)})")
+                has_labels = "terrain_labels" in npz.files
+                _check_declared(path, npz, "heights", 2, "iuf", MAX_SCENE_CELLS, "MAX_SCENE_CELLS")
+                _check_declared(path, npz, "scene_json", 1, "iu", MAX_SCENE_JSON_BYTES, "MAX_SCENE_JSON_BYTES")
+                if has_labels:
+                    _check_declared(path, npz, "terrain_labels", 2, "iu", MAX_SCENE_CELLS, "MAX_SCENE_CELLS")
                 heights = npz["heights"]
                 raw_json = npz["scene_json"]
-                labels = npz["terrain_labels"] if "terrain_labels" in npz.files else None
+                labels = npz["terrain_labels"] if has_labels else None
         except (FileNotFoundError, SceneFileError):
             raise
         except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as e:
             raise SceneFileError(f"{path}: not a readable scene file (.npz): {e}") from e
+        _check_loaded_heights(path, heights)
         try:
             meta = json.loads(raw_json.astype(np.uint8).tobytes().decode("utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as e:
@@ -697,6 +720,33 @@ class Scene:
             )
         except (KeyError, TypeError, ValueError) as e:
             raise SceneFileError(f"{path}: invalid scene data: {e!r}") from e
+
+
+def _check_declared(path: Any, npz: Any, key: str, ndim: int, kinds: str, limit: int, limit_name: str) -> None:
+    """SceneFileError unless member ``key`` of an open ``.npz`` declares an ``ndim``-D array of
+    a numeric kind in ``kinds`` with at most ``limit`` elements. Reads the ``.npy`` header only."""
+    member = f"{key}.npy" if f"{key}.npy" in npz.zip.namelist() else key
+    npy = np.lib.format
+    with npz.zip.open(member) as f:
+        version = npy.read_magic(f)
+        read_header = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+        shape, _, dtype = read_header(f)
+    if len(shape) != ndim or min(shape, default=0) < 0 or dtype.kind not in kinds:
+        raise SceneFileError(f"{path}: {key} must be a {ndim}-D numeric array, the file declares shape {shape} "
+                             f"of {dtype}")
+    size = math.prod(shape)
+    if size > limit:
+        raise SceneFileError(f"{path}: {key} declares shape {shape} ({size} elements), more than the {limit} "
+                             f"Scene.load reads ({limit_name})")
+
+
+def _check_loaded_heights(path: Any, heights: np.ndarray) -> None:
+    bad = ~(np.abs(heights) <= MAX_SCENE_HEIGHT)  # NaN fails the comparison too
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise SceneFileError(f"{path}: heights must be finite with |h| <= {MAX_SCENE_HEIGHT} m "
+                             f"(MAX_SCENE_HEIGHT); {int(bad.sum())} cells are not, e.g. cell ({i}, {j}) holds "
+                             f"{float(heights[i, j])}")
 
 
 # --- terrain patches -----------------------------------------------------------------------------
