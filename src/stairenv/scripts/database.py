@@ -92,6 +92,15 @@ class Script:
         out["keyframes"] = [k.to_dict() for k in self.keyframes]
         return out
 
+    def errors(self) -> list[str]:
+        """What the file validation (:func:`~stairenv.scripts.schema.script_errors`) finds in
+        this script: a Script built in code has skipped the checks ``from_dict`` runs."""
+        if not isinstance(self.keyframes, (tuple, list)):
+            return [f"keyframes: expected a sequence of Keyframe objects, got {type(self.keyframes).__name__}"]
+        wrong = [f"keyframes[{i}]: expected a Keyframe, got {type(k).__name__}"
+                 for i, k in enumerate(self.keyframes) if not isinstance(k, Keyframe)]
+        return wrong or script_errors(self.to_dict())
+
     # -- derived facts
     @property
     def skills(self) -> frozenset[str]:
@@ -218,8 +227,15 @@ class ScriptDatabase(Sequence[Script]):
         return out
 
 
+class ScriptFileError(ValueError):
+    """A script file that is not JSON text (not UTF-8, malformed or nested too deeply)."""
+
+
 def _read_scripts(path: Path) -> list[Script]:
-    data = json.loads(path.read_text(encoding="utf-8"))
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        raise ScriptFileError(f"{path}: not a JSON script file: {e}") from e
     items = data if isinstance(data, list) else [data]
     out = []
     for i, d in enumerate(items):
@@ -234,7 +250,9 @@ def load_database(paths: str | Path | Iterable[str | Path] | None = None) -> Scr
     """Load and validate scripts from JSON files or directories (default: the shipped data).
 
     A file holds one script object or a list of them; a directory contributes its ``*.json``
-    files in name order.
+    files in name order. Raises :class:`ScriptFileError` naming a file that is not JSON, and
+    :class:`~stairenv.scripts.schema.ScriptValidationError` naming the file and index of an
+    invalid script.
     """
     if paths is None:
         paths = [DATA_DIR]

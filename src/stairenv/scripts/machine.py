@@ -241,13 +241,9 @@ def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | No
     """
     from stairenv.evaluation import load_policy
 
-    if isinstance(specs, (str, os.PathLike)) or callable(specs):
-        specs = {skill: specs for skill in task.SKILLS}
     out: dict[str, Any] = {}
     loaded: dict[str, Any] = {}
-    for skill, spec in specs.items():
-        if skill not in task.SKILLS:
-            raise ValueError(f"policy skills must be among {list(task.SKILLS)}, got {skill!r}")
+    for skill, spec in policy_specs(specs).items():
         if isinstance(spec, (str, os.PathLike)) and os.fspath(spec) != KINEMATIC:
             key = os.fspath(spec)
             if key not in loaded:  # one model (or random generator) per distinct spec
@@ -256,6 +252,34 @@ def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | No
         else:
             out[skill] = spec
     return out
+
+
+def policy_specs(specs: Any) -> dict[str, Any]:
+    """``specs`` as skill -> policy spec: a mapping is checked, one spec goes to every skill.
+
+    A spec is a string (:data:`KINEMATIC`, "zero", "random", an SB3 .zip, ``ALGO:path``), a
+    callable ``obs -> action`` or a model with ``predict()``. Raises TypeError for anything
+    else and ValueError for a key that is not a skill.
+    """
+    if not isinstance(specs, Mapping):
+        if not _is_policy_spec(specs):
+            raise TypeError(f"policies must be a mapping skill -> policy, or one policy for every skill "
+                            f"({_POLICY_KINDS}); got {type(specs).__name__}")
+        return dict.fromkeys(task.SKILLS, specs)
+    for skill, spec in specs.items():
+        if skill not in task.SKILLS:
+            raise ValueError(f"policy skills must be among {list(task.SKILLS)}, got {skill!r}")
+        if not _is_policy_spec(spec):
+            raise TypeError(f"policies[{skill!r}] must be {_POLICY_KINDS}; got {type(spec).__name__}")
+    return dict(specs)
+
+
+_POLICY_KINDS = (f"a callable obs -> action, a model with predict(), or a spec string ({KINEMATIC!r}, 'zero', "
+                 f"'random', an SB3 .zip)")
+
+
+def _is_policy_spec(spec: Any) -> bool:
+    return isinstance(spec, (str, os.PathLike)) or callable(spec) or callable(getattr(spec, "predict", None))
 
 
 # --- the kinematic stand-in ------------------------------------------------------------------
@@ -931,18 +955,25 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
     sitting or lying starts on its first keyframe's piece. ``video``: an .mp4 path (a frame
     every ``video_every`` steps, ``width`` x ``height``). ``result.details`` records the room
     (``room_summary``), whether it was generated and the substitutions retrieval made.
+
+    Before a room is sought, ``script`` is validated as scripts loaded from files are
+    (``ScriptValidationError``; TypeError if it is not a Script or Story) and ``policies`` is
+    type-checked (:func:`policy_specs`); a keyframe whose furniture the room lacks raises
+    :class:`BindingError`.
     """
     from stairenv.environments.sims import SIMSEnv
     from stairenv.scripts.retrieval import bind_keyframes
 
+    _check_runnable(script)
+    specs = policy_specs(policies if policies is not None else KINEMATIC)
     room, match = story_room(script, rooms, config=room_config, seed=seed)
     pairs = bind_keyframes(script.keyframes, match)
+    _check_bound(pairs)
     kwargs = dict(env_kwargs or {})
     if video is not None:
         kwargs.update(render_mode="rgb_array", width=width, height=height)
     env = SIMSEnv(skill="walk", room=room, **kwargs)
     try:
-        specs = policies if policies is not None else KINEMATIC
         resolved = load_skill_policies(specs, env, seed=seed)
         runner = StoryRunner(env, resolved, settings)
         scripts = getattr(script, "scripts", None) or [script]
@@ -961,8 +992,56 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
     return result
 
 
+def _check_runnable(script: Any) -> None:
+    """Validate a Script or Story as scripts loaded from files are (one built in code has
+    skipped that): TypeError for another type, ScriptValidationError listing the problems."""
+    from stairenv.scripts.database import Script
+    from stairenv.scripts.schema import ScriptValidationError
+    from stairenv.scripts.story import Story
+
+    if isinstance(script, Script):
+        errors, script_id = script.errors(), script.id
+    elif isinstance(script, Story):
+        errors, script_id = _story_errors(script), None
+    else:
+        hint = " (build one with Script.from_dict)" if isinstance(script, Mapping) else ""
+        raise TypeError(f"script must be a Script or a Story, got {type(script).__name__}{hint}")
+    if errors:
+        raise ScriptValidationError(errors, script_id if isinstance(script_id, str) else None)
+
+
+def _story_errors(story: Any) -> list[str]:
+    """Problems of a story's scripts (they choose the room) and of the keyframes it runs."""
+    from stairenv.scripts.database import Keyframe, Script
+    from stairenv.scripts.schema import keyframe_sequence_errors
+
+    scripts, keyframes = story.scripts, story.keyframes
+    if not isinstance(scripts, (list, tuple)) or not scripts:
+        return ["scripts: a story needs a list of at least one Script"]
+    if not isinstance(keyframes, (list, tuple)):
+        return [f"keyframes: expected a list of Keyframe objects, got {type(keyframes).__name__}"]
+    errors = [f"scripts[{k}]: expected a Script, got {type(s).__name__}"
+              for k, s in enumerate(scripts) if not isinstance(s, Script)]
+    errors += [f"keyframes[{i}]: expected a Keyframe, got {type(kf).__name__}"
+               for i, kf in enumerate(keyframes) if not isinstance(kf, Keyframe)]
+    if errors:
+        return errors
+    errors = [f"scripts[{k}].{e}" for k, s in enumerate(scripts) for e in s.errors()]
+    first = scripts[0]
+    return errors or keyframe_sequence_errors([kf.to_dict() for kf in keyframes], first.start_pose, first.start_at)
+
+
+def _check_bound(pairs: Sequence[tuple[Any, Any]]) -> None:
+    """BindingError naming the first keyframe whose furniture has no item in the room."""
+    for i, (kf, inst) in enumerate(pairs):
+        if kf.node is not None and inst is None:
+            category, instance = kf.node
+            raise BindingError(f"keyframe {i} ({kf.skill} {kf.caption!r}): the room has no item for "
+                               f"{category} instance {instance}")
+
+
 __all__ = [
     "INTERACTIONS", "KINEMATIC", "OUTCOMES", "ROOM_CAMERA", "BindingError", "KeyframeResult", "KinematicStandIn",
     "MachineSettings", "StoryResult", "StoryRunner", "VideoWriter", "as_policy",
-    "describe_policy", "load_skill_policies", "run_script", "story_room",
+    "describe_policy", "load_skill_policies", "policy_specs", "run_script", "story_room",
 ]

@@ -161,15 +161,36 @@ _TYPES: dict[str, tuple[type, ...]] = {
 }
 
 
+#: Problems a :class:`ScriptValidationError` message lists; the rest are counted (``errors`` has all).
+MAX_REPORTED_ERRORS = 20
+
+
+def _elide(text: str, limit: int = 80) -> str:
+    """``text`` cut in the middle to at most ``limit`` characters (both ends stay readable)."""
+    if len(text) <= limit:
+        return text
+    keep = (limit - 5) // 2
+    return f"{text[:keep]} ... {text[-keep:]}"
+
+
+def _show(value: Any) -> str:
+    """A bounded repr for messages: a script's values can be arbitrarily long."""
+    return _elide(repr(value))
+
+
 class ScriptValidationError(ValueError):
     """A script failed validation; ``errors`` lists one message per problem, each starting
-    with the bad field's path (``keyframes[2].skill: ...``)."""
+    with the bad field's path (``keyframes[2].skill: ...``). The message shows the first
+    :data:`MAX_REPORTED_ERRORS` and counts the rest."""
 
     def __init__(self, errors: Sequence[str], script_id: str | None = None):
         self.errors = list(errors)
-        self.script_id = script_id
-        where = f"script {script_id!r}" if script_id else "script"
-        super().__init__(f"{where} is invalid:\n  " + "\n  ".join(self.errors))
+        self.script_id = None if script_id is None else _elide(str(script_id), 160)
+        where = f"script {self.script_id!r}" if script_id else "script"
+        shown = self.errors[:MAX_REPORTED_ERRORS]
+        if len(self.errors) > len(shown):
+            shown.append(f"... and {len(self.errors) - len(shown)} more problem(s)")
+        super().__init__(f"{where} is invalid:\n  " + "\n  ".join(shown))
 
 
 def _check_supported(schema: Mapping[str, Any], path: str = "#") -> None:
@@ -207,24 +228,24 @@ def validate_instance(value: Any, schema: Mapping[str, Any], path: str = "") -> 
     if "type" in schema:
         types = schema["type"] if isinstance(schema["type"], list) else [schema["type"]]
         if not any(_is_type(value, t) for t in types):
-            errors.append(f"{where}: {value!r} is not of type {' or '.join(repr(t) for t in types)}")
+            errors.append(f"{where}: {_show(value)} is not of type {' or '.join(repr(t) for t in types)}")
             return errors
     if "enum" in schema and value not in schema["enum"]:
-        errors.append(f"{where}: {value!r} is not one of {list(schema['enum'])}")
+        errors.append(f"{where}: {_show(value)} is not one of {list(schema['enum'])}")
     if "const" in schema and value != schema["const"]:
-        errors.append(f"{where}: {value!r} is not {schema['const']!r}")
+        errors.append(f"{where}: {_show(value)} is not {schema['const']!r}")
     if isinstance(value, str):
         if "minLength" in schema and len(value) < schema["minLength"]:
-            errors.append(f"{where}: {value!r} is shorter than {schema['minLength']} characters")
+            errors.append(f"{where}: {_show(value)} is shorter than {schema['minLength']} characters")
         if "maxLength" in schema and len(value) > schema["maxLength"]:
             errors.append(f"{where}: text is longer than {schema['maxLength']} characters")
         if "pattern" in schema and not re.search(schema["pattern"], value):
-            errors.append(f"{where}: {value!r} does not match {schema['pattern']!r}")
+            errors.append(f"{where}: {_show(value)} does not match {schema['pattern']!r}")
     if _is_type(value, "number"):
         if "minimum" in schema and value < schema["minimum"]:
-            errors.append(f"{where}: {value!r} is less than the minimum {schema['minimum']}")
+            errors.append(f"{where}: {_show(value)} is less than the minimum {schema['minimum']}")
         if "maximum" in schema and value > schema["maximum"]:
-            errors.append(f"{where}: {value!r} is greater than the maximum {schema['maximum']}")
+            errors.append(f"{where}: {_show(value)} is greater than the maximum {schema['maximum']}")
     if isinstance(value, dict):
         for name in schema.get("required", []):
             if name not in value:
@@ -238,7 +259,8 @@ def validate_instance(value: Any, schema: Mapping[str, Any], path: str = "") -> 
             if name in props:
                 continue
             if extra is False:
-                errors.append(f"{_join(path, name)}: unknown field (allowed: {sorted(props)})")
+                shown = _elide(name) if isinstance(name, str) else name
+                errors.append(f"{_join(path, shown)}: unknown field (allowed: {sorted(props)})")
             elif isinstance(extra, Mapping):
                 errors.extend(validate_instance(value[name], extra, _join(path, name)))
     if isinstance(value, (list, tuple)):
@@ -328,7 +350,7 @@ def semantic_errors(keyframes: Sequence[Any], start_pose: str = "standing",
         part = _kf_get(kf, "part")
         hand = _kf_get(kf, "hand")
         if skill not in SKILLS:
-            errors.append(f"{p}.skill: {skill!r} is not one of {list(SKILLS)}")
+            errors.append(f"{p}.skill: {_show(skill)} is not one of {list(SKILLS)}")
             continue
         if cat is not None and cat in FURNITURE and cat not in AFFORDANCES[skill]:
             errors.append(f"{p}.furniture: cannot {skill} on a {cat} "
@@ -336,7 +358,7 @@ def semantic_errors(keyframes: Sequence[Any], start_pose: str = "standing",
         if part is not None:
             if part not in SKILL_PARTS[skill]:
                 allowed = sorted(SKILL_PARTS[skill])
-                errors.append(f"{p}.part: {skill} takes no part {part!r}"
+                errors.append(f"{p}.part: {skill} takes no part {_show(part)}"
                               + (f" (possible: {allowed})" if allowed else " (it takes none)"))
             elif cat in FURNITURE_PARTS and part not in FURNITURE_PARTS[cat]:
                 errors.append(f"{p}.part: a {cat} has no {part!r} (it has {sorted(FURNITURE_PARTS[cat])})")
@@ -373,6 +395,14 @@ def semantic_errors(keyframes: Sequence[Any], start_pose: str = "standing",
             if cat is not None:
                 at = (cat, inst)
     return errors
+
+
+def keyframe_sequence_errors(keyframes: Sequence[Any], start_pose: str = "standing",
+                             start_at: tuple[str, int] | None = None) -> list[str]:
+    """Errors of keyframe dicts run in a row (a story's): each against :data:`KEYFRAME_SCHEMA`,
+    then, when they all conform, the pose rules of :func:`semantic_errors`."""
+    errors = [e for i, kf in enumerate(keyframes) for e in validate_instance(kf, KEYFRAME_SCHEMA, f"keyframes[{i}]")]
+    return errors or semantic_errors(keyframes, start_pose=start_pose, start_at=start_at)
 
 
 def script_errors(script: Any, semantic: bool = True) -> list[str]:
