@@ -68,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from stairenv.scripts.machine import KINEMATIC, MachineSettings, describe_policy
+    from stairenv.stories import KINEMATIC, MachineSettings, describe_policy
     from stairenv.sims_evaluation import evaluate_scripts, evaluate_skills, write_reports
 
     per_skill = {s: getattr(args, s) or args.policy for s in SKILLS}

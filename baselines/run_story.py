@@ -11,7 +11,7 @@ Examples::
 A theme is turned into a story with ``assemble_story`` (short scripts retrieved by text
 embedding and chained); ``--script`` runs one short script of the database. A room with the
 furniture the keyframes need is generated (``generate_room``), the keyframes are bound to its
-pieces, and the state machine (``stairenv.scripts.machine``) runs them one skill policy after
+pieces, and the state machine (``stairenv.stories.machine``) runs them one skill policy after
 another. Each skill's policy is a Stable-Baselines3 .zip (``--sit PATH``, ``ALGO:path``),
 "zero", "random" or, by default, the KINEMATIC STAND-IN: a placeholder that writes the
 character's qpos (not physics-based; no trained skill policy exists yet). Writes an MP4 of the
@@ -65,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     from stairenv.scripts import assemble_story, get_encoder, load_database
-    from stairenv.scripts.machine import BindingError, MachineSettings, describe_policy, run_script
+    from stairenv.stories import BindingError, MachineSettings, describe_policy, run_script
 
     db = load_database()
     if args.list_scripts:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from stairenv.scripts.machine import MachineSettings
+from stairenv.stories import MachineSettings
 from stairenv.sims_evaluation import (
     PAPER_RESULTS,
     ROW_FIELDS,

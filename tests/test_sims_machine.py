@@ -24,8 +24,8 @@ from stairenv.scripts import (
     get_encoder,
     load_database,
 )
-from stairenv.scripts import machine as machine_module
-from stairenv.scripts.machine import (
+from stairenv.stories import machine as machine_module
+from stairenv.stories.machine import (
     KINEMATIC,
     BindingError,
     KinematicStandIn,

@@ -10,7 +10,7 @@ r"""Evaluate SIMS skill policies the way the SIMS paper does (Tables 1 and 2).
   the unstable-physics truncations.
 * **Table 2** (:func:`evaluate_scripts`): the database's short scripts, grouped by difficulty
   (``Script.difficulty``: simple 2, mid 3-4, hard 5+ interactions), each run through the state
-  machine (:mod:`stairenv.scripts.machine`) in a room generated with the furniture it needs.
+  machine (:mod:`stairenv.stories.machine`) in a room generated with the furniture it needs.
   **Success (%)**: scripts whose every keyframe succeeded; **contact error (m)**: the final
   error of the interaction keyframes (sit, lie, reach) that ran; **success steps**: interactions
   that succeeded per script (the paper's last column).
@@ -45,7 +45,7 @@ import numpy as np
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.evaluation import _jsonable, _policy_label, load_policy
 from stairenv.scripts.database import DIFFICULTIES
-from stairenv.scripts.machine import KINEMATIC, KinematicStandIn, MachineSettings, describe_policy
+from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings, describe_policy
 
 #: The registered env of each skill (Table 1).
 SKILL_ENV_IDS: dict[str, str] = {
@@ -325,7 +325,7 @@ def evaluate_scripts(
     | difficulties | simple, mid, hard | which buckets (``Script.difficulty``) |
     | scripts_per_difficulty | None | the first k scripts of each bucket (None: all) |
     | repeats | 1 | runs per script, each with its own generated room and seed |
-    | settings | None | :class:`~stairenv.scripts.machine.MachineSettings` (dwell 1 s, 20 s per keyframe, stop at a failure) |
+    | settings | None | :class:`~stairenv.stories.machine.MachineSettings` (dwell 1 s, 20 s per keyframe, stop at a failure) |
     | room_config | None | ``stairenv.world.rooms.RoomConfig`` for the generated rooms |
     | env_kwargs | None | extra ``SIMSEnv`` keywords (e.g. ``text_encoder="hashing"``) |
 
@@ -334,7 +334,7 @@ def evaluate_scripts(
     """
     from stairenv.environments.sims import SIMSEnv
     from stairenv.scripts import load_database
-    from stairenv.scripts.machine import load_skill_policies, run_script
+    from stairenv.stories import load_skill_policies, run_script
 
     if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:
         raise ValueError(f"repeats must be an integer >= 1, got {repeats!r}")

@@ -11,6 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
@@ -23,6 +24,7 @@ from stairenv.motion.rsi import (
     standing_clips,
 )
 from stairenv.motion.synthesis import WALK_STYLES
+from stairenv.planning.grid import PlanningGrid
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
@@ -399,7 +401,7 @@ class SIMSEnv(HumanoidEnv):
             pose = self.getup_from
             if pose == "any":
                 pose = "lie" if target.family in LYING_FAMILIES and rng.uniform() < 0.5 else "sit"
-            self._place_on(target, pose)
+            self.place_on(target, pose)
             goal = task.contact_goal("getup", target, rng, details=self.details)
         else:
             start = self._random_start(rng, target)
@@ -407,7 +409,7 @@ class SIMSEnv(HumanoidEnv):
             self._reference_start = self.init == "reference" or (
                 self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
             self._place_standing(start, heading, rng)
-            walk_target = self._random_walk_target(rng, start) if self.skill == "walk" else None
+            walk_target = self.random_walk_target(rng, start) if self.skill == "walk" else None
             goal = task.contact_goal(self.skill, target, rng, walk_target=walk_target, details=self.details)
         self._needs_reset = False
         pool = self._caption_pool(None if target is None or self.skill == "walk" else target.family)
@@ -508,6 +510,64 @@ class SIMSEnv(HumanoidEnv):
             self.render()
         return obs, float(terms.sum()), bool(terminated), False, info
 
+    # --- the character's pose and the scene, for scripted controllers (the kinematic stand-in) -
+    def pose(self) -> np.ndarray:
+        """(35,) the character's pose: root position (3), root orientation (quaternion w, x, y, z)
+        and the 28 joint angles (``DOF_NAMES`` order)."""
+        idx = self._idx
+        return np.concatenate((self.data.qpos[idx.qpos_root], self.data.qpos[idx.qpos_joints]))
+
+    def set_pose(self, q: np.ndarray) -> None:
+        """Put the character in pose ``q`` (as :meth:`pose` gives) at rest (zero velocities) and
+        update the derived quantities (``mj_forward``). Not physics: a scripted controller's write."""
+        idx, data = self._idx, self.data
+        data.qpos[idx.qpos_root] = q[:7]
+        data.qpos[idx.qpos_joints] = q[7:]
+        data.qvel[idx.qvel_root] = 0.0
+        data.qvel[idx.qvel_joints] = 0.0
+        mujoco.mj_forward(self.model, data)
+
+    def pose_action(self, q: np.ndarray) -> np.ndarray:
+        """The action (float32 in [-1, 1]) whose PD targets are the joint angles of pose ``q``."""
+        return np.clip((q[7:] - self._ctrl_offset) / self._ctrl_scale, -1.0, 1.0).astype(np.float32)
+
+    def pose_kinematics(self, q: np.ndarray, data: mujoco.MjData) -> float:
+        """Write pose ``q`` into ``data`` (a scratch ``MjData`` of ``self.model``; its other entries
+        are kept), run ``mj_kinematics`` on it and return the character's lowest point (m) there."""
+        idx = self._idx
+        data.qpos[idx.qpos_root], data.qpos[idx.qpos_joints] = q[:7], q[7:]
+        mujoco.mj_kinematics(self.model, data)
+        return humanoid_lowest_z(self.model, data, self._geoms)
+
+    def joint_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high), each (28,): the joint angle ranges (rad) in ``DOF_NAMES`` order."""
+        low, high = self.model.jnt_range[self.model.dof_jntid[self._idx.qvel_joints]].T.copy()
+        return low, high
+
+    def set_camera(self, elevation: float, distance: float) -> None:
+        """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
+        pelvis, now and after later camera rebuilds (a scene rebuild restores the scene's default)."""
+        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
+        if self._camera is not None:
+            self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
+
+    def planning_grid(self, body_radius: float | None = None) -> PlanningGrid:
+        """The scene's floor as a ``stairenv.planning`` grid for a character of ``body_radius`` (m):
+        ``blocked`` where it cannot stand, flat ground, open sky. A room: its free space
+        (``Room.free_space``; None: the room's body radius); an object scene: the cells of the
+        height grid at least ``body_radius`` (None: 0.25) from any surface above 3 cm (off the
+        grid the floor is open)."""
+        if self.room is not None:
+            space = self.room.free_space(body_radius=body_radius)
+            free, origin, cell = space.free, space.origin, space.cell_size
+        else:
+            heights = self._heights
+            blocked = heights.heights > 0.03
+            dist = ndimage.distance_transform_edt(~blocked) * heights.cell_size
+            free = dist - 0.5 * heights.cell_size >= (0.25 if body_radius is None else body_radius)
+            origin, cell = heights.origin, heights.cell_size
+        return PlanningGrid(np.zeros(free.shape), ~free, np.full(free.shape, np.inf), float(cell), origin)
+
     # --- placement ----------------------------------------------------------------------------
     def _random_start(self, rng: np.random.Generator, target: PlacedFurniture | None) -> np.ndarray:
         if self._free_xy is not None and len(self._free_xy):
@@ -522,7 +582,9 @@ class SIMSEnv(HumanoidEnv):
         radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
         return centre + np.array([radius, 0.0])
 
-    def _random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
+    def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
+        """(x, y) of a random walk goal ``walk_distance`` from ``start``: a free floor point (rooms; any
+        free point if none is that far) or a point clear of the furniture (object scenes)."""
         if self._free_xy is not None and len(self._free_xy):
             d = np.linalg.norm(self._free_xy - start, axis=1)
             ok = np.flatnonzero((d >= self.walk_distance[0]) & (d <= self.walk_distance[1]))
@@ -548,7 +610,7 @@ class SIMSEnv(HumanoidEnv):
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
 
-    def _place_on(self, placed: PlacedFurniture, pose: str) -> None:
+    def place_on(self, placed: PlacedFurniture, pose: str) -> None:
         """Seat the character on (``pose="sit"``) or lay it on (``"lie"``) ``placed``, resting on it."""
         model, data = self.model, self.data
         label = task.resolve_part(placed.family, None, "lie" if pose == "lie" else "sit")
@@ -588,6 +650,19 @@ class SIMSEnv(HumanoidEnv):
         self._rest_on_contacts(placed.name)
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
+
+    _place_on = place_on  # the former private name
+
+    def resting_pose(self, placed: PlacedFurniture, pose: str) -> np.ndarray:
+        """The pose (as :meth:`pose` gives) that ``place_on(placed, pose)`` puts the character in,
+        computed on the live data, which is then restored (the character does not move)."""
+        data = self.data
+        saved = data.qpos.copy(), data.qvel.copy(), data.ctrl.copy()
+        self.place_on(placed, pose)
+        q = self.pose()
+        data.qpos[:], data.qvel[:], data.ctrl[:] = saved
+        mujoco.mj_forward(self.model, data)
+        return q
 
     def _rest_on_contacts(self, body_name: str, iterations: int = 20) -> None:
         """Raise the character until it no longer penetrates the floor or the piece ``body_name``

@@ -21,7 +21,8 @@ Example::
     for keyframe, room_node in bind_keyframes(story.keyframes, match): ...
 
 Importing this package does not import torch or sentence-transformers; the MiniLM model
-loads on first use.
+loads on first use. Acting a script out in a room (the state machine, the kinematic stand-in)
+is :mod:`stairenv.stories`, which builds on this package.
 """
 
 from stairenv.scripts.database import (
@@ -143,26 +144,3 @@ __all__ = [
     "validate_script",
     "world_room_builder",
 ]
-
-# The state machine (stairenv.scripts.machine) imports MuJoCo and the SIMS env: exported lazily
-# so that importing this package stays light.
-_MACHINE_EXPORTS = (
-    "BindingError",
-    "KINEMATIC",
-    "KeyframeResult",
-    "KinematicStandIn",
-    "MachineSettings",
-    "StoryResult",
-    "StoryRunner",
-    "run_script",
-    "story_room",
-)
-__all__ += list(_MACHINE_EXPORTS)
-
-
-def __getattr__(name: str):
-    if name in _MACHINE_EXPORTS:
-        from stairenv.scripts import machine
-
-        return getattr(machine, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

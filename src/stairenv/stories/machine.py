@@ -29,18 +29,20 @@ Policies: a mapping skill -> a callable ``obs -> action``, a Stable-Baselines3 m
 (reach, get up: the ``SIMS-Reach-v0`` / ``SIMS-GetUp-v0`` presets) see zeros in the
 observation's text slice (``MachineSettings.text_free_skills``).
 
-**No trained skill policy exists yet.** :class:`KinematicStandIn` (``KINEMATIC``) is a
-placeholder that is explicitly *not* physics-based: it writes ``qpos`` (and zero velocities)
-every step to glide the character along free floor, blend it onto a seat or bed, reach with
-inverse kinematics or stand it up, and returns a hold-pose action. It exists to test the
-state machine's transitions and to make demo videos; its success rates say nothing about
-control.
+**No trained skill policy exists yet.** :class:`~stairenv.stories.standin.KinematicStandIn`
+(``KINEMATIC``) is a placeholder that is explicitly *not* physics-based: it writes ``qpos``
+(and zero velocities) every step to glide the character along free floor, blend it onto a
+seat or bed, reach with inverse kinematics or stand it up, and returns a hold-pose action. It
+exists to test the state machine's transitions and to make demo videos; its success rates
+say nothing about control.
+
+The machine uses the env's public API only (``set_task``, ``step``, ``render``, ``pose``,
+``place_on``, ``random_walk_target``, ``approach_point``, ``set_camera``).
 
 Example::
 
-    from stairenv.environments.sims import SIMSEnv
     from stairenv.scripts import load_database
-    from stairenv.scripts.machine import KINEMATIC, run_script
+    from stairenv.stories import KINEMATIC, run_script
 
     script = load_database().get("tired_bedtime")
     result = run_script(script, {s: KINEMATIC for s in ("walk", "sit", "lie", "reach", "getup")},
@@ -52,31 +54,22 @@ from __future__ import annotations
 
 import math
 import os
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import mujoco
 import numpy as np
-from scipy import ndimage
-from scipy.spatial.transform import Rotation, Slerp
 
-from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
-from stairenv.motion.rsi import humanoid_lowest_z
-from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
 from stairenv.validation import check_number
 
 if TYPE_CHECKING:
     from stairenv.environments.sims import SIMSEnv
     from stairenv.scripts.retrieval import RoomMatch
-    from stairenv.world.furniture import PlacedFurniture
     from stairenv.world.rooms import Room, RoomConfig
 
-#: Policy value that makes :class:`StoryRunner` build a :class:`KinematicStandIn` for its env.
-KINEMATIC = "kinematic"
 #: What became of a keyframe.
 OUTCOMES: tuple[str, ...] = ("success", "timeout", "fell", "unstable", "skipped")
 #: Skills that touch furniture (SIMS Table 2 counts these as the script's interactions).
@@ -86,7 +79,6 @@ START_POSES: tuple[str, ...] = ("standing", "sitting", "lying")
 ROOM_CAMERA: tuple[float, float] = (-65.0, 5.0)
 
 Policy = Callable[[np.ndarray], Any]
-_DOF = {name: k for k, name in enumerate(DOF_NAMES)}
 
 
 class BindingError(ValueError):
@@ -282,358 +274,6 @@ def _is_policy_spec(spec: Any) -> bool:
     return isinstance(spec, (str, os.PathLike)) or callable(spec) or callable(getattr(spec, "predict", None))
 
 
-# --- the kinematic stand-in ------------------------------------------------------------------
-def _smoothstep(t: float) -> float:
-    t = min(max(t, 0.0), 1.0)
-    return t * t * (3.0 - 2.0 * t)
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
-
-
-class _FreeGrid:
-    """Where the character may stand, on a grid: the room's free space, or (object scenes)
-    cells of the env's height grid farther than ``body_radius`` from any surface above the floor."""
-
-    def __init__(self, env: SIMSEnv, body_radius: float | None = None) -> None:
-        if env.room is not None:
-            space = env.room.free_space(body_radius=body_radius)
-            self.free = space.free
-            self.origin, self.cell = np.asarray(space.origin, dtype=float), float(space.cell_size)
-            self.off_grid_free = False
-        else:
-            heights = env._heights
-            blocked = heights.heights > 0.03
-            dist = ndimage.distance_transform_edt(~blocked) * heights.cell_size
-            self.free = dist - 0.5 * heights.cell_size >= (0.25 if body_radius is None else body_radius)
-            self.origin, self.cell = np.asarray(heights.origin, dtype=float), float(heights.cell_size)
-            self.off_grid_free = True  # object scenes: open floor around the height grid
-
-    def cell_of(self, xy: np.ndarray) -> tuple[int, int]:
-        j, i = np.floor((np.asarray(xy, dtype=float)[:2] - self.origin) / self.cell).astype(int)
-        return int(i), int(j)
-
-    def centre(self, i: int, j: int) -> np.ndarray:
-        return self.origin + (np.array([j, i]) + 0.5) * self.cell
-
-    def inside(self, i: int, j: int) -> bool:
-        rows, cols = self.free.shape
-        return 0 <= i < rows and 0 <= j < cols
-
-    def is_free(self, xy: np.ndarray) -> bool:
-        i, j = self.cell_of(xy)
-        return bool(self.free[i, j]) if self.inside(i, j) else self.off_grid_free
-
-    def nearest_free(self, xy: np.ndarray) -> np.ndarray:
-        """The centre of the free cell nearest to ``xy`` (``xy`` itself if it is free)."""
-        if self.is_free(xy) or not self.free.any():
-            return np.asarray(xy, dtype=float)[:2].copy()
-        ii, jj = np.nonzero(self.free)
-        centres = self.origin + (np.column_stack((jj, ii)) + 0.5) * self.cell
-        return centres[int(np.argmin(np.sum(np.square(centres - np.asarray(xy)[:2]), axis=1)))]
-
-    def visible(self, a: np.ndarray, b: np.ndarray) -> bool:
-        n = max(2, math.ceil(float(np.linalg.norm(b - a)) / (0.5 * self.cell)) + 1)
-        return all(self.is_free(p) for p in np.linspace(a, b, n))
-
-    def path(self, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """A polyline (K, 2) over free cells from ``start`` to ``goal`` (breadth-first search, then
-        shortcuts between mutually visible points); a straight line when no free path exists."""
-        start, goal = np.asarray(start, dtype=float)[:2], np.asarray(goal, dtype=float)[:2]
-        if self.visible(start, goal):
-            return np.stack((start, goal))
-        s, g = self.cell_of(self.nearest_free(start)), self.cell_of(self.nearest_free(goal))
-        if not (self.inside(*s) and self.inside(*g)):
-            return np.stack((start, goal))
-        parent = {s: s}
-        queue = deque([s])
-        steps = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1))
-        while queue:
-            cur = queue.popleft()
-            if cur == g:
-                break
-            for di, dj in steps:
-                nxt = (cur[0] + di, cur[1] + dj)
-                if nxt not in parent and self.inside(*nxt) and self.free[nxt]:
-                    parent[nxt] = cur
-                    queue.append(nxt)
-        if g not in parent:
-            return np.stack((start, goal))
-        cells = [g]
-        while cells[-1] != s:
-            cells.append(parent[cells[-1]])
-        points = [start, *(self.centre(*c) for c in reversed(cells)), goal]
-        # string pulling: from each kept point jump to the farthest visible one
-        kept, k = [points[0]], 0
-        while k < len(points) - 1:
-            nxt = k + 1
-            for m in range(len(points) - 1, k + 1, -1):
-                if self.visible(points[k], points[m]):
-                    nxt = m
-                    break
-            kept.append(points[nxt])
-            k = nxt
-        return np.asarray(kept)
-
-
-class KinematicStandIn:
-    """A placeholder skill policy that is explicitly NOT physics-based.
-
-    Called with an observation it reads ``env.goal`` and *writes the character's qpos* (with
-    zero velocities) one control step further towards it, then returns the action that holds
-    the written joint angles; the env's physics step that follows barely moves a character
-    that is re-posed every step. Per goal:
-
-    * walk: glide along free floor (a grid path) at ``speed`` m/s, standing, turning at most
-      ``turn_rate`` rad/s; then stand at the target;
-    * sit / lie: glide to the piece's approach point if farther than ``near`` m, then blend
-      over ``blend_seconds`` into the pose ``env._place_on`` gives (seated / lying on it);
-    * reach: glide to the floor nearest to the target point (``reach_clearance`` m from any
-      obstacle), face it, and blend a hip bend, the trunk and the arm into an inverse-kinematics
-      pose putting the hand on it (if within reach);
-    * getup: blend from the current (seated / lying) pose to standing at the goal's pelvis
-      target, facing away from the piece.
-
-    Use it to test the state machine and to make demo videos, never as a result about control.
-    One instance serves one env (several skills may share it).
-    """
-
-    def __init__(self, env: SIMSEnv, speed: float = 1.0, blend_seconds: float = 0.6, turn_rate: float = 4.0,
-                 near: float = 0.6, reach_clearance: float = 0.12) -> None:
-        self.env = getattr(env, "unwrapped", env)
-        self.speed = check_number("speed", speed, 0.0, 10.0, low_open=True)
-        self.blend_seconds = check_number("blend_seconds", blend_seconds, 0.0, 10.0)
-        self.turn_rate = check_number("turn_rate", turn_rate, 0.0, 100.0, low_open=True)
-        self.near = check_number("near", near, 0.0, 10.0)
-        self.reach_clearance = check_number("reach_clearance", reach_clearance, 0.0, 1.0)
-        self._model: mujoco.MjModel | None = None
-        self._goal: task.ContactGoal | None = None
-        self._plan: list[tuple[str, Any]] = []
-
-    def __repr__(self) -> str:
-        return "KinematicStandIn(not physics-based)"
-
-    def reset(self, seed: int | None = None) -> None:
-        """Forget the current plan (the next call plans from the character's pose)."""
-        self._goal = None
-
-    # -- model-dependent caches
-    def _bind_model(self) -> None:
-        env = self.env
-        if self._model is env.model:
-            return
-        self._model = env.model
-        self._scratch = mujoco.MjData(env.model)
-        self._grid = _FreeGrid(env)
-        # reaching, the character may stand closer to furniture than while walking
-        self._reach_grid = _FreeGrid(env, body_radius=self.reach_clearance)
-        idx = env._idx
-        self._root, self._joints = idx.qpos_root, idx.qpos_joints
-        self._dof0 = idx.qvel_joints.start
-        self._lo, self._hi = env.model.jnt_range[env.model.dof_jntid[idx.qvel_joints]].T.copy()
-        # the standing root height with all joints at 0 (feet 2 mm above the floor)
-        q = self._scratch.qpos
-        q[:] = env.data.qpos
-        q[self._root] = (0.0, 0.0, STANDING_ROOT_HEIGHT, 1.0, 0.0, 0.0, 0.0)
-        q[self._joints] = 0.0
-        mujoco.mj_kinematics(env.model, self._scratch)
-        self._stand_z = STANDING_ROOT_HEIGHT + 0.002 - humanoid_lowest_z(env.model, self._scratch, env._geoms)
-
-    # -- poses as (root 7, joints 28)
-    def _standing(self, xy: np.ndarray, heading: float, joints: np.ndarray | None = None) -> np.ndarray:
-        q = np.zeros(7 + len(DOF_NAMES))
-        q[:3] = (xy[0], xy[1], self._stand_z)
-        q[3:7] = yaw_to_quat_wxyz(heading)
-        if joints is not None:
-            q[7:] = joints
-        return q
-
-    def _write(self, q: np.ndarray) -> None:
-        env = self.env
-        env.data.qpos[self._root] = q[:7]
-        env.data.qpos[self._joints] = q[7:]
-        env.data.qvel[env._idx.qvel_root] = 0.0
-        env.data.qvel[env._idx.qvel_joints] = 0.0
-        mujoco.mj_forward(env.model, env.data)
-
-    def _action(self, q: np.ndarray) -> np.ndarray:
-        env = self.env
-        return np.clip((q[7:] - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0).astype(np.float32)
-
-    # -- planning
-    def _new_plan(self, goal: task.ContactGoal) -> None:
-        env = self.env
-        self._goal = goal
-        self._pose = np.concatenate((env.data.qpos[self._root], env.data.qpos[self._joints]))
-        self._heading = self._yaw(self._pose)
-        here = self._pose[:2].copy()
-        placed = env.furniture.get(goal.furniture) if goal.furniture is not None else None
-        plan: list[tuple[str, Any]] = []
-        if goal.skill == "walk":
-            plan.append(("glide", self._grid.path(here, goal.root_target[:2])))
-        elif goal.skill in ("sit", "lie"):
-            stand = env.approach_point(placed)
-            if np.linalg.norm(stand - here) > self.near or not self._upright():
-                plan.append(("glide", self._grid.path(here, stand)))
-            plan.append(("blend", ("place", placed, "sit" if goal.skill == "sit" else "lie")))
-        elif goal.skill == "reach":
-            target = goal.points[goal.primary][0]
-            stand = self._reach_grid.nearest_free(target[:2])
-            if np.linalg.norm(stand - here) > 0.05:
-                # walk on the wide-berth grid, then step in to the reaching spot
-                path = self._grid.path(here, self._grid.nearest_free(stand))
-                plan.append(("glide", np.vstack((path, stand[None]))))
-            plan.append(("blend", ("reach", target, env.model.body(task.CONTACT_JOINTS[goal.primary]).id)))
-        else:  # getup
-            target = goal.root_target[:2]
-            away = target - (placed.position if placed is not None else here)
-            heading = math.atan2(away[1], away[0]) if np.linalg.norm(away) > 1e-6 else self._heading
-            plan.append(("blend", ("pose", self._standing(target, heading))))
-        self._plan = plan
-        self._start_step()
-
-    def _upright(self) -> bool:
-        return abs(self._pose[2] - self._stand_z) < 0.1 and not np.any(np.abs(self._pose[7:]) > 0.5)
-
-    @staticmethod
-    def _yaw(q: np.ndarray) -> float:
-        w, x, y, z = q[3:7]
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-    def _start_step(self) -> None:
-        """Prepare the first remaining plan step (targets that depend on where the character is)."""
-        self._t = 0.0
-        if not self._plan:
-            return
-        kind, arg = self._plan[0]
-        if kind == "glide":
-            seg = np.diff(arg, axis=0)
-            self._lengths = np.concatenate(([0.0], np.cumsum(np.linalg.norm(seg, axis=1))))
-            if not self._upright():  # e.g. after a fall: stand up where the character is first
-                self._pose = self._standing(self._pose[:2], self._heading)
-        else:
-            what = arg[0]
-            if what == "place":
-                self._target = self._placed_pose(arg[1], arg[2])
-            elif what == "reach":
-                self._target = self._reach_pose(arg[1], arg[2])
-            else:
-                self._target = arg[1]
-            self._from = self._pose.copy()
-
-    def _placed_pose(self, placed: PlacedFurniture, pose: str) -> np.ndarray:
-        """The pose ``env._place_on`` gives (computed on the live data, which is then restored)."""
-        env, data = self.env, self.env.data
-        saved = data.qpos.copy(), data.qvel.copy(), data.ctrl.copy()
-        env._place_on(placed, pose)
-        q = np.concatenate((data.qpos[self._root], data.qpos[self._joints]))
-        data.qpos[:], data.qvel[:], data.ctrl[:] = saved
-        mujoco.mj_forward(env.model, data)
-        return q
-
-    def _bent(self, xy: np.ndarray, heading: float, params: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """A standing pose bent forward at the hips by ``params[0]`` rad (legs kept vertical), with
-        ``params[1:]`` the angles of joints ``cols``; feet put back 2 mm above the floor."""
-        pitch = params[0]
-        q = self._standing(xy, heading)
-        rot = Rotation.from_euler("z", heading) * Rotation.from_euler("y", pitch)
-        q[3:7] = rot.as_quat(scalar_first=True)
-        q[7 + _DOF["right_hip_y"]] = q[7 + _DOF["left_hip_y"]] = -pitch  # thighs back to vertical
-        q[7 + cols] = params[1:]
-        scratch = self._scratch
-        scratch.qpos[self._root], scratch.qpos[self._joints] = q[:7], q[7:]
-        mujoco.mj_kinematics(self.env.model, scratch)
-        q[2] += 0.002 - humanoid_lowest_z(self.env.model, scratch, self.env._geoms)
-        return q
-
-    def _reach_pose(self, target: np.ndarray, hand_body: int, iterations: int = 40) -> np.ndarray:
-        """Standing here facing ``target``: a hip bend, the trunk and the arm joints by damped
-        least squares (finite-difference Jacobian) so that the hand body's origin reaches it, as
-        near as the joint ranges allow."""
-        model, scratch = self.env.model, self._scratch
-        delta = target[:2] - self._pose[:2]
-        heading = math.atan2(delta[1], delta[0])
-        xy = self._pose[:2].copy()
-        side = "right" if model.body(hand_body).name.startswith("right") else "left"
-        names = ["abdomen_x", "abdomen_y", "abdomen_z",
-                 f"{side}_shoulder_x", f"{side}_shoulder_y", f"{side}_shoulder_z", f"{side}_elbow"]
-        cols = np.array([_DOF[n] for n in names])
-        lo = np.concatenate(([0.0], self._lo[cols]))
-        hi = np.concatenate(([1.3], self._hi[cols]))  # bend at most ~75 deg
-        scratch.qpos[:] = self.env.data.qpos
-
-        def hand(params: np.ndarray) -> np.ndarray:
-            self._bent(xy, heading, params, cols)
-            return scratch.xpos[hand_body].copy()
-
-        params = np.clip(np.zeros(len(cols) + 1), lo, hi)
-        eps = 1e-4
-        for _ in range(iterations):
-            at = hand(params)
-            err = target - at
-            if np.linalg.norm(err) < 0.01:
-                break
-            jac = np.empty((3, len(params)))
-            for k in range(len(params)):
-                nudged = params.copy()
-                nudged[k] += eps
-                jac[:, k] = (hand(nudged) - at) / eps
-            # bending costs more than moving the arm: a standing reach stays upright when it can
-            weights = np.ones(len(params))
-            weights[0] = 4.0
-            jw = jac / weights
-            step = (jw.T @ np.linalg.solve(jw @ jw.T + 0.01 * np.eye(3), err)) / weights
-            params = np.clip(params + np.clip(step, -0.3, 0.3), lo, hi)
-        return self._bent(xy, heading, params, cols)
-
-    # -- acting
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        env = self.env
-        self._bind_model()
-        if env.goal is not self._goal:
-            self._new_plan(env.goal)
-        dt = env.dt
-        while self._plan:
-            kind, arg = self._plan[0]
-            if kind == "glide" and self._glide(arg, dt):
-                break
-            if kind == "blend" and self._blend(dt):
-                break
-            self._plan.pop(0)
-            self._start_step()
-        self._write(self._pose)
-        return self._action(self._pose)
-
-    def _glide(self, path: np.ndarray, dt: float) -> bool:
-        """Advance along ``path``; False once at its end."""
-        self._t += dt
-        total = self._lengths[-1]
-        s = min(self._t * self.speed, total)
-        k = int(np.clip(np.searchsorted(self._lengths, s, side="right") - 1, 0, len(path) - 2))
-        seg = path[k + 1] - path[k]
-        length = max(self._lengths[k + 1] - self._lengths[k], 1e-9)
-        xy = path[k] + seg * (s - self._lengths[k]) / length
-        if np.linalg.norm(seg) > 1e-6:
-            want = math.atan2(seg[1], seg[0])
-            turn = float(np.clip(_wrap(want - self._heading), -self.turn_rate * dt, self.turn_rate * dt))
-            self._heading = _wrap(self._heading + turn)
-        self._pose = self._standing(xy, self._heading)
-        return s < total - 1e-9
-
-    def _blend(self, dt: float) -> bool:
-        """Ease from the pose at the step's start to its target; False once there."""
-        self._t += dt
-        u = 1.0 if self.blend_seconds <= 0 else _smoothstep(self._t / self.blend_seconds)
-        a, b = self._from, self._target
-        q = a + u * (b - a)
-        rots = Rotation.from_quat(np.stack((a[3:7], b[3:7])), scalar_first=True)
-        q[3:7] = Slerp([0.0, 1.0], rots)(u).as_quat(scalar_first=True)
-        self._pose = q
-        self._heading = self._yaw(q)
-        return u < 1.0
-
-
 # --- the state machine -----------------------------------------------------------------------
 class VideoWriter:
     """An MP4 writer (imageio + ffmpeg, libx264 as ``python -m stairenv``) that can print a
@@ -800,7 +440,9 @@ class StoryRunner:
             raise ValueError("recording a video needs the env built with render_mode='rgb_array'")
         video_every = int(check_number("video_every", video_every, 1, 10**6))
         if video is not None and env.room is not None:
-            self._room_camera()
+            # look down on the character from above the walls (the default follow camera, 4.5 m
+            # away at -18 deg, sees mostly wall inside a room)
+            env.set_camera(*ROOM_CAMERA)
 
         if reset:
             env.reset(seed=seed)
@@ -810,7 +452,7 @@ class StoryRunner:
                 policy.reset(seed)
         seat: str | None = None
         if start_pose != "standing":
-            env._place_on(env.furniture[start_on], "sit" if start_pose == "sitting" else "lie")
+            env.place_on(env.furniture[start_on], "sit" if start_pose == "sitting" else "lie")
             seat = start_on
 
         writer, own_writer = video, False
@@ -846,14 +488,6 @@ class StoryRunner:
                            video=str(writer.path) if own_writer else None, frames=frames,
                            policies=dict(self.policy_names))
 
-    def _room_camera(self) -> None:
-        """Look down on the character from above the walls (the default follow camera, 4.5 m
-        away at -18 deg, sees mostly wall inside a room)."""
-        env = self.env
-        env._camera_elevation, env._camera_distance = ROOM_CAMERA
-        if env._camera is not None:
-            env._camera.camera.elevation, env._camera.camera.distance = ROOM_CAMERA
-
     def _walk_target(self, index: int, inst: str | None, pairs: Sequence[tuple[Any, str | None]],
                      rng: np.random.Generator) -> tuple[np.ndarray, str | None]:
         env = self.env
@@ -867,8 +501,8 @@ class StoryRunner:
                     break
         if inst is not None:
             return env.approach_point(env.furniture[inst]), inst
-        here = env.data.qpos[env._idx.qpos_root][:2].copy()
-        return np.asarray(env._random_walk_target(rng, here), dtype=float), None
+        here = env.pose()[:2]
+        return np.asarray(env.random_walk_target(rng, here), dtype=float), None
 
     def _run_keyframe(self, i: int, n: int, kf: Any, inst: str | None, part: str | None,
                       pairs: Sequence[tuple[Any, str | None]], rng: np.random.Generator, writer: Any,
