@@ -15,7 +15,7 @@ import stairenv
 from stairenv.environments.interlevel import InterLevelEnv
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.tasks import interlevel as task
-from stairenv.tasks.state import read_state
+from stairenv.humanoid.state import read_state
 from stairenv.world.stairs import Staircase
 
 ENV_IDS = ["InterLevel-v0", "InterLevel2D-v0", "InterSceneStairs-v0"]

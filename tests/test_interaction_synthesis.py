@@ -30,7 +30,7 @@ from stairenv.motion.interactions import (
     sit_down,
     stand_up,
 )
-from stairenv.motion.rsi import humanoid_lowest_z
+from stairenv.humanoid.kinematics import humanoid_lowest_z
 
 CONTACT_MARGIN = 0.01   # geoms closer than this to the furniture count as near it
 REST_GAP = 0.002        # resting bodies and planted soles float this far above their support

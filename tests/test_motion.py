@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 import stairenv  # noqa: F401
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.motion import MotionClip, MotionFileError, MotionLibrary
-from stairenv.motion.rsi import PLACEMENT_CLEARANCE, humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.placement import PLACEMENT_CLEARANCE
 
 
 def turning_clip(n: int = 31, fps: float = 30.0) -> MotionClip:

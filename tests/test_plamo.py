@@ -200,7 +200,7 @@ def test_tracking_error_table(tmp_path):
 def test_reference_init_on_terrain():
     env = gym.make("PlaMo-v0", terrain="stairs", init="reference")
     u = env.unwrapped
-    from stairenv.motion.rsi import humanoid_geoms
+    from stairenv.humanoid.kinematics import humanoid_geoms
 
     for seed in range(3):
         _, info = env.reset(seed=seed)

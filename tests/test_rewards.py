@@ -17,7 +17,7 @@ import pytest
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.tasks import interlevel as il
 from stairenv.tasks.interscene import interscene_reward, interscene_reward_terms
-from stairenv.tasks.state import HumanoidState, read_state
+from stairenv.humanoid.state import HumanoidState, read_state
 
 SQRT_2PI = math.sqrt(2.0 * math.pi)
 STANDING = 0.885  # root height of the standing character (design of the markers)

@@ -11,11 +11,12 @@ from gymnasium import spaces
 
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
-from stairenv.motion.rsi import level_clips, load_reference_library, place_reference_state
+from stairenv.humanoid.placement import place_reference_state
+from stairenv.humanoid.state import PELVIS, read_state
+from stairenv.motion.rsi import level_clips, load_reference_library
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
-from stairenv.tasks.state import PELVIS, read_state
 from stairenv.validation import check_bool, check_choice, check_float, check_numbers, check_pair
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 

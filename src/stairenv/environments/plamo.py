@@ -11,18 +11,14 @@ from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
 from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import (
-    humanoid_geoms,
-    humanoid_lowest_z,
-    level_clips,
-    load_reference_library,
-    place_reference_state,
-)
+from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.placement import place_reference_state
+from stairenv.humanoid.state import HEAD, PELVIS, read_state
+from stairenv.motion.rsi import level_clips, load_reference_library
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.tasks.state import HEAD, PELVIS, read_state
 from stairenv.validation import check_choice, check_float, check_grid, check_int
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 

@@ -11,13 +11,13 @@ import numpy as np
 
 from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
-from stairenv.motion.rsi import humanoid_geoms
+from stairenv.humanoid.kinematics import humanoid_geoms
+from stairenv.humanoid.state import read_state
 from stairenv.planning.errors import PlanningError
 from stairenv.planning.planner import Plan, Planner, plan_path
 from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
-from stairenv.tasks.state import read_state
 from stairenv.validation import check_choice, check_float, check_grid, check_int, check_mapping, check_str
 from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene, slalom_scene
 

@@ -16,19 +16,15 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.motion.rsi import (
-    humanoid_geoms,
-    humanoid_lowest_z,
-    load_reference_library,
-    place_reference_state,
-    standing_clips,
-)
+from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.placement import place_reference_state
+from stairenv.humanoid.state import HEAD, PELVIS, read_state
+from stairenv.motion.rsi import load_reference_library, standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.tasks.state import HEAD, PELVIS, read_state
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
 from stairenv.world.furniture import (
     FAMILIES,

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +25,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import JOINTS, NUM_DOFS, load_humanoid_spec
+from stairenv.humanoid import JOINTS, NUM_DOFS, humanoid_model  # humanoid_model: re-exported here
 
 FORMAT_VERSION = 1
 QPOS_SIZE = 7 + NUM_DOFS  # 35
@@ -46,12 +45,6 @@ for _, _, _axes in JOINTS:
 
 class MotionFileError(ValueError):
     """A motion file that cannot be read as a clip (corrupt, wrong shape, NaN, ...)."""
-
-
-@lru_cache(maxsize=1)
-def humanoid_model() -> mujoco.MjModel:
-    """The bare humanoid (no scene), for kinematics of clips."""
-    return load_humanoid_spec().compile()
 
 
 @dataclass

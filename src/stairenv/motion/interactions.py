@@ -79,12 +79,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
-import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import DOF_NAMES
-from stairenv.motion.clip import MotionClip, humanoid_model
+from stairenv.humanoid import DOF_NAMES, humanoid_model
+from stairenv.humanoid.kinematics import forward_kinematics, lowest_body_point
+from stairenv.motion.clip import MotionClip
 from stairenv.motion.synthesis import (
     _FLAT,
     _SIDE_SIGN,
@@ -343,20 +343,10 @@ def _times(duration: float, fps: float) -> np.ndarray:
     return np.arange(round(duration * fps) + 1) / fps
 
 
-def _kinematics(qpos: np.ndarray):
-    """Yield MjData after forward kinematics of each frame (a fresh MjData per call)."""
-    model = humanoid_model()
-    data = mujoco.MjData(model)
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        yield data
-
-
 def _centre_of_mass(qpos: np.ndarray) -> np.ndarray:
     model = humanoid_model()
     mass = model.body_mass[:, None]
-    return np.array([np.sum(mass * data.xipos, axis=0) / mass.sum() for data in _kinematics(qpos)])
+    return np.array([np.sum(mass * data.xipos, axis=0) / mass.sum() for data in forward_kinematics(qpos)])
 
 
 # --- sitting -------------------------------------------------------------------------------------
@@ -716,11 +706,8 @@ _HAND_LIFT = 0.03              # m; hands lift this much while they move
 
 def _lowest(qpos: np.ndarray, geoms: Sequence[str]) -> np.ndarray:
     """Lowest world z of the named humanoid geoms, per frame."""
-    from stairenv.motion.rsi import humanoid_lowest_z
-
     model = humanoid_model()
-    ids = np.array([model.geom(name).id for name in geoms])
-    return np.array([humanoid_lowest_z(model, data, ids) for data in _kinematics(qpos)])
+    return lowest_body_point(qpos, np.array([model.geom(name).id for name in geoms]))
 
 
 _LEG_GEOMS = tuple(f"{side}_{part}" for side in ("right", "left") for part in ("thigh", "shin", "foot"))

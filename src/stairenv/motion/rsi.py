@@ -9,8 +9,8 @@ styles (``synthesis.WALK_STYLES``) and ``stairenv.motion.interactions``' sit, st
 lie, get-up, reach and idle clips).
 ``level_clips`` / ``standing_clips`` pick the clips a start may be drawn from (a stair
 climb's frame on flat ground would start with a foot on no step).
-``place_reference_state`` puts a sampled frame at a start position and
-heading with its lowest point just above the floor, so nothing penetrates.
+A sampled frame is put at a start position and heading, its lowest point just
+above the floor, by ``stairenv.humanoid.placement.place_reference_state``.
 """
 
 from __future__ import annotations
@@ -18,16 +18,9 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import HumanoidIndices
 from stairenv.motion.library import MotionLibrary
-
-# Gap left between the lowest body point and the floor when placing a reference state (m).
-PLACEMENT_CLEARANCE = 0.002
-
 
 BUILTIN_REFERENCE_SETS = ("builtin:stairs", "builtin:sims")
 
@@ -85,50 +78,3 @@ def level_clips(library: MotionLibrary, max_rise: float = LEVEL_MAX_RISE) -> Mot
     if len(keep) == len(library.clips):
         return library
     return MotionLibrary([library.clips[i] for i in keep], library.probabilities[keep])
-
-
-def humanoid_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geom_ids: np.ndarray) -> float:
-    """Exact lowest world z of the given sphere, capsule and box geoms (after kinematics)."""
-    lowest = np.inf
-    for g in geom_ids:
-        z, size, R = data.geom_xpos[g, 2], model.geom_size[g], data.geom_xmat[g].reshape(3, 3)
-        kind = model.geom_type[g]
-        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-            bottom = z - size[0]
-        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            bottom = z - abs(R[2, 2]) * size[1] - size[0]
-        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
-            bottom = z - np.abs(R[2]) @ size
-        else:
-            bottom = z - model.geom_rbound[g]
-        lowest = min(lowest, bottom)
-    return float(lowest)
-
-
-def humanoid_geoms(model: mujoco.MjModel, idx: HumanoidIndices) -> np.ndarray:
-    return np.flatnonzero(np.isin(model.geom_bodyid, idx.body_ids))
-
-
-def place_reference_state(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    idx: HumanoidIndices,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    xy: tuple[float, float],
-    heading: float,
-    floor_height: float = 0.0,
-) -> None:
-    """Write a reference state into ``data``: turned to face ``heading``, root over ``xy``,
-    lowest point PLACEMENT_CLEARANCE above ``floor_height``. Runs kinematics."""
-    root_rot = Rotation.from_quat(qpos[3:7], scalar_first=True)
-    forward = root_rot.apply([1.0, 0.0, 0.0])
-    turn = Rotation.from_euler("z", heading - np.arctan2(forward[1], forward[0]))
-    data.qpos[idx.qpos_root] = (xy[0], xy[1], qpos[2], *(turn * root_rot).as_quat(scalar_first=True))
-    data.qpos[idx.qpos_joints] = qpos[7:]
-    data.qvel[idx.qvel_root] = (*turn.apply(qvel[:3]), *qvel[3:6])  # angular velocity is in the root frame
-    data.qvel[idx.qvel_joints] = qvel[6:]
-    mujoco.mj_kinematics(model, data)
-    lift = floor_height + PLACEMENT_CLEARANCE - humanoid_lowest_z(model, data, humanoid_geoms(model, idx))
-    data.qpos[idx.qpos_root.start + 2] += lift
-    mujoco.mj_kinematics(model, data)

@@ -100,8 +100,8 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import DOF_NAMES, FOOT_BODIES
-from stairenv.motion.clip import MotionClip, humanoid_model
+from stairenv.humanoid import DOF_NAMES, FOOT_BODIES, humanoid_model
+from stairenv.motion.clip import MotionClip
 
 __all__ = [
     "GaitTiming",

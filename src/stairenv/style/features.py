@@ -21,20 +21,11 @@ of the clip's qpos (``reference_features``), so the two cannot drift apart.
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
-from stairenv.humanoid import HumanoidIndices, JOINTS
-from stairenv.motion.clip import MotionClip, humanoid_model
-from stairenv.tasks.kernels import (
-    heading_cos_sin,
-    jit,
-    write_heading_vector,
-    write_local_angular_velocity,
-    write_relative_rotation_6d,
-    write_root_rotation_6d,
-)
-from stairenv.tasks.state import (
+from stairenv.humanoid import JOINTS, HumanoidIndices, humanoid_model
+from stairenv.humanoid.kinematics import forward_kinematics
+from stairenv.humanoid.state import (
     JOINT_ROWS,
     LEFT_FOOT,
     LEFT_HAND,
@@ -44,6 +35,15 @@ from stairenv.tasks.state import (
     RIGHT_HAND,
     HumanoidState,
     read_state,
+)
+from stairenv.motion.clip import MotionClip
+from stairenv.tasks.kernels import (
+    heading_cos_sin,
+    jit,
+    write_heading_vector,
+    write_local_angular_velocity,
+    write_relative_rotation_6d,
+    write_root_rotation_6d,
 )
 
 AMP_FEATURE_SIZE = 105
@@ -100,14 +100,9 @@ def amp_features(state: HumanoidState, out: np.ndarray | None = None) -> np.ndar
 def state_features(qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
     """Features of humanoid states given as qpos (N, 35) and qvel (N, 34), by forward kinematics."""
     qpos, qvel = np.atleast_2d(qpos), np.atleast_2d(qvel)
-    model = humanoid_model()
-    data = mujoco.MjData(model)
-    idx = HumanoidIndices.from_model(model)
+    idx = HumanoidIndices.from_model(humanoid_model())
     out = np.empty((qpos.shape[0], AMP_FEATURE_SIZE))
-    for t in range(qpos.shape[0]):
-        data.qpos[:] = qpos[t]
-        data.qvel[:] = qvel[t]
-        mujoco.mj_kinematics(model, data)
+    for t, data in enumerate(forward_kinematics(qpos, qvel)):
         out[t] = amp_features(read_state(data, idx))[0]
     return out
 

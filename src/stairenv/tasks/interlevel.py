@@ -51,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 
 from stairenv.tasks.kernels import heading_cos_sin, jit, write_heading_vector, write_proprioception
-from stairenv.tasks.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
+from stairenv.humanoid.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
 from stairenv.validation import check_number
 from stairenv.world.stairs import Staircase
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stairenv.tasks.state import PELVIS, HumanoidState
+from stairenv.humanoid.state import PELVIS, HumanoidState
 
 TARGET_SPEED = 1.5
 NEAR_WEIGHT, FAR_WEIGHT = 0.7, 0.3

@@ -12,7 +12,7 @@ import math
 
 from numba import njit
 
-from stairenv.tasks.state import JOINT_ROWS, PARENT_ROWS, PELVIS
+from stairenv.humanoid.state import JOINT_ROWS, PARENT_ROWS, PELVIS
 
 jit = njit(cache=True, nogil=True)
 

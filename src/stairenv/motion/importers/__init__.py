@@ -69,12 +69,12 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from stairenv.humanoid import BODY_NAMES, DOF_NAMES, FOOT_BODIES, JOINTS, NUM_DOFS
-from stairenv.motion.clip import QPOS_SIZE, MotionClip, MotionFileError, humanoid_model
+from stairenv.humanoid import BODY_NAMES, DOF_NAMES, JOINTS, NUM_DOFS, dof_ranges, humanoid_model
+from stairenv.humanoid.kinematics import body_positions, foot_sole_heights, lowest_body_point
+from stairenv.motion.clip import QPOS_SIZE, MotionClip, MotionFileError
 
 __all__ = [
     "MAX_ABS_VALUE",
@@ -198,8 +198,7 @@ _BONES: dict[str, np.ndarray] = {
 
 @lru_cache(maxsize=1)
 def _dof_ranges() -> np.ndarray:
-    model = humanoid_model()
-    return np.array([model.jnt_range[model.joint(n).id] for n in DOF_NAMES])
+    return dof_ranges(humanoid_model())
 
 
 def _wrap_towards(angles: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -367,81 +366,6 @@ def joints_to_qpos(
     qpos[:, 3:7] = root_rot.as_quat(scalar_first=True)
     qpos[:, 7:] = angles
     return qpos, report
-
-
-# --------------------------------------------------------------------------------------
-# Forward kinematics of our humanoid
-# --------------------------------------------------------------------------------------
-def _kinematics(qpos: np.ndarray):
-    """Yield (t, data) after mj_kinematics for every frame of qpos."""
-    model = humanoid_model()
-    data = mujoco.MjData(model)
-    for t in range(qpos.shape[0]):
-        data.qpos[:] = qpos[t]
-        mujoco.mj_kinematics(model, data)
-        yield t, data
-
-
-def body_positions(qpos: np.ndarray) -> np.ndarray:
-    """(T, 15, 3) world positions of our bodies (BODY_NAMES order) for each frame of qpos."""
-    model = humanoid_model()
-    ids = [model.body(n).id for n in BODY_NAMES]
-    out = np.zeros((qpos.shape[0], len(ids), 3))
-    for t, data in _kinematics(qpos):
-        out[t] = data.xpos[ids]
-    return out
-
-
-@lru_cache(maxsize=1)
-def _foot_box_corners() -> tuple[np.ndarray, np.ndarray]:
-    """Geom ids of the two foot boxes and the 8 corners of a box of half sizes 1 (signs)."""
-    model = humanoid_model()
-    geoms = []
-    for body in FOOT_BODIES:
-        bid = model.body(body).id
-        boxes = [g for g in range(model.ngeom)
-                 if model.geom_bodyid[g] == bid and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
-        if len(boxes) != 1:
-            raise RuntimeError(f"expected one box geom on {body}, found {len(boxes)}")
-        geoms.append(boxes[0])
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
-    return np.array(geoms), signs
-
-
-def foot_sole_heights(qpos: np.ndarray) -> np.ndarray:
-    """(T, 2) height of the lowest corner of the right and left foot box in each frame."""
-    model = humanoid_model()
-    geoms, signs = _foot_box_corners()
-    out = np.zeros((qpos.shape[0], 2))
-    for t, data in _kinematics(qpos):
-        for k, g in enumerate(geoms):
-            corners = data.geom_xpos[g] + (signs * model.geom_size[g]) @ data.geom_xmat[g].reshape(3, 3).T
-            out[t, k] = corners[:, 2].min()
-    return out
-
-
-def lowest_body_point(qpos: np.ndarray) -> np.ndarray:
-    """(T,) height of the lowest point of any geom of the humanoid (spheres, capsules, boxes)."""
-    model = humanoid_model()
-    out = np.full(qpos.shape[0], np.inf)
-    geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] != 0]
-    _, signs = _foot_box_corners()
-    for t, data in _kinematics(qpos):
-        low = np.inf
-        for g in geoms:
-            kind, size = model.geom_type[g], model.geom_size[g]
-            pos, mat = data.geom_xpos[g], data.geom_xmat[g].reshape(3, 3)
-            if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-                z = pos[2] - size[0]
-            elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-                z = pos[2] - abs(mat[2, 2]) * size[1] - size[0]
-            elif kind == mujoco.mjtGeom.mjGEOM_BOX:
-                z = (pos + (signs * size) @ mat.T)[:, 2].min()
-            else:
-                z = pos[2] - model.geom_rbound[g]
-            low = min(low, z)
-        out[t] = low
-    return out
 
 
 def fk_position_error(qpos: np.ndarray, reference: np.ndarray) -> dict[str, float]:

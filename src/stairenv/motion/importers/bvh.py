@@ -72,8 +72,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES
-from stairenv.motion.clip import MotionClip, MotionFileError, humanoid_model
+from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
+from stairenv.motion.clip import MotionClip, MotionFileError
 from stairenv.motion.importers import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
                                        joints_to_qpos, make_clip, read_limited, snap_fps)
 

@@ -52,8 +52,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES
-from stairenv.motion.clip import MotionClip, MotionFileError, humanoid_model
+from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
+from stairenv.motion.clip import MotionClip, MotionFileError
 from stairenv.motion.importers import (MAX_FPS, MIN_FPS, check_timing, check_values, fk_position_error, joints_to_qpos,
                                        make_clip, read_limited, snap_fps)
 

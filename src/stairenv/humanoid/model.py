@@ -1,14 +1,16 @@
-"""The body: the 15-body, 28-DoF humanoid, its PD gains and its action mapping.
+"""Model facts: the 15-body, 28-DoF humanoid, its PD gains and its action mapping.
 
-Everything about the character that the tasks share lives here: names and
-order of bodies and degrees of freedom, the two public PD-gain presets, the map
-from a policy action in [-1, 1]^28 to PD targets, and loading the MJCF
-(``xml/humanoid.xml``) into an ``mujoco.MjSpec`` that world builders add to.
+Names and order of bodies and degrees of freedom, the two public PD-gain
+presets, the map from a policy action in [-1, 1]^28 to PD targets, loading the
+MJCF (``xml/humanoid.xml``) into an ``mujoco.MjSpec`` that world builders add
+to, the bare compiled model (``humanoid_model``) and the ids of the humanoid in
+a compiled model (``HumanoidIndices``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import mujoco
 import numpy as np
@@ -91,6 +93,12 @@ def load_humanoid_spec(pd_gains: str = "soft") -> mujoco.MjSpec:
         actuator.ctrllimited = True
         actuator.ctrlrange = [offset[dof] - scale[dof], offset[dof] + scale[dof]]
     return spec
+
+
+@lru_cache(maxsize=1)
+def humanoid_model() -> mujoco.MjModel:
+    """The bare humanoid (no scene), for kinematics of clips."""
+    return load_humanoid_spec().compile()
 
 
 def pd_action_offset_scale(dof_ranges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
-from stairenv.humanoid import HumanoidIndices
+from stairenv.humanoid.model import BODY_NAMES, JOINT_BODIES, PARENT_INDICES, HumanoidIndices
 
 
 class HumanoidState(NamedTuple):
@@ -26,12 +26,12 @@ class HumanoidState(NamedTuple):
 
 
 # Rows of HumanoidState.body_* (BODY_NAMES order).
-PELVIS, HEAD = 0, 2
-RIGHT_HAND, LEFT_HAND = 5, 8
-RIGHT_FOOT, LEFT_FOOT = 11, 14
+PELVIS, HEAD = BODY_NAMES.index("pelvis"), BODY_NAMES.index("head")
+RIGHT_HAND, LEFT_HAND = BODY_NAMES.index("right_hand"), BODY_NAMES.index("left_hand")
+RIGHT_FOOT, LEFT_FOOT = BODY_NAMES.index("right_foot"), BODY_NAMES.index("left_foot")
 # Joint bodies and their parents as rows of body_* (12 joints, qpos order).
-JOINT_ROWS = np.array([1, 2, 3, 4, 6, 7, 9, 10, 11, 12, 13, 14])
-PARENT_ROWS = np.array([0, 1, 1, 3, 1, 6, 0, 9, 10, 0, 12, 13])
+JOINT_ROWS = np.array([BODY_NAMES.index(body) for body in JOINT_BODIES])
+PARENT_ROWS = np.array([PARENT_INDICES[row] for row in JOINT_ROWS])
 
 
 def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
@@ -40,7 +40,7 @@ def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
     bodies = idx.body_ids if idx.body_slice is None else idx.body_slice
     return HumanoidState(
         body_pos=data.xpos[bodies][None],
-        body_mat=data.xmat[bodies].reshape(1, 15, 3, 3),
+        body_mat=data.xmat[bodies].reshape(1, len(BODY_NAMES), 3, 3),
         root_lin_vel=root_vel[None, :3],
         root_ang_vel=root_vel[None, 3:],
         dof_pos=data.qpos[idx.qpos_joints][None],

@@ -1,0 +1,104 @@
+"""Forward kinematics of the humanoid over frames, and its lowest point.
+
+``forward_kinematics`` is the one frame-by-frame FK loop: the importers, the
+interaction synthesis and the AMP features read bodies and geoms off the
+``MjData`` it yields. ``humanoid_lowest_z`` is the one "lowest body point": the
+exact lowest world z of sphere, capsule and box geoms in any ``MjData`` after
+kinematics (an env's, with its scene, or the bare model's);
+``lowest_body_point`` and ``foot_sole_heights`` apply it to every frame of a clip.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+
+from stairenv.humanoid.model import BODY_NAMES, FOOT_BODIES, HumanoidIndices, humanoid_model
+
+
+def forward_kinematics(qpos: np.ndarray, qvel: np.ndarray | None = None) -> Iterator[mujoco.MjData]:
+    """Yield the bare humanoid's ``MjData`` after ``mj_kinematics`` of each frame of ``qpos`` (T, 35),
+    with the frame of ``qvel`` (T, 34) written too when given. One ``MjData`` serves every frame of
+    a call: read what is needed from it before taking the next."""
+    model = humanoid_model()
+    data = mujoco.MjData(model)
+    for t in range(qpos.shape[0]):
+        data.qpos[:] = qpos[t]
+        if qvel is not None:
+            data.qvel[:] = qvel[t]
+        mujoco.mj_kinematics(model, data)
+        yield data
+
+
+def humanoid_geoms(model: mujoco.MjModel, idx: HumanoidIndices) -> np.ndarray:
+    """Ids of the geoms on the humanoid's bodies in ``model`` (which may hold a scene too)."""
+    return np.flatnonzero(np.isin(model.geom_bodyid, idx.body_ids))
+
+
+def humanoid_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geom_ids: np.ndarray) -> float:
+    """Exact lowest world z of the given sphere, capsule and box geoms (after kinematics)."""
+    lowest = np.inf
+    for g in geom_ids:
+        z, size, R = data.geom_xpos[g, 2], model.geom_size[g], data.geom_xmat[g].reshape(3, 3)
+        kind = model.geom_type[g]
+        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+            bottom = z - size[0]
+        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            bottom = z - abs(R[2, 2]) * size[1] - size[0]
+        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
+            bottom = z - np.abs(R[2]) @ size
+        else:
+            bottom = z - model.geom_rbound[g]
+        lowest = min(lowest, bottom)
+    return float(lowest)
+
+
+def body_positions(qpos: np.ndarray) -> np.ndarray:
+    """(T, 15, 3) world positions of our bodies (BODY_NAMES order) for each frame of qpos."""
+    model = humanoid_model()
+    ids = [model.body(n).id for n in BODY_NAMES]
+    out = np.zeros((qpos.shape[0], len(ids), 3))
+    for t, data in enumerate(forward_kinematics(qpos)):
+        out[t] = data.xpos[ids]
+    return out
+
+
+@lru_cache(maxsize=1)
+def foot_box_geoms() -> np.ndarray:
+    """Geom ids of the right and left foot boxes in the bare humanoid model."""
+    model = humanoid_model()
+    geoms = []
+    for body in FOOT_BODIES:
+        bid = model.body(body).id
+        boxes = [g for g in range(model.ngeom)
+                 if model.geom_bodyid[g] == bid and model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
+        if len(boxes) != 1:
+            raise RuntimeError(f"expected one box geom on {body}, found {len(boxes)}")
+        geoms.append(boxes[0])
+    return np.array(geoms)
+
+
+def foot_sole_heights(qpos: np.ndarray) -> np.ndarray:
+    """(T, 2) height of the lowest corner of the right and left foot box in each frame."""
+    model = humanoid_model()
+    geoms = foot_box_geoms()
+    out = np.zeros((qpos.shape[0], 2))
+    for t, data in enumerate(forward_kinematics(qpos)):
+        for k in range(len(geoms)):
+            out[t, k] = humanoid_lowest_z(model, data, geoms[k:k + 1])
+    return out
+
+
+def lowest_body_point(qpos: np.ndarray, geom_ids: np.ndarray | None = None) -> np.ndarray:
+    """(T,) height of the lowest point of the humanoid's geoms (spheres, capsules, boxes) in each
+    frame of qpos; ``geom_ids`` (ids in the bare model) limits it to those geoms."""
+    model = humanoid_model()
+    if geom_ids is None:
+        geom_ids = humanoid_geoms(model, HumanoidIndices.from_model(model))
+    out = np.full(qpos.shape[0], np.inf)
+    for t, data in enumerate(forward_kinematics(qpos)):
+        out[t] = humanoid_lowest_z(model, data, geom_ids)
+    return out
