@@ -18,7 +18,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from stairenv.evaluation import PAPER_STEP_HEIGHTS, env_kwarg_argument, evaluate
+from stairenv.evaluation.cli import env_kwarg_argument
+from stairenv.evaluation.interlevel import PAPER_STEP_HEIGHTS, evaluate
 
 
 def build_parser() -> argparse.ArgumentParser:

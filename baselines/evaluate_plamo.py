@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-import gymnasium as gym
-
-from stairenv.evaluation import load_policy
-from stairenv.plamo_evaluation import LOCOMOTIONS, TERRAINS, format_rows, tracking_errors, write_rows
+from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS, evaluate
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -28,13 +25,13 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
-    probe = gym.make(args.env)
-    policy = load_policy(args.policy, probe, seed=args.seed)
-    probe.close()
-    rows = tracking_errors(policy, args.terrains, args.locomotions, args.episodes, args.seed, args.env,
-                           args.max_episode_steps)
-    print(format_rows(rows))
-    write_rows(rows, args.csv, args.json)
+    report = evaluate(args.policy, args.env, args.episodes, args.seed, max_episode_steps=args.max_episode_steps,
+                      terrains=args.terrains, locomotions=args.locomotions)
+    print(report.format_table())
+    if args.csv:
+        report.to_csv(args.csv)
+    if args.json:
+        report.to_json(args.json)
 
 
 if __name__ == "__main__":

@@ -8,12 +8,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import gymnasium as gym
 
-from stairenv.evaluation import load_policy
-from stairenv.plamo_evaluation import format_scene_rows, plot_planned_path, scene_episodes, slalom_comparison
+from stairenv.evaluation.plamo import plot_planned_path, scene_episodes, scene_report, slalom_comparison
+from stairenv.evaluation.policies import load_policy
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -40,10 +39,11 @@ def main(argv: list[str] | None = None) -> None:
         rows = [scene_episodes(policy, args.episodes, args.seed, None, args.max_episode_steps, args.policy)]
     else:
         rows = slalom_comparison(policy, args.episodes, args.seed, max_episode_steps=args.max_episode_steps)
-    print(format_scene_rows(rows))
+    report = scene_report(rows, args.policy, {"what": args.what, "episodes": args.episodes, "seed": args.seed,
+                                              "max_episode_steps": args.max_episode_steps})
+    print(report.format_table())
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=2)
+        report.to_json(args.json)
 
 
 if __name__ == "__main__":

@@ -29,9 +29,9 @@ SKILLS = ("walk", "sit", "lie", "reach", "getup")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from stairenv.evaluation import env_kwarg_argument
+    from stairenv.evaluation.cli import env_kwarg_argument
+    from stairenv.evaluation.sims import TABLE1_SKILLS
     from stairenv.scripts.database import DIFFICULTIES
-    from stairenv.sims_evaluation import TABLE1_SKILLS
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", help="policy for every skill: zero, random, kinematic, an SB3 .zip or ALGO:path")
@@ -68,8 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from stairenv.evaluation.sims import evaluate_scripts, evaluate_skills, write_reports
     from stairenv.stories import KINEMATIC, MachineSettings, describe_policy
-    from stairenv.sims_evaluation import evaluate_scripts, evaluate_skills, write_reports
 
     per_skill = {s: getattr(args, s) or args.policy for s in SKILLS}
     needed = set(args.skills) if args.tables == ["skills"] else set(SKILLS)

@@ -35,7 +35,7 @@ from pathlib import Path
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from stairenv.evaluation import env_kwarg_argument
+    from stairenv.evaluation.cli import env_kwarg_argument
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="a train_ppo.py run folder (<logdir>/<env>/seed<k>)")
@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
     import stairenv  # noqa: F401  (registers the envs)
     from stairenv.environments.sims import SIMSEnv, reference_captions
-    from stairenv.evaluation import load_policy
+    from stairenv.evaluation.policies import load_policy
     from stairenv.motion.rsi import load_reference_library
     from stairenv.style.metrics import nearest_reference_distance, rollout_windows
     from stairenv.style.reference import ReferenceWindows, text_conditions

@@ -29,7 +29,7 @@ SKILLS = ("walk", "sit", "lie", "reach", "getup")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from stairenv.evaluation import env_kwarg_argument
+    from stairenv.evaluation.cli import env_kwarg_argument
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     what = parser.add_mutually_exclusive_group(required=True)

@@ -15,7 +15,7 @@ judges [motion window, text embedding]; each reference clip is embedded from its
 ``meta["text"]`` with the env's encoder, and the env's captions become the
 reference texts of its skill, so agent and reference conditions come from one set.
 
-Paper settings (InterLevel, BRIEF section 2): learning rate 2e-5 constant, MLP
+Paper settings (InterLevel): learning rate 2e-5 constant, MLP
 [1024, 512] ReLU for policy and value, gradient-norm clip 1.0, entropy 0,
 gamma 0.99, minibatch 64, observation and return normalisation (VecNormalize).
 Style: the AMP discriminator wrapper (``stairenv.style.wrappers``) trained on
@@ -53,7 +53,9 @@ The preset also weights style 0.8 (task 0.2) and uses gradient penalty 10 and a
 Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
 checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
 ``vecnormalize.pkl`` + ``amp.pt`` and the evaluation table
-(``evaluation.csv`` / ``.json``) of the trained policy.
+(``evaluation.csv`` / ``.json``) of the trained policy, by the evaluator of the env's family
+(``stairenv.evaluation.evaluator_for``: InterLevel Tables 1-3, PlaMo Table 2 or SIMS Table 1);
+the JSON is a list of reports.
 
 ``--resume`` needs the checkpoint's VecNormalize statistics and, with AMP, its
 AMP state (``amp_<n>_steps.pt``, or ``amp.pt`` beside ``final_model.zip``); without
@@ -78,12 +80,12 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.environments.plamo import PlaMoEnv
 from stairenv.environments.sims import SIMSEnv, reference_captions
-from stairenv.evaluation import env_kwarg_argument, evaluate, load_policy, normalizer_beside, read_normalizer
+from stairenv.evaluation import evaluator_for
+from stairenv.evaluation.cli import env_kwarg_argument
+from stairenv.evaluation.policies import load_policy, normalizer_beside, read_normalizer
+from stairenv.evaluation.report import write_reports
 from stairenv.motion.rsi import load_reference_library
-from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
-from stairenv.sims_evaluation import evaluate_skills, write_reports
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.pipeline import PIPELINE_CHOICES
 from stairenv.style.reference import ReferenceWindows, text_conditions
@@ -441,29 +443,14 @@ def main(argv: list[str] | None = None) -> Path:
     if args.eval_episodes > 0:
         eval_env = gym.make(args.env, **env_kwargs)
         policy = load_policy(str(model_path), eval_env)
-        is_plamo = isinstance(eval_env.unwrapped, PlaMoEnv)
-        sims_skill = eval_env.unwrapped.skill if isinstance(eval_env.unwrapped, SIMSEnv) else None
         eval_env.close()
         eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
-        if sims_skill is not None:  # SIMS Table 1: success rate and contact error
-            report = evaluate_skills(policy, skills=[sims_skill], episodes=args.eval_episodes, seed=10_000 + args.seed,
-                                     env_kwargs={k: v for k, v in eval_kwargs.items() if k != "skill"},
-                                     max_episode_steps=args.eval_max_episode_steps,
-                                     progress_bar=not args.no_progress_bar, label=str(model_path))
-            print(report.format_table())
-            write_reports([report], run_dir / "evaluation.csv", run_dir / "evaluation.json")
-        elif is_plamo:  # PlaMo's Table 2: head tracking errors per terrain x locomotion
-            rows = tracking_errors(policy, episodes=args.eval_episodes, seed=10_000 + args.seed, env_id=args.env,
-                                   max_episode_steps=args.eval_max_episode_steps)
-            print(format_rows(rows))
-            write_rows(rows, run_dir / "evaluation.csv", run_dir / "evaluation.json")
-        else:  # InterLevel's Tables 1-3
-            report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
-                              env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
-                              progress_bar=not args.no_progress_bar)
-            print(report.format_table())
-            report.to_csv(run_dir / "evaluation.csv")
-            report.to_json(run_dir / "evaluation.json")
+        evaluate = evaluator_for(args.env)
+        report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
+                          env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,
+                          progress_bar=not args.no_progress_bar, label=str(model_path))
+        print(report.format_table())
+        write_reports([report], run_dir / "evaluation.csv", run_dir / "evaluation.json")
     return model_path
 
 

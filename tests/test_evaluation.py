@@ -1,4 +1,4 @@
-"""stairenv.evaluation and baselines/evaluate.py: the paper's metrics for any policy."""
+"""stairenv.evaluation.interlevel and baselines/evaluate.py: the paper's metrics for any policy."""
 
 from __future__ import annotations
 
@@ -15,16 +15,9 @@ import numpy as np
 import pytest
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation import (
-    PAPER_RESULTS,
-    ROW_FIELDS,
-    EvaluationReport,
-    RandomPolicy,
-    ZeroPolicy,
-    evaluate,
-    load_policy,
-    parse_env_kwarg,
-)
+from stairenv.evaluation.cli import parse_env_kwarg
+from stairenv.evaluation.interlevel import PAPER_RESULTS, ROW_FIELDS, EvaluationReport, evaluate
+from stairenv.evaluation.policies import RandomPolicy, ZeroPolicy, load_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = {"max_episode_steps": 40, "progress_bar": False}

@@ -183,8 +183,8 @@ def test_rgb_render_shows_the_terrain():
 
 
 def test_tracking_error_table(tmp_path):
-    from stairenv.evaluation import ZeroPolicy
-    from stairenv.plamo_evaluation import format_rows, tracking_errors, write_rows
+    from stairenv.evaluation.plamo import format_rows, tracking_errors, write_rows
+    from stairenv.evaluation.policies import ZeroPolicy
 
     env = gym.make("PlaMo-v0")
     rows = tracking_errors(ZeroPolicy(env.action_space), terrains=("flat", "stairs"), locomotions=("walk",),

@@ -103,8 +103,8 @@ def test_success_when_the_head_arrives_after_the_planned_time():
 
 
 def test_slalom_speed_profiles_and_scene_evaluation(tmp_path):
-    from stairenv.evaluation import ZeroPolicy
-    from stairenv.plamo_evaluation import format_scene_rows, plot_planned_path, scene_episodes
+    from stairenv.evaluation.plamo import format_scene_rows, plot_planned_path, scene_episodes
+    from stairenv.evaluation.policies import ZeroPolicy
 
     planned = gym.make("PlaMoScene-v0", scene_kind="slalom").unwrapped
     planned.reset(seed=0)

@@ -11,7 +11,7 @@ import torch
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation import _SpacesEnv
+from stairenv.evaluation.policies import _SpacesEnv
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows

@@ -1,4 +1,4 @@
-"""stairenv.sims_evaluation and baselines/evaluate_sims.py: SIMS Tables 1 and 2 for any policy."""
+"""stairenv.evaluation.sims and baselines/evaluate_sims.py: SIMS Tables 1 and 2 for any policy."""
 
 from __future__ import annotations
 
@@ -11,8 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from stairenv.stories import MachineSettings
-from stairenv.sims_evaluation import (
+from stairenv.evaluation.sims import (
     PAPER_RESULTS,
     ROW_FIELDS,
     ScriptRun,
@@ -22,6 +21,7 @@ from stairenv.sims_evaluation import (
     merge_paper_rows,
     write_reports,
 )
+from stairenv.stories import MachineSettings
 
 HASHING = {"text_encoder": "hashing"}
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "evaluate_sims.py"

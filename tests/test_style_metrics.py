@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import stairenv  # noqa: F401
-from stairenv.evaluation import load_policy, normalizer_beside
+from stairenv.evaluation.policies import load_policy, normalizer_beside
 from stairenv.style.metrics import MIN_SPREAD, nearest_reference_distance, reference_spread, rollout_windows
 
 

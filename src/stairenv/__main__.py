@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from stairenv.evaluation import env_kwarg_argument
+from stairenv.evaluation.cli import env_kwarg_argument
 
 DEFAULT_ENV = "InterLevel-v0"
 DEFAULT_POLICY = "zero"
@@ -67,7 +67,7 @@ def record(
     from tqdm.auto import tqdm
 
     import stairenv  # noqa: F401  (registers the envs, picks EGL without a display)
-    from stairenv.evaluation import load_policy
+    from stairenv.evaluation.policies import load_policy
 
     if not (isinstance(seconds, (int, float)) and np.isfinite(seconds) and 0 < seconds <= 600):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")

@@ -147,6 +147,12 @@ class PlaMoSceneEnv(PlaMoEnv):
         self._build_args = (frame_skip, amp_history, render_mode, width, height)
         self.scene = None
 
+    @property
+    def trajectory(self) -> Trajectory:
+        """The episode's planned head trajectory (every segment's plan concatenated, replans included):
+        positions ``xyz`` and speeds ``v`` over time. Set by ``reset``."""
+        return self._trajectory
+
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
         if getattr(self, "scene", None) is None:
             return super().ground_height(xy)

@@ -15,35 +15,35 @@ r"""Evaluate SIMS skill policies the way the SIMS paper does (Tables 1 and 2).
   error of the interaction keyframes (sit, lie, reach) that ran; **success steps**: interactions
   that succeeded per script (the paper's last column).
 
-Both give rows with the columns of :data:`ROW_FIELDS` (``table`` is "skills" or "scripts",
-``group`` the skill or difficulty); :class:`SIMSReport` writes them as CSV / JSON and prints
-them, with the published numbers (:data:`PAPER_RESULTS`) beside ours on request. Policies are
-specs for :func:`stairenv.evaluation.load_policy` ("zero", "random", an SB3 .zip) or
+Both give a :class:`~stairenv.evaluation.report.Report` with rows of the columns of :data:`ROW_FIELDS`
+(``table`` is "skills" or "scripts", ``group`` the skill or difficulty), written as CSV / JSON and
+printed with the published numbers (:data:`PAPER_RESULTS`) beside ours on request; :func:`evaluate`
+is Table 1 for the skill of one env. Policies are
+specs for :func:`stairenv.evaluation.policies.load_policy` ("zero", "random", an SB3 .zip) or
 callables, one for all skills or one per skill; ``"kinematic"`` is the state machine's
 stand-in that writes qpos (not physics-based: it tests the pipeline, it is not a result).
 
 Example::
 
-    from stairenv.sims_evaluation import evaluate_skills, evaluate_scripts
+    from stairenv.evaluation.sims import evaluate_skills, evaluate_scripts
     report = evaluate_skills("zero", skills=("sit", "lie"), episodes=10)
     print(report.format_table(compare_paper=True))
 """
 
 from __future__ import annotations
 
-import csv
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation import _jsonable, _policy_label, load_policy
+from stairenv.evaluation.policies import load_policy, policy_label
+from stairenv.evaluation.report import Column, Layout, Report, write_reports
+from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.scripts.database import DIFFICULTIES
 from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings, describe_policy
 
@@ -115,51 +115,6 @@ class ScriptRun:
     room: str | None
 
 
-@dataclass
-class SIMSReport:
-    """Rows (see :data:`ROW_FIELDS`) plus the per-episode / per-script details of one table."""
-
-    table: str
-    label: str
-    rows: list[dict[str, Any]]
-    details: list[Any]
-    settings: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"table": self.table, "label": self.label, "settings": _jsonable(self.settings),
-                "rows": self.rows, "details": [_jsonable(asdict(d)) for d in self.details]}
-
-    def format_table(self, compare_paper: bool = False) -> str:
-        rows = merge_paper_rows(self.rows) if compare_paper else self.rows
-        return format_rows(rows)
-
-    def __str__(self) -> str:
-        return self.format_table()
-
-
-def write_reports(reports: Sequence[SIMSReport], csv_path: str | os.PathLike | None = None,
-                  json_path: str | os.PathLike | None = None) -> list[Path]:
-    """One CSV of all reports' rows (columns :data:`ROW_FIELDS`) and / or one JSON with
-    settings, rows and details; returns the paths written."""
-    written: list[Path] = []
-    if csv_path is not None:
-        path = Path(csv_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(ROW_FIELDS))
-            writer.writeheader()
-            for report in reports:
-                for row in report.rows:
-                    writer.writerow({k: "" if row.get(k) is None else row[k] for k in ROW_FIELDS})
-        written.append(path)
-    if json_path is not None:
-        path = Path(json_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps([r.to_dict() for r in reports], indent=2) + "\n")
-        written.append(path)
-    return written
-
-
 # --- policies ------------------------------------------------------------------------------------
 def _per_skill(policy: PolicySpec | Mapping[str, PolicySpec], skills: Sequence[str]) -> dict[str, PolicySpec]:
     if isinstance(policy, Mapping):
@@ -173,9 +128,13 @@ def _per_skill(policy: PolicySpec | Mapping[str, PolicySpec], skills: Sequence[s
 
 
 def _label(policies: Mapping[str, PolicySpec]) -> str:
-    names = {describe_policy(p) if isinstance(p, str) and p == KINEMATIC else _policy_label(p)
+    names = {describe_policy(p) if isinstance(p, str) and p == KINEMATIC else policy_label(p)
              for p in policies.values()}
     return names.pop() if len(names) == 1 else "per-skill policies"
+
+
+def _policy_names(policies: Mapping[str, PolicySpec]) -> dict[str, str]:
+    return {s: describe_policy(p) if isinstance(p, str) else policy_label(p) for s, p in policies.items()}
 
 
 # --- Table 1 -------------------------------------------------------------------------------------
@@ -233,7 +192,7 @@ def evaluate_skills(
     max_episode_steps: int | None = None,
     progress_bar: bool = False,
     label: str | None = None,
-) -> SIMSReport:
+) -> Report:
     """SIMS Table 1: success rate and contact error per skill over ``episodes`` episodes each.
 
     | keyword | default | meaning |
@@ -280,9 +239,26 @@ def evaluate_skills(
     finally:
         bar.close()
     settings = {"skills": list(skills), "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
-                "max_episode_steps": max_episode_steps,
-                "policies": {s: describe_policy(p) if isinstance(p, str) else _policy_label(p) for s, p in specs.items()}}
-    return SIMSReport("skills", label, rows, details, settings)
+                "max_episode_steps": max_episode_steps, "policies": _policy_names(specs)}
+    return _report("skills", label, rows, details, settings)
+
+
+def evaluate(
+    policy: PolicySpec,
+    env_id: str = "SIMS-Sit-v0",
+    episodes: int = 100,
+    seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+    max_episode_steps: int | None = None,
+    progress_bar: bool = False,
+    label: str | None = None,
+) -> Report:
+    """SIMS Table 1 for the skill of ``env_id`` (its ``skill`` keyword, or the one in ``env_kwargs``),
+    as :func:`evaluate_skills` runs it; ``env_kwargs`` go to the skill's env."""
+    kwargs = dict(env_kwargs or {})
+    skill = kwargs.pop("skill", None) or gym.spec(env_id).kwargs.get("skill")
+    return evaluate_skills(policy, skills=[skill], episodes=episodes, seed=seed, env_kwargs=kwargs,
+                           max_episode_steps=max_episode_steps, progress_bar=progress_bar, label=label)
 
 
 # --- Table 2 -------------------------------------------------------------------------------------
@@ -315,7 +291,7 @@ def evaluate_scripts(
     env_kwargs: Mapping[str, Any] | None = None,
     progress_bar: bool = False,
     label: str | None = None,
-) -> SIMSReport:
+) -> Report:
     """SIMS Table 2: run scripts through the state machine; success per difficulty.
 
     | keyword | default | meaning |
@@ -325,7 +301,7 @@ def evaluate_scripts(
     | difficulties | simple, mid, hard | which buckets (``Script.difficulty``) |
     | scripts_per_difficulty | None | the first k scripts of each bucket (None: all) |
     | repeats | 1 | runs per script, each with its own generated room and seed |
-    | settings | None | :class:`~stairenv.stories.machine.MachineSettings` (dwell 1 s, 20 s per keyframe, stop at a failure) |
+    | settings | None | :class:`~stairenv.stories.MachineSettings` (dwell 1 s, 20 s per keyframe, stop at a failure) |
     | room_config | None | ``stairenv.world.rooms.RoomConfig`` for the generated rooms |
     | env_kwargs | None | extra ``SIMSEnv`` keywords (e.g. ``text_encoder="hashing"``) |
 
@@ -381,8 +357,8 @@ def evaluate_scripts(
     machine = asdict(settings or MachineSettings())
     info = {"difficulties": list(difficulties), "scripts_per_difficulty": scripts_per_difficulty, "repeats": repeats,
             "seed": seed, "env_kwargs": dict(env_kwargs or {}), "machine": machine,
-            "policies": {s: describe_policy(p) if isinstance(p, str) else _policy_label(p) for s, p in specs.items()}}
-    return SIMSReport("scripts", label, rows, runs, info)
+            "policies": _policy_names(specs)}
+    return _report("scripts", label, rows, runs, info)
 
 
 # --- printing ------------------------------------------------------------------------------------
@@ -398,40 +374,33 @@ def paper_rows() -> list[dict[str, Any]]:
     return rows
 
 
+#: The rows, CSV and table of SIMS Tables 1 and 2; the published row of the same table and group
+#: stands before ours.
+LAYOUT = Layout(
+    fields=ROW_FIELDS,
+    columns=(
+        Column("Table", "table", text=True), Column("Method", "method", text=True),
+        Column("Group", "group", text=True), Column("n", "n"),
+        Column("Success (%)", "success_pct", 1), Column("Contact err (m)", "contact_error_m", 3),
+        Column("Min err (m)", "min_contact_error_m", 3), Column("Success steps", "success_steps", 2),
+        Column("Fell (%)", "fell_pct", 1), Column("Unstable (%)", "unstable_pct", 1),
+        Column("Timeout (%)", "timeout_pct", 1),
+    ),
+    paper=paper_rows,
+    match=("table", "group"),
+)
+
 def merge_paper_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """``rows`` with the published row of the same table and group placed before each."""
-    paper = {(r["table"], r["group"]): r for r in paper_rows()}
-    merged: list[dict[str, Any]] = []
-    for row in rows:
-        published = paper.pop((row["table"], row["group"]), None)
-        if published is not None:
-            merged.append(published)
-        merged.append(dict(row))
-    return merged
+    return _merge_paper_rows(rows, LAYOUT)
 
 
-def _fmt(value: Any, digits: int) -> str:
-    return "-" if value is None else f"{value:.{digits}f}"
-
-
-def format_rows(rows: Sequence[Mapping[str, Any]]) -> str:
-    """A plain-text table of result rows; "-" where a number is not defined."""
-    header = ("Table", "Method", "Group", "n", "Success (%)", "Contact err (m)", "Min err (m)", "Success steps",
-              "Fell (%)", "Unstable (%)", "Timeout (%)")
-    body = [(str(r["table"]), str(r["method"]), str(r["group"]), "-" if r.get("n") is None else str(r["n"]),
-             _fmt(r.get("success_pct"), 1), _fmt(r.get("contact_error_m"), 3), _fmt(r.get("min_contact_error_m"), 3),
-             _fmt(r.get("success_steps"), 2), _fmt(r.get("fell_pct"), 1), _fmt(r.get("unstable_pct"), 1),
-             _fmt(r.get("timeout_pct"), 1)) for r in rows]
-    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(header)]
-
-    def line(cells: Sequence[str]) -> str:
-        return "  ".join(c.ljust(w) if i < 3 else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))).rstrip()
-
-    return "\n".join([line(header), "-" * len(line(header)), *(line(b) for b in body)])
-
+def _report(table: str, label: str, rows: list[dict[str, Any]], details: list[Any],
+            settings: dict[str, Any]) -> Report:
+    return Report(label, rows, LAYOUT, details, {"table": table, "label": label, "settings": settings})
 
 __all__ = [
-    "PAPER_RESULTS", "PAPER_TRIALS", "ROW_FIELDS", "SKILL_ENV_IDS", "TABLE1_SKILLS",
-    "SIMSReport", "ScriptRun", "SkillEpisode", "evaluate_scripts", "evaluate_skills", "format_rows",
-    "merge_paper_rows", "paper_rows", "script_row", "skill_row", "write_reports",
+    "LAYOUT", "PAPER_RESULTS", "PAPER_TRIALS", "ROW_FIELDS", "SKILL_ENV_IDS", "TABLE1_SKILLS",
+    "ScriptRun", "SkillEpisode", "evaluate", "evaluate_scripts", "evaluate_skills", "merge_paper_rows",
+    "paper_rows", "script_row", "skill_row", "write_reports",
 ]

@@ -1,0 +1,272 @@
+"""Evaluate a path-following policy the way PlaMo does: tracking errors (Table 2), scene episodes
+and the slalom test.
+
+For every terrain (flat, slope, rough, stairs) and locomotion (crawl,
+crouch-walk, walk, run), :func:`tracking_errors` runs ``episodes`` episodes of
+``PlaMo-v0`` with that terrain and paths restricted to that locomotion, and
+reports the mean horizontal (XY) and vertical (Z) distance between the head and
+the path point due at each step, over all steps of all episodes; :func:`evaluate`
+gives them as a :class:`~stairenv.evaluation.report.Report`. Published
+numbers (PlaMo Table 2, e.g. walk on stairs 0.39 / 0.27 m) are in ``PAPER_TABLE2``
+and stand in each row's ``paper_*`` columns.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import stairenv  # noqa: F401  (registers the envs)
+from stairenv.evaluation.policies import load_policy, policy_label
+from stairenv.evaluation.report import Column, Layout, Report
+
+TERRAINS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
+LOCOMOTIONS: tuple[str, ...] = ("crawl", "crouch-walk", "walk", "run")
+#: PlaMo Table 2 (XY, Z head error in m) by (terrain, locomotion); the cells we compare with.
+PAPER_TABLE2: dict[tuple[str, str], tuple[float, float]] = {("stairs", "walk"): (0.39, 0.27)}
+
+#: Columns of the tracking-error rows and their CSV, in order.
+ROW_FIELDS: tuple[str, ...] = (
+    "terrain", "locomotion", "episodes", "steps", "xy_error_m", "z_error_m", "early_termination_pct",
+    "paper_xy_error_m", "paper_z_error_m",
+)
+#: Columns of the scene-episode rows (:func:`scene_episodes`), in order.
+SCENE_FIELDS: tuple[str, ...] = (
+    "label", "episodes", "success_pct", "completion_time_s", "planned_time_s", "replans_per_episode",
+    "waits_per_episode", "replan_failures_per_episode",
+)
+
+
+def _paper_cell(row: Mapping[str, Any]) -> str:
+    if row["paper_xy_error_m"] is None:
+        return "-"
+    return f"{row['paper_xy_error_m']:.2f}/{row['paper_z_error_m']:.2f}"
+
+
+#: The rows, CSV and table of the tracking errors (the published values are columns of the rows).
+LAYOUT = Layout(
+    fields=ROW_FIELDS,
+    columns=(
+        Column("Terrain", "terrain", text=True), Column("Locomotion", "locomotion", text=True),
+        Column("XY err (m)", "xy_error_m", 3), Column("Z err (m)", "z_error_m", 3),
+        Column("ET (%)", "early_termination_pct", 1), Column("Paper XY/Z (m)", show=_paper_cell),
+    ),
+)
+
+#: The rows, CSV and table of scene episodes and the slalom test.
+SCENE_LAYOUT = Layout(
+    fields=SCENE_FIELDS,
+    columns=(
+        Column("Run", "label", text=True), Column("n", "episodes"), Column("Success (%)", "success_pct", 1),
+        Column("Time (s)", "completion_time_s", 2), Column("Planned (s)", "planned_time_s", 2),
+        Column("Replans", "replans_per_episode", 2), Column("Waits", "waits_per_episode", 2),
+        Column("No way", "replan_failures_per_episode", 2),
+    ),
+)
+
+
+def tracking_errors(
+    policy: Callable[[np.ndarray], Any],
+    terrains: Sequence[str] = TERRAINS,
+    locomotions: Sequence[str] = LOCOMOTIONS,
+    episodes: int = 10,
+    seed: int = 0,
+    env_id: str = "PlaMo-v0",
+    max_episode_steps: int | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress_bar: bool = False,
+) -> list[dict[str, Any]]:
+    """One row (:data:`ROW_FIELDS`) per (terrain, locomotion): mean XY and Z error (m), steps,
+    early terminations. ``env_kwargs`` go to every env (``terrain`` and ``locomotion`` are set here)."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    from tqdm.auto import tqdm
+
+    rows = []
+    bar = tqdm(total=episodes * len(terrains) * len(locomotions), desc=f"tracking on {env_id}", unit="ep",
+               disable=not progress_bar)
+    try:
+        for terrain in terrains:
+            for locomotion in locomotions:
+                kwargs: dict[str, Any] = {**(env_kwargs or {}), "terrain": terrain, "locomotion": locomotion}
+                if max_episode_steps is not None:
+                    kwargs["max_episode_steps"] = max_episode_steps
+                env = gym.make(env_id, **kwargs)
+                xy, z, terminated_count = [], [], 0
+                for episode in range(episodes):
+                    if callable(getattr(policy, "reset", None)):
+                        policy.reset(seed + episode)
+                    obs, _ = env.reset(seed=seed + episode)
+                    while True:
+                        obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+                        if not info["physics_unstable"]:
+                            xy.append(info["xy_error"])
+                            z.append(info["z_error"])
+                        if terminated or truncated:
+                            terminated_count += bool(terminated)
+                            break
+                    bar.update(1)
+                env.close()
+                paper = PAPER_TABLE2.get((terrain, locomotion))
+                rows.append({
+                    "terrain": terrain, "locomotion": locomotion, "episodes": episodes, "steps": len(xy),
+                    "xy_error_m": float(np.mean(xy)), "z_error_m": float(np.mean(z)),
+                    "early_termination_pct": 100.0 * terminated_count / episodes,
+                    "paper_xy_error_m": None if paper is None else paper[0],
+                    "paper_z_error_m": None if paper is None else paper[1],
+                })
+    finally:
+        bar.close()
+    return rows
+
+
+def evaluate(
+    policy: Callable[[np.ndarray], Any] | str | os.PathLike,
+    env_id: str = "PlaMo-v0",
+    episodes: int = 10,
+    seed: int = 0,
+    env_kwargs: Mapping[str, Any] | None = None,
+    max_episode_steps: int | None = None,
+    progress_bar: bool = False,
+    label: str | None = None,
+    terrains: Sequence[str] = TERRAINS,
+    locomotions: Sequence[str] = LOCOMOTIONS,
+) -> Report:
+    """PlaMo Table 2: :func:`tracking_errors` of ``policy`` (a callable or a spec for
+    :func:`~stairenv.evaluation.policies.load_policy`) as a report."""
+    label = label or policy_label(policy)
+    if isinstance(policy, (str, os.PathLike)):
+        probe = gym.make(env_id, **(env_kwargs or {}))
+        try:
+            policy = load_policy(os.fspath(policy), probe, seed=seed)
+        finally:
+            probe.close()
+    rows = tracking_errors(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
+                           progress_bar)
+    settings = {"env_id": env_id, "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
+                "max_episode_steps": max_episode_steps}
+    return Report(label, rows, LAYOUT, meta={"table": "tracking", "label": label, "settings": settings})
+
+
+def format_rows(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The table of :func:`tracking_errors` rows."""
+    return Report("", list(rows), LAYOUT).format_table()
+
+
+def write_rows(rows: Sequence[Mapping[str, Any]], csv_path: str | Path | None = None,
+               json_path: str | Path | None = None, label: str = "") -> None:
+    """Write :func:`tracking_errors` rows as CSV and / or the report's JSON."""
+    report = Report(label, list(rows), LAYOUT, meta={"table": "tracking", "label": label})
+    if csv_path is not None:
+        report.to_csv(csv_path)
+    if json_path is not None:
+        report.to_json(json_path)
+
+
+def scene_episodes(
+    policy: Callable[[np.ndarray], Any],
+    episodes: int = 20,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    max_episode_steps: int | None = None,
+    label: str = "",
+) -> dict[str, Any]:
+    """Run ``PlaMoScene-v0`` episodes: success rate, mean completion time of successes, replans
+    (detours and waits), waits, and checks where neither a detour nor a wait avoided the ball."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    make_kwargs = dict(env_kwargs or {})
+    if max_episode_steps is not None:
+        make_kwargs["max_episode_steps"] = max_episode_steps
+    env = gym.make("PlaMoScene-v0", **make_kwargs)
+    successes, times, replans, waits, failures, planned = 0, [], [], [], [], []
+    for episode in range(episodes):
+        if callable(getattr(policy, "reset", None)):
+            policy.reset(seed + episode)
+        obs, info = env.reset(seed=seed + episode)
+        planned.append(info["planned_time"])
+        while True:
+            obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+            if terminated or truncated:
+                break
+        successes += bool(info["success"])
+        if info["success"]:
+            times.append(info["time"])
+        replans.append(info["replans"])
+        waits.append(info["waits"])
+        failures.append(info["replan_failures"])
+    env.close()
+    return {
+        "label": label, "episodes": episodes, "success_pct": 100.0 * successes / episodes,
+        "completion_time_s": float(np.mean(times)) if times else None,
+        "planned_time_s": float(np.mean(planned)), "replans_per_episode": float(np.mean(replans)),
+        "waits_per_episode": float(np.mean(waits)), "replan_failures_per_episode": float(np.mean(failures)),
+    }
+
+
+def slalom_comparison(policy: Callable[[np.ndarray], Any], episodes: int = 10, seed: int = 0,
+                      constant_speeds: Sequence[float] = (1.0, 2.0, 3.0, 4.0),
+                      max_episode_steps: int | None = None) -> list[dict[str, Any]]:
+    """PlaMo's slalom test: the planned (QP) speed profile against constant speeds along the same path."""
+    rows = [scene_episodes(policy, episodes, seed, {"scene_kind": "slalom"}, max_episode_steps, "planned speed")]
+    for speed in constant_speeds:
+        rows.append(scene_episodes(policy, episodes, seed,
+                                   {"scene_kind": "slalom", "speed_profile": "constant", "constant_speed": speed},
+                                   max_episode_steps, f"constant {speed:g} m/s"))
+    return rows
+
+
+def scene_report(rows: Sequence[Mapping[str, Any]], label: str = "", settings: Mapping[str, Any] | None = None
+                 ) -> Report:
+    """Scene-episode rows (:func:`scene_episodes`, :func:`slalom_comparison`) as a report."""
+    return Report(label, list(rows), SCENE_LAYOUT, meta={"table": "scenes", "label": label,
+                                                         "settings": dict(settings or {})})
+
+
+def format_scene_rows(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The table of scene-episode rows."""
+    return scene_report(rows).format_table()
+
+
+def plot_planned_path(env_kwargs: dict[str, Any] | None = None, seed: int = 0, path: str | Path = "plamo_plan.png"):
+    """A top view of a scene with the planned head path coloured by speed (as PlaMo's Fig. 8); returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    env = gym.make("PlaMoScene-v0", **(env_kwargs or {})).unwrapped
+    env.reset(seed=seed)
+    scene, traj = env.scene, env.trajectory
+    xmin, xmax, ymin, ymax = scene.bounds
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.imshow(scene.heights, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="Greys", alpha=0.6)
+    for wall in scene.walls:
+        corners = wall.corners_xy()
+        ax.fill(corners[:, 0], corners[:, 1], color="saddlebrown")
+    for ceiling in scene.ceilings:
+        corners = ceiling.corners_xy()
+        ax.fill(corners[:, 0], corners[:, 1], color="tab:blue", alpha=0.25)
+    for landmark in scene.landmarks:
+        ax.add_patch(plt.Circle(landmark.center, landmark.radius, color="tab:green", alpha=0.5))
+        ax.annotate(landmark.name, landmark.center, ha="center")
+    sc = ax.scatter(traj.xyz[:, 0], traj.xyz[:, 1], c=traj.v, cmap="viridis", s=6)
+    fig.colorbar(sc, ax=ax, label="planned speed (m/s)")
+    ax.set_title(env.instructions_text, fontsize=9)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return Path(path)
+
+
+__all__ = [
+    "LAYOUT", "LOCOMOTIONS", "PAPER_TABLE2", "ROW_FIELDS", "SCENE_FIELDS", "SCENE_LAYOUT", "TERRAINS", "evaluate",
+    "format_rows", "format_scene_rows", "plot_planned_path", "scene_episodes", "scene_report", "slalom_comparison",
+    "tracking_errors", "write_rows",
+]
