@@ -17,6 +17,7 @@ CASES = {
     "bench_sims": ["--steps", "40", "--rounds", "1", "--resets", "3"],
     "bench_planning": ["--rounds", "1", "--no-nx-full", "--crop", "60"],
     "bench_retrieval": ["--rooms", "20", "--stories", "1"],
+    "bench_saturated": ["--steps", "30", "--ids", "InterLevel-v0,SIMS-Lie-v0"],
 }
 
 

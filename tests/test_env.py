@@ -28,7 +28,7 @@ def test_registered_ids():
     assert env.observation_space.shape == (118,)
     assert env.action_space.shape == (28,)
     assert env.unwrapped.dt == pytest.approx(1 / 30)
-    assert env.unwrapped.model.opt.timestep == pytest.approx(1 / 120)
+    assert env.unwrapped.model.opt.timestep == pytest.approx(1 / 240)  # 8 substeps per action
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

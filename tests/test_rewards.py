@@ -597,6 +597,7 @@ def test_env_step_reward_matches_hand_formula():
         got = [info["reward_location"], info["reward_facing"], info["reward_velocity"]]
         np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-14)
         assert got[1] > 0.05 and got[2] > 0.0
-        # at the start the root is not above M_B (standing on the floor): 3-D location reward 0, 2-D positive
-        assert (got[0] > 0.0) == (not progress_scaling)
+        # at the start the root is at M_B's height (standing on the floor; it may settle a few
+        # micrometres up in the first step): 3-D location reward ~0, 2-D clearly positive
+        assert (got[0] > 1e-3) == (not progress_scaling)
         env.close()

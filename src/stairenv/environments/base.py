@@ -20,6 +20,13 @@ from stairenv.validation import check_choice, check_int
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
 
+# Speeds no body of this character reaches while the physics is sound. Saturated
+# actions (bang-bang, clipped Gaussians) peak below ~90 rad/s at the joints and the
+# root stays far below 20 m/s (benchmarks/bench_saturated.py); a state beyond these
+# is a divergence on its way, flagged long before MuJoCo's own 1e10 check fires.
+MAX_JOINT_SPEED = 250.0        # rad/s, every hinge and the root's angular velocity
+MAX_ROOT_SPEED = 50.0          # m/s, the root's linear velocity
+
 
 def check_humanoid_keywords(frame_skip, amp_history, render_mode, width, height,
                             pd_gains: str = "soft") -> tuple[int, int, str | None, int, int]:
@@ -59,7 +66,8 @@ class HumanoidEnv(gym.Env):
       ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it);
       wrong shapes and NaN/inf raise ``ValueError``;
     - ``_simulate`` steps the physics ``frame_skip`` times and reports divergence
-      (MuJoCo resets the data, so the simulation time jumps back);
+      (MuJoCo resets the data, so the simulation time jumps back) or a speed no body
+      reaches (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``), so that no huge state is observed;
     - ``self._amp`` keeps the last ``amp_history`` frames of style features;
     - ``step`` runs the subclass's ``_step`` and hands the step's ``info["amp_obs"]`` (and
       ``info["amp_condition"]`` if any) to the sink set by ``set_amp_sink``: the AMP wrappers
@@ -134,13 +142,20 @@ class HumanoidEnv(gym.Env):
         # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.
         warnings = data.warning
         if (data.time < expected_time - 1e-9 or warnings[_BADQACC].number or warnings[_BADQVEL].number
-                or warnings[_BADQPOS].number):
+                or warnings[_BADQPOS].number or not self._speeds_plausible()):
             self._needs_reset = True
             gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
             return False
         # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
         mujoco.mj_kinematics(self.model, data)
         return True
+
+    def _speeds_plausible(self) -> bool:
+        """False once the character moves faster than its body can (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``)."""
+        qvel = self.data.qvel
+        root = qvel[self._idx.qvel_root]
+        return bool(np.abs(root[:3]).max() <= MAX_ROOT_SPEED and np.abs(root[3:]).max() <= MAX_JOINT_SPEED
+                    and np.abs(qvel[self._idx.qvel_joints]).max() <= MAX_JOINT_SPEED)
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

@@ -105,7 +105,7 @@ class InterLevelEnv(HumanoidEnv):
     | stairs_distance | (2.0, 3.0) | arena centre to the foot of the stairs (m) |
     | stairs_yaw | (0, 2 pi) | ascent direction range (rad) |
     | pd_gains | "soft" | PD gain preset, "soft" or "stiff" |
-    | frame_skip | 4 | physics steps per action (120 Hz physics -> 30 Hz policy) |
+    | frame_skip | 8 | physics steps per action (240 Hz physics -> 30 Hz policy) |
     | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
     | amp_history | 2 | frames of AMP features in ``info["amp_obs"]`` (K x 105, oldest first) |
     | init | "default" | start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid" |
@@ -152,7 +152,7 @@ class InterLevelEnv(HumanoidEnv):
         stairs_distance: tuple[float, float] = (2.0, 3.0),
         stairs_yaw: tuple[float, float] = (0.0, 2.0 * math.pi),
         pd_gains: str = "soft",
-        frame_skip: int = 4,
+        frame_skip: int = 8,
         reset_noise_scale: float = 0.05,
         amp_history: int = 2,
         init: str = "default",

@@ -81,7 +81,7 @@ class PlaMoEnv(HumanoidEnv):
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose, as InterLevel |
-    | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
+    | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
 
@@ -101,7 +101,7 @@ class PlaMoEnv(HumanoidEnv):
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
         pd_gains: str = "soft",
-        frame_skip: int = 4,
+        frame_skip: int = 8,
         amp_history: int = 2,
         render_mode: str | None = None,
         width: int = 640,

@@ -123,7 +123,7 @@ class PlaMoSceneEnv(PlaMoEnv):
         heightmap_size: int = 16,
         heightmap_extent: float = 2.0,
         pd_gains: str = "soft",
-        frame_skip: int = 4,
+        frame_skip: int = 8,
         amp_history: int = 2,
         render_mode: str | None = None,
         width: int = 640,

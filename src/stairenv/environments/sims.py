@@ -237,7 +237,7 @@ class SIMSEnv(HumanoidEnv):
     | fall_height | 0.25 | head height (m) below which the episode ends |
     | terminate_on_success | False | end the episode at the first success |
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states (None: "builtin:sims"; walk and idle clips) |
-    | pd_gains, frame_skip, amp_history | "soft", 4, 2 | as InterLevel |
+    | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
 
@@ -268,7 +268,7 @@ class SIMSEnv(HumanoidEnv):
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
         pd_gains: str = "soft",
-        frame_skip: int = 4,
+        frame_skip: int = 8,
         amp_history: int = 2,
         render_mode: str | None = None,
         width: int = 640,
