@@ -29,12 +29,12 @@ from stairenv.world.rooms import (
     Door,
     Room,
     RoomConfig,
-    _segment_hits_box,
     add_room_to_spec,
     footprint_distance,
     generate_house,
     generate_room,
 )
+from stairenv.world.rooms.graph import _segment_hits_box
 from stairenv.world.scenes import Box
 
 SEEDS = (0, 1, 2, 3)
