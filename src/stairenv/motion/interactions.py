@@ -3,8 +3,9 @@
 No licensed clip shows *our* skeleton sitting down or lying on a bed, so, like the walks and
 stair climbs of :mod:`stairenv.motion.synthesis`, the AMP style reward's interaction clips are
 synthesised: deterministic, pure functions of a few parameters (numpy + scipy; body sizes and
-joint limits read off the compiled ``xml/humanoid.xml``). The legs use synthesis' analytic leg
-IK (``_leg_ik``), the arms an analytic shoulder + elbow IK written here.
+joint limits read off the compiled ``xml/humanoid.xml``). The legs use the analytic leg IK
+shared with synthesis (:func:`stairenv.motion.ik.leg_ik`), the arms an analytic shoulder +
+elbow IK written here.
 
 How the clips are made
 ----------------------
@@ -85,18 +86,9 @@ from scipy.spatial.transform import Rotation
 from stairenv.humanoid import DOF_NAMES, humanoid_model
 from stairenv.humanoid.kinematics import forward_kinematics, lowest_body_point
 from stairenv.motion.clip import MotionClip
-from stairenv.motion.synthesis import (
-    _FLAT,
-    _SIDE_SIGN,
-    _SOLE_GAP,
-    LEFT,
-    RIGHT,
-    _clip_meta,
-    _dof,
-    _leg_ik,
-    _smoothstep,
-    leg_geometry,
-)
+from stairenv.motion.contacts import FLAT, clip_meta
+from stairenv.motion.ik import LEFT, RIGHT, SIDE_SIGN, SOLE_GAP, dof_index, leg_geometry, leg_ik
+from stairenv.motion.profiles import smoothstep
 from stairenv.validation import check_choice, check_number
 
 __all__ = [
@@ -113,7 +105,7 @@ __all__ = [
 SOURCE = "stairenv.motion.interactions"
 SKILLS: tuple[str, ...] = ("sit", "lie", "reach", "getup", "idle")
 
-_REST_GAP = _SOLE_GAP          # resting bodies float this far above the furniture (m)
+_REST_GAP = SOLE_GAP           # resting bodies float this far above the furniture (m)
 _STAND_HEIGHT = 0.87           # pelvis height standing still (knees slightly soft)
 _STAND_PELVIS_AHEAD = 0.03     # pelvis this far ahead of the ankles standing (over mid-foot)
 _RANGE_TOLERANCE = math.radians(0.5)
@@ -162,7 +154,7 @@ def _ramp(t: np.ndarray, start: float, end: float) -> np.ndarray:
     """Quintic 0 -> 1 over [start, end] (a step at ``start`` if the interval is empty)."""
     if end <= start:
         return (np.asarray(t) >= start).astype(float)
-    return _smoothstep((np.asarray(t, dtype=float) - start) / (end - start))
+    return smoothstep((np.asarray(t, dtype=float) - start) / (end - start))
 
 
 def _bump(t: np.ndarray, start: float, peak: float, end: float) -> np.ndarray:
@@ -213,7 +205,7 @@ def _torso_frame(pelvis_pos: np.ndarray, pelvis_rot: Rotation, abdomen: np.ndarr
 
 
 def _shoulder_world(torso_pos: np.ndarray, torso_rot: Rotation, side: int) -> np.ndarray:
-    offset = _body().shoulder * np.array([1.0, _SIDE_SIGN[side], 1.0])
+    offset = _body().shoulder * np.array([1.0, SIDE_SIGN[side], 1.0])
     return torso_pos + torso_rot.apply(offset)
 
 
@@ -245,7 +237,7 @@ def _arm_ik(target: np.ndarray, torso_pos: np.ndarray, torso_rot: Rotation, side
     elbow = -np.arccos(np.clip((dist**2 - l1**2 - l2**2) / (2.0 * l1 * l2), -1.0, 1.0))
     s = (l1**2 - l2**2 + dist**2) / (2.0 * dist)          # elbow circle: centre s d, radius rho
     rho = np.sqrt(np.maximum(l1**2 - s**2, 0.0))
-    hint = np.broadcast_to(np.asarray(elbow_hint, dtype=float), d.shape) * np.array([1.0, _SIDE_SIGN[side], 1.0])
+    hint = np.broadcast_to(np.asarray(elbow_hint, dtype=float), d.shape) * np.array([1.0, SIDE_SIGN[side], 1.0])
     w = hint - np.sum(d * hint, axis=1)[:, None] * d                      # elbow direction, perpendicular to d
     w /= np.maximum(np.linalg.norm(w, axis=1), 1e-9)[:, None]
     u = (s[:, None] * d + rho[:, None] * w) / l1             # shoulder -> elbow
@@ -261,9 +253,9 @@ def _hang_arms(joints: np.ndarray, lean: np.ndarray | float = 0.0) -> None:
     """Arms relaxed: slightly abducted, elbows soft, hanging roughly vertical under a trunk
     leaning forward by ``lean`` (rad)."""
     for name, sign in (("right", -1.0), ("left", 1.0)):
-        joints[:, _dof(f"{name}_shoulder_x")] = sign * 0.10
-        joints[:, _dof(f"{name}_shoulder_y")] = -0.7 * np.asarray(lean)
-        joints[:, _dof(f"{name}_elbow")] = -0.25
+        joints[:, dof_index(f"{name}_shoulder_x")] = sign * 0.10
+        joints[:, dof_index(f"{name}_shoulder_y")] = -0.7 * np.asarray(lean)
+        joints[:, dof_index(f"{name}_elbow")] = -0.25
 
 
 # --- legs ----------------------------------------------------------------------------------------
@@ -275,16 +267,16 @@ def _solve_legs(joints: np.ndarray, pelvis_pos: np.ndarray, pelvis_rot: Rotation
     for side, name in ((RIGHT, "right"), (LEFT, "left")):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            hip, knee, ankle = _leg_ik(pelvis_pos, pelvis_rot, ankles[:, side], foot_rots[side], side)
+            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, ankles[:, side], foot_rots[side], side)
         # Per frame, the Euler solution nearest to pure flexion by the thigh's sagittal angle.
         hip_rot = _xyz(hip)
         thigh = hip_rot.apply(np.array([0.0, 0.0, -1.0]))
         flexion = np.arctan2(-thigh[:, 0], -thigh[:, 2])
         hip = _euler_near_reference(hip_rot, np.column_stack((np.zeros_like(flexion), flexion,
                                                               np.zeros_like(flexion))))
-        joints[:, _dof(f"{name}_hip_x"):_dof(f"{name}_hip_z") + 1] = hip
-        joints[:, _dof(f"{name}_knee")] = knee
-        joints[:, _dof(f"{name}_ankle_x"):_dof(f"{name}_ankle_z") + 1] = ankle
+        joints[:, dof_index(f"{name}_hip_x"):dof_index(f"{name}_hip_z") + 1] = hip
+        joints[:, dof_index(f"{name}_knee")] = knee
+        joints[:, dof_index(f"{name}_ankle_x"):dof_index(f"{name}_ankle_z") + 1] = ankle
 
 
 def _planted_ankles(feet_x: float, count: int) -> np.ndarray:
@@ -292,7 +284,7 @@ def _planted_ankles(feet_x: float, count: int) -> np.ndarray:
     geo = leg_geometry()
     ankles = np.empty((count, 2, 3))
     for side in (RIGHT, LEFT):
-        ankles[:, side] = (feet_x, _SIDE_SIGN[side] * geo.hip_offset[1], _SOLE_GAP + geo.ankle_to_sole)
+        ankles[:, side] = (feet_x, SIDE_SIGN[side] * geo.hip_offset[1], SOLE_GAP + geo.ankle_to_sole)
     return ankles
 
 
@@ -328,8 +320,8 @@ def _frame_ranges(mask: np.ndarray) -> list[list[int]]:
 def _meta(generator: str, params: dict, skill: str, text: str, feet_planted: np.ndarray,
           **extra) -> dict:
     """synthesis' clip meta (stance frames from the feet planted flat) plus text and skill."""
-    contact = np.where(np.asarray(feet_planted, dtype=bool), _FLAT, 0)
-    return {**_clip_meta(generator, params, contact, **extra), "text": text, "skill": skill}
+    contact = np.where(np.asarray(feet_planted, dtype=bool), FLAT, 0)
+    return {**clip_meta(generator, params, contact, **extra), "text": text, "skill": skill}
 
 
 def _box(front_x: float, top: float, depth: float, width: float, centre_y: float = 0.0) -> dict:
@@ -403,7 +395,7 @@ def _seat_pose(seat_height: float, sit_depth: float) -> _Seat:
     shin_c, shin_h = float(-model.geom("left_shin").pos[2]), float(model.geom("left_shin").size[1])
     l1, l2 = geo.thigh, geo.shin
     pelvis_z = seat_height + body.pelvis_radius + _REST_GAP
-    ankle_z = _SOLE_GAP + geo.ankle_to_sole
+    ankle_z = SOLE_GAP + geo.ankle_to_sole
     xs_grid = -np.arange(0.0, 0.6, 0.001)
     best = None
     for beta in np.linspace(-0.5, 0.5, 201):
@@ -445,7 +437,7 @@ def _seated_along(seat: _Seat) -> float:
     pos = np.array([[seat.pelvis_x, 0.0, seat.pelvis_z]])
     rot, joints = _trunk(np.array([_SEAT_LEAN["thighs"]]))
     _solve_legs(joints, pos, rot, _planted_ankles(seat.feet_x, 1), _flat_feet(1))
-    torso_pos, torso_rot = _torso_frame(pos, rot, joints[:, _dof("abdomen_x"):_dof("abdomen_z") + 1])
+    torso_pos, torso_rot = _torso_frame(pos, rot, joints[:, dof_index("abdomen_x"):dof_index("abdomen_z") + 1])
     reach = _ARM_SOFT * (_body().upper_arm + _body().forearm)
     shoulder = _shoulder_world(torso_pos, torso_rot, RIGHT)
     for along in np.arange(0.5, 0.195, -0.02):
@@ -475,8 +467,8 @@ def _trunk(lean: np.ndarray, pelvis_share: float = 0.55) -> tuple[Rotation, np.n
     with the rest of the lean in the abdomen, the head looking a little down, arms hanging."""
     joints = np.zeros((len(lean), len(DOF_NAMES)))
     rot = Rotation.from_euler("y", (pelvis_share * lean)[:, None])
-    joints[:, _dof("abdomen_y")] = (1.0 - pelvis_share) * lean
-    joints[:, _dof("neck_y")] = _STANDING_GAZE - 0.6 * lean
+    joints[:, dof_index("abdomen_y")] = (1.0 - pelvis_share) * lean
+    joints[:, dof_index("neck_y")] = _STANDING_GAZE - 0.6 * lean
     _hang_arms(joints, lean)
     return rot, joints
 
@@ -491,15 +483,15 @@ def _rest_targets(joints: np.ndarray, pelvis_pos: np.ndarray, pelvis_rot: Rotati
     if hands == "seat":
         # Beside the hips, moving with the pelvis (the hands help it slide on the seat).
         return np.column_stack((pelvis_pos[:, 0] + _SEAT_HAND[0],
-                                np.full(len(pelvis_pos), _SIDE_SIGN[side] * _SEAT_HAND[1]),
+                                np.full(len(pelvis_pos), SIDE_SIGN[side] * _SEAT_HAND[1]),
                                 np.full(len(pelvis_pos), seat.height + body.hand_radius + _REST_GAP)))
     name = ("right", "left")[side]
     rest = float(humanoid_model().geom("left_thigh").size[0]) + body.hand_radius + _REST_GAP
-    hip = pelvis_pos + pelvis_rot.apply(geo.hip_offset * np.array([1.0, _SIDE_SIGN[side], 1.0]))
-    thigh_rot = pelvis_rot * _xyz(joints[:, _dof(f"{name}_hip_x"):_dof(f"{name}_hip_z") + 1])
+    hip = pelvis_pos + pelvis_rot.apply(geo.hip_offset * np.array([1.0, SIDE_SIGN[side], 1.0]))
+    thigh_rot = pelvis_rot * _xyz(joints[:, dof_index(f"{name}_hip_x"):dof_index(f"{name}_hip_z") + 1])
     along = thigh_rot.apply(np.array([0.0, 0.0, -1.0]))
     up = thigh_rot.apply(np.array([1.0, 0.0, 0.0]))  # the thigh's top side when flexed 90 deg
-    outward = thigh_rot.apply(np.array([0.0, _SIDE_SIGN[side], 0.0]))
+    outward = thigh_rot.apply(np.array([0.0, SIDE_SIGN[side], 0.0]))
     share = np.reshape(np.asarray(along_thigh, dtype=float), (-1, 1))
     return hip + share * geo.thigh * along + rest * up + 0.01 * outward
 
@@ -509,15 +501,16 @@ def _rest_hands(joints: np.ndarray, pelvis_pos: np.ndarray, pelvis_rot: Rotation
                 along_thigh: np.ndarray | float = 0.5, lift: np.ndarray | float = 0.0) -> None:
     """Blend the arms (by ``weight`` per frame) from their current angles to the hands at their
     resting place (:func:`_rest_targets`, raised by ``lift``, m; per-frame IK)."""
-    torso_pos, torso_rot = _torso_frame(pelvis_pos, pelvis_rot, joints[:, _dof("abdomen_x"):_dof("abdomen_z") + 1])
+    torso_pos, torso_rot = _torso_frame(pelvis_pos, pelvis_rot,
+                                        joints[:, dof_index("abdomen_x"):dof_index("abdomen_z") + 1])
     for side, name in ((RIGHT, "right"), (LEFT, "left")):
         target = _rest_targets(joints, pelvis_pos, pelvis_rot, side, hands, seat, along_thigh)
         target = target + np.reshape(np.asarray(lift, dtype=float), (-1, 1)) * np.array([0.0, 0.0, 1.0])
-        cols = slice(_dof(f"{name}_shoulder_x"), _dof(f"{name}_shoulder_z") + 1)
+        cols = slice(dof_index(f"{name}_shoulder_x"), dof_index(f"{name}_shoulder_z") + 1)
         shoulder, elbow = _arm_ik(target, torso_pos, torso_rot, side, start=joints[0, cols])
         w = np.asarray(weight, dtype=float)[:, None]
         joints[:, cols] = (1.0 - w) * joints[:, cols] + w * shoulder
-        e = _dof(f"{name}_elbow")
+        e = dof_index(f"{name}_elbow")
         joints[:, e] = (1.0 - w[:, 0]) * joints[:, e] + w[:, 0] * elbow
 
 
@@ -527,8 +520,8 @@ def _sit_path(seat: _Seat, u: np.ndarray, x_lead: float = 0.8) -> np.ndarray:
     path), so the pelvis comes down onto the seat from above."""
     start = np.array([seat.feet_x + _STAND_PELVIS_AHEAD, 0.0, _STAND_HEIGHT])
     end = np.array([_transfer_x(seat), 0.0, seat.pelvis_z])
-    x = start[0] + (end[0] - start[0]) * _smoothstep(u / x_lead)
-    z = start[2] + (end[2] - start[2]) * _smoothstep(u)
+    x = start[0] + (end[0] - start[0]) * smoothstep(u / x_lead)
+    z = start[2] + (end[2] - start[2]) * smoothstep(u)
     return np.column_stack((x, np.zeros_like(x), z))
 
 
@@ -769,13 +762,14 @@ def _lie_clip(surface_height: float, lie_offset: float, pillow_height: float, si
     pelvis_rot = Rotation.from_euler("ZY", np.column_stack((yaw, pitch)))
     joints = np.zeros((count, len(DOF_NAMES)))
     seated_abdomen = 0.45 * seat_lean
-    joints[:, _dof("abdomen_y")] = (seated_abdomen + (0.12 - seated_abdomen) * _ramp(s, 0.0, 0.6)) * (1.0 - b)
+    joints[:, dof_index("abdomen_y")] = (seated_abdomen + (0.12 - seated_abdomen) * _ramp(s, 0.0, 0.6)) * (1.0 - b)
     seated_neck = _STANDING_GAZE - 0.6 * seat_lean
-    joints[:, _dof("neck_y")] = (seated_neck + (0.25 - seated_neck) * _ramp(s, 0.0, 0.6)) * (1.0 - b) + lie_neck * b
+    joints[:, dof_index("neck_y")] = ((seated_neck + (0.25 - seated_neck) * _ramp(s, 0.0, 0.6)) * (1.0 - b)
+                                      + lie_neck * b)
 
     # Legs, in the heading frame: lift the feet (knees up), swing round with the pelvis, extend
     # onto the surface. The lying leg pose (ankle height) is solved so that the legs rest on it.
-    ankle_z0 = _SOLE_GAP + geo.ankle_to_sole
+    ankle_z0 = SOLE_GAP + geo.ankle_to_sole
     f0 = seat.feet_x - seat.pelvis_x
     f_end = _LIE_HIP_ANKLE                        # the resting ankle is about level with the hip
     lift_z = surface_height + _FOOT_LIFT + 0.07   # ankle high enough for the foot to clear the top
@@ -784,14 +778,14 @@ def _lie_clip(surface_height: float, lie_offset: float, pillow_height: float, si
         forward = f0 + (f_end - f0) * _ramp(s, 0.05, 0.8)
         z = ankle_z0 + (lift_z - ankle_z0) * _ramp(s, 0.0, 0.4) + (z_end - lift_z) * _ramp(s, 0.6, 1.0)
         ankles = np.stack([_heading_point(pelvis_pos[:, :2], yaw, forward,
-                                          np.full(count, _SIDE_SIGN[side] * geo.hip_offset[1]), z)
+                                          np.full(count, SIDE_SIGN[side] * geo.hip_offset[1]), z)
                            for side in (RIGHT, LEFT)], axis=1)
         feet = Rotation.from_euler("z", yaw[:, None])
         out = joints.copy()
         _solve_legs(out, pelvis_pos, pelvis_rot, ankles, [feet, feet])
         relax = _ramp(s, 0.0, 0.4)
         for name in ("right", "left"):
-            a = _dof(f"{name}_ankle_y")
+            a = dof_index(f"{name}_ankle_y")
             out[:, a] = (1.0 - relax) * out[:, a] + relax * _LIE_ANKLE
         return out
 
@@ -809,15 +803,16 @@ def _lie_clip(surface_height: float, lie_offset: float, pillow_height: float, si
 
     # Hands: from the thighs to the surface beside and behind the hips (moving with the heading),
     # then beside the hips as the body lies back; lifted a little while they move.
-    torso_pos, torso_rot = _torso_frame(pelvis_pos, pelvis_rot, joints[:, _dof("abdomen_x"):_dof("abdomen_z") + 1])
+    torso_pos, torso_rot = _torso_frame(pelvis_pos, pelvis_rot,
+                                        joints[:, dof_index("abdomen_x"):dof_index("abdomen_z") + 1])
     hand_z = surface_height + body.hand_radius + _REST_GAP
     to_support = _ramp(s, 0.0, 0.45)
     seated = _seated_frame(seat)[2]
     for side, name in ((RIGHT, "right"), (LEFT, "left")):
-        cols = slice(_dof(f"{name}_shoulder_x"), _dof(f"{name}_shoulder_z") + 1)
+        cols = slice(dof_index(f"{name}_shoulder_x"), dof_index(f"{name}_shoulder_z") + 1)
         thigh_hand = _rest_targets(joints, pelvis_pos, pelvis_rot, side, along_thigh=_seated_along(seat))
         forward = _SUPPORT_HAND[0] + (_LYING_HAND[0] - _SUPPORT_HAND[0]) * b
-        lateral = _SIDE_SIGN[side] * (_SUPPORT_HAND[1] + (_LYING_HAND[1] - _SUPPORT_HAND[1]) * b)
+        lateral = SIDE_SIGN[side] * (_SUPPORT_HAND[1] + (_LYING_HAND[1] - _SUPPORT_HAND[1]) * b)
         support = _heading_point(pelvis_pos[:, :2], yaw, forward, lateral, np.full(count, hand_z))
         target = (1.0 - to_support)[:, None] * thigh_hand + to_support[:, None] * support
         moving = (_bump(s, 0.0, 0.2, 0.45) + 0.5 * _bump(s, 0.25, 0.55, 0.9)
@@ -827,7 +822,7 @@ def _lie_clip(surface_height: float, lie_offset: float, pillow_height: float, si
         hint = (1.0 - b)[:, None] * np.array([-1.0, 0.5, -0.5]) + b[:, None] * np.array([-0.5, 1.0, 0.0])
         shoulder, elbow = _arm_ik(target, torso_pos, torso_rot, side, start=seated[0, cols], elbow_hint=hint)
         joints[:, cols] = shoulder
-        joints[:, _dof(f"{name}_elbow")] = elbow
+        joints[:, dof_index(f"{name}_elbow")] = elbow
     qpos = _qpos(pelvis_pos, pelvis_rot, joints, "lie_down")
     planted = times <= t0
     qpos.setflags(write=False)     # cached: callers copy
@@ -914,8 +909,8 @@ def _reach_posture(target: np.ndarray, side: int) -> dict:
     squats = np.arange(0.0, 0.451, 0.025)
     lean, squat = (g.ravel() for g in np.meshgrid(leans, squats))
     count = len(lean)
-    ankle_z = _SOLE_GAP + geo.ankle_to_sole
-    shoulder_y = _SIDE_SIGN[side] * body.shoulder[1]
+    ankle_z = SOLE_GAP + geo.ankle_to_sole
+    shoulder_y = SIDE_SIGN[side] * body.shoulder[1]
     yaw = float(np.clip(0.5 * math.atan2(target[1] - shoulder_y, max(target[0], 0.05)), -0.5, 0.5))  # preferred
 
     def pose(shift: np.ndarray) -> tuple[np.ndarray, Rotation, np.ndarray]:
@@ -924,8 +919,8 @@ def _reach_posture(target: np.ndarray, side: int) -> dict:
         pos[:, 2] = np.minimum(pos[:, 2], reach)
         rot = Rotation.from_euler("y", (0.5 * lean)[:, None])
         joints = np.zeros((count, len(DOF_NAMES)))
-        joints[:, _dof("abdomen_y")] = 0.5 * lean
-        joints[:, _dof("abdomen_z")] = yaw
+        joints[:, dof_index("abdomen_y")] = 0.5 * lean
+        joints[:, dof_index("abdomen_z")] = yaw
         _hang_arms(joints, lean)
         _solve_legs(joints, pos, rot, _planted_ankles(_STAND_ANKLE_X, count), _flat_feet(count))
         return pos, rot, joints
@@ -942,7 +937,7 @@ def _reach_posture(target: np.ndarray, side: int) -> dict:
     yaws = np.clip(yaw + np.linspace(-0.6, 0.6, 13), -_MAX_THORAX_YAW, _MAX_THORAX_YAW)
     best = None
     for turn in np.unique(yaws):
-        abdomen = joints[:, _dof("abdomen_x"):_dof("abdomen_z") + 1].copy()
+        abdomen = joints[:, dof_index("abdomen_x"):dof_index("abdomen_z") + 1].copy()
         abdomen[:, 2] = turn
         torso_pos, torso_rot = _torso_frame(pos, rot, abdomen)
         dist = np.linalg.norm(target - _shoulder_world(torso_pos, torso_rot, side), axis=1) / arm
@@ -961,7 +956,7 @@ def _reach_posture(target: np.ndarray, side: int) -> dict:
                          f"reach from a standing pose (closest {closest:.2f} m from the shoulder; it reaches "
                          f"{_REACH_LIMIT * arm:.2f} m)")
     goal = joints[k].copy()
-    goal[_dof("abdomen_z")] = turn
+    goal[dof_index("abdomen_z")] = turn
     return {"lean": float(lean[k]), "squat": float(squat[k]), "shift": float(shift[k]), "yaw": turn,
             "pelvis": pos[k], "joints": goal}
 
@@ -1007,23 +1002,24 @@ def reach(target: Sequence[float] = (0.45, -0.2, 1.1), hand: str = "right", reac
     lean = posture["lean"] * w
     rot = Rotation.from_euler("y", (0.5 * lean)[:, None])
     rest = np.zeros((1, len(DOF_NAMES)))
-    rest[:, _dof("neck_y")] = _STANDING_GAZE
+    rest[:, dof_index("neck_y")] = _STANDING_GAZE
     _hang_arms(rest)
     goal = posture["joints"].copy()
     # The arm's final pose, solved for the final trunk; the head looks at the target.
     goal_pos = posture["pelvis"][None]
     goal_rot = Rotation.from_euler("y", [[0.5 * posture["lean"]]])
-    torso_pos, torso_rot = _torso_frame(goal_pos, goal_rot, goal[None, _dof("abdomen_x"):_dof("abdomen_z") + 1])
+    torso_pos, torso_rot = _torso_frame(goal_pos, goal_rot,
+                                        goal[None, dof_index("abdomen_x"):dof_index("abdomen_z") + 1])
     name_side = hand
-    cols = slice(_dof(f"{name_side}_shoulder_x"), _dof(f"{name_side}_shoulder_z") + 1)
+    cols = slice(dof_index(f"{name_side}_shoulder_x"), dof_index(f"{name_side}_shoulder_z") + 1)
     shoulder, elbow = _arm_ik(target[None], torso_pos, torso_rot, side, start=rest[0, cols])
     goal[cols] = shoulder[0]
-    goal[_dof(f"{name_side}_elbow")] = elbow[0]
+    goal[dof_index(f"{name_side}_elbow")] = elbow[0]
     head = torso_pos[0] + torso_rot[0].apply(_body().neck)
     look = target - head
     look_down = math.atan2(-look[2], math.hypot(look[0], look[1]))
-    goal[_dof("neck_y")] = float(np.clip(look_down - posture["lean"], -0.6, 0.9))
-    goal[_dof("neck_z")] = float(np.clip(math.atan2(look[1], look[0]) - posture["yaw"], -0.6, 0.6))
+    goal[dof_index("neck_y")] = float(np.clip(look_down - posture["lean"], -0.6, 0.9))
+    goal[dof_index("neck_z")] = float(np.clip(math.atan2(look[1], look[0]) - posture["yaw"], -0.6, 0.6))
     joints = rest + w[:, None] * (goal - rest[0])[None]
     _solve_legs(joints, pos, rot, ankles, _flat_feet(count))
     qpos = _qpos(pos, rot, joints, "reach")
@@ -1061,11 +1057,11 @@ def idle(duration: float = 4.0, fps: float = 30.0, breathing_period: float = 4.0
     pos[:, 2] += -0.001 - 0.001 * breath
     rot = Rotation.from_euler("y", np.full((len(times), 1), 0.02))
     joints = np.zeros((len(times), len(DOF_NAMES)))
-    joints[:, _dof("abdomen_y")] = 0.02 - 0.012 * breath
-    joints[:, _dof("neck_y")] = _STANDING_GAZE - 0.04 + 0.012 * breath
+    joints[:, dof_index("abdomen_y")] = 0.02 - 0.012 * breath
+    joints[:, dof_index("neck_y")] = _STANDING_GAZE - 0.04 + 0.012 * breath
     _hang_arms(joints)
     for name_side in ("right", "left"):
-        joints[:, _dof(f"{name_side}_shoulder_y")] += 0.02 * breath
+        joints[:, dof_index(f"{name_side}_shoulder_y")] += 0.02 * breath
     _solve_legs(joints, pos, rot, ankles, _flat_feet(len(times)))
     qpos = _qpos(pos, rot, joints, "idle")
     qpos[-1] = qpos[0]

@@ -33,7 +33,7 @@ reference clips are synthesised here, as pure functions of a few parameters
    monotone (non-decreasing up, non-increasing down) and equal, over the ground, on
    the flat before and after the flight; then smoothed from below (erosion and a
    Gaussian of no wider support), so it never asks a leg for more than it reaches.
-5. **Inverse kinematics.** Analytic two-link legs: knee flexion from the hip-ankle
+5. **Inverse kinematics** (:mod:`stairenv.motion.ik`). Analytic two-link legs: knee flexion from the hip-ankle
    distance, the thigh turned so that the knee hinge axis is parallel to the foot's
    lateral axis (knees point where the feet point and bend forward), the ankle from
    the remaining rotation so the foot has exactly the orientation planned. The swing
@@ -92,7 +92,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -100,8 +99,11 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import gaussian_filter1d, minimum_filter1d
 from scipy.spatial.transform import Rotation
 
-from stairenv.humanoid import DOF_NAMES, FOOT_BODIES, humanoid_model
+from stairenv.humanoid import DOF_NAMES
 from stairenv.motion.clip import MotionClip
+from stairenv.motion.contacts import FLAT, PUSH_OFF, SWINGING, clip_meta
+from stairenv.motion.ik import LEFT, RIGHT, SIDE_SIGN, SOLE_GAP, LegGeometry, dof_index, leg_geometry, leg_ik
+from stairenv.motion.profiles import bump, smoothstep
 
 __all__ = [
     "GaitTiming",
@@ -117,13 +119,7 @@ __all__ = [
 
 SOURCE = "stairenv.motion.synthesis"
 
-# Sides, in FOOT_BODIES order.
-RIGHT, LEFT = 0, 1
-_SIDE_SIGN = np.array([-1.0, 1.0])  # lateral (y) sign of each side
-
 # Gait constants (documented in the generators' docstrings).
-_LEG_EXTENSION = 0.993          # hip-ankle distance never exceeds this share of thigh + shin
-_SOLE_GAP = 0.002               # planted soles float this far above the ground (no initial penetration)
 _RISER_GAP = 0.015              # least gap between a rolling or lifting foot and the riser ahead (m)
 _HORIZONTAL_CLEARANCE = 0.02    # a moving swing foot, widened by this front and back, clears the edges (m)
 _WALK_PELVIS_HEIGHT = 0.865     # nominal pelvis height over flat ground at mid-stance (m)
@@ -141,79 +137,6 @@ _THORAX_COUNTER_ROLL = 0.8      # abdomen x = -this * pelvic roll (the thorax st
 _HEIGHT_SMOOTHING = 0.12        # s; half-width of the pelvis-height smoothing window
 _LEAN_SMOOTHING = 0.35          # s; sigma of the walk-to-stairs blend of lean and gaze
 _RANGE_TOLERANCE = math.radians(0.5)  # joint-limit excursions clipped silently; larger ones raise
-
-
-# --- the body ------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class LegGeometry:
-    """The leg and foot dimensions the synthesis needs, read off the compiled humanoid (metres).
-
-    ``hip_offset`` is the left hip joint in the pelvis frame (the right one mirrors it in y);
-    the knee sits ``thigh`` below the hip, the ankle ``shin`` below the knee (zero pose), the
-    sole ``ankle_to_sole`` below the ankle and the top of the foot box ``foot_box_top`` above
-    it. Along the foot, the toe tip is ``toe`` ahead of the ankle, the heel ``heel`` behind it
-    and the foot box centre ``foot_centre`` ahead of it. ``dof_low``/``dof_high`` are the 28
-    joint limits (rad) in ``DOF_NAMES`` order.
-    """
-
-    hip_offset: np.ndarray
-    thigh: float
-    shin: float
-    ankle_to_sole: float
-    toe: float
-    heel: float
-    foot_box_top: float
-    foot_centre: float
-    dof_low: np.ndarray
-    dof_high: np.ndarray
-
-    @property
-    def foot_length(self) -> float:
-        return self.toe + self.heel
-
-    @property
-    def max_leg_length(self) -> float:
-        """Longest hip-ankle distance the synthesis uses (knee never locked straight)."""
-        return _LEG_EXTENSION * (self.thigh + self.shin)
-
-
-@lru_cache(maxsize=1)
-def leg_geometry() -> LegGeometry:
-    """The humanoid's leg geometry and joint limits (from ``xml/humanoid.xml``; cached)."""
-    model = humanoid_model()
-    hip = model.body("left_thigh").pos.copy()
-    knee = model.body("left_shin").pos
-    ankle = model.body("left_foot").pos
-    foot = model.geom("left_foot")
-    # The two-link IK assumes a straight vertical leg in the zero pose, the pelvis-height bound
-    # hips level with the pelvis origin.
-    if not (np.allclose(knee[:2], 0.0) and np.allclose(ankle[:2], 0.0) and np.allclose(hip[[0, 2]], 0.0)):
-        raise RuntimeError("synthesis assumes hips level with the pelvis and straight vertical legs")
-    ranges = np.array([model.jnt_range[model.joint(name).id] for name in DOF_NAMES])
-    return LegGeometry(
-        hip_offset=hip,
-        thigh=float(-knee[2]),
-        shin=float(-ankle[2]),
-        ankle_to_sole=float(-(foot.pos[2] - foot.size[2])),
-        toe=float(foot.pos[0] + foot.size[0]),
-        heel=float(foot.size[0] - foot.pos[0]),
-        foot_box_top=float(foot.pos[2] + foot.size[2]),
-        foot_centre=float(foot.pos[0]),
-        dof_low=ranges[:, 0].copy(),
-        dof_high=ranges[:, 1].copy(),
-    )
-
-
-def _dof(name: str) -> int:
-    """Column of a DoF in the 28 joint angles."""
-    return DOF_NAMES.index(name)
-
-
-# --- smooth profiles -----------------------------------------------------------------------------
-def _smoothstep(u: np.ndarray) -> np.ndarray:
-    """Quintic 0 -> 1 on [0, 1] with zero slope and curvature at both ends (clamped outside)."""
-    u = np.clip(u, 0.0, 1.0)
-    return u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
 
 
 # --- terrain -------------------------------------------------------------------------------------
@@ -278,8 +201,8 @@ class _GaitPlan:
         n = len(xs)
         sides = (first_side + np.arange(n)) % 2
         # Lateral placement: the sides swap when facing -x (left is then -y in the world).
-        ys = _SIDE_SIGN[sides] * facing * 0.5 * step_width
-        ankles = np.stack((xs, ys, soles + _SOLE_GAP + geo.ankle_to_sole), axis=1)
+        ys = SIDE_SIGN[sides] * facing * 0.5 * step_width
+        ankles = np.stack((xs, ys, soles + SOLE_GAP + geo.ankle_to_sole), axis=1)
         touchdown = np.concatenate(([0.0], np.cumsum(durations)))
         heel_off = np.full(n, np.inf)
         heel_off[:-1] = touchdown[1:] - heel_off_lead * durations
@@ -363,10 +286,10 @@ class _Swing:
 
     def ankle(self, phase: np.ndarray) -> np.ndarray:
         phase = np.clip(phase, 0.0, 1.0)
-        progress = _smoothstep((phase - self.move_start) / (self.move_end - self.move_start))
+        progress = smoothstep((phase - self.move_start) / (self.move_end - self.move_start))
         out = self.start + (self.end - self.start) * progress[:, None]
-        out[:, 2] = self.start[2] + (self.end[2] - self.start[2]) * _smoothstep(phase)
-        out[:, 2] += self.lift * _bump(phase, self.bump_share)
+        out[:, 2] = self.start[2] + (self.end[2] - self.start[2]) * smoothstep(phase)
+        out[:, 2] += self.lift * bump(phase, self.bump_share)
         return out
 
     def pitch(self, phase: np.ndarray) -> np.ndarray:
@@ -376,7 +299,7 @@ class _Swing:
 def _default_swing_pitch(start_pitch: float) -> np.ndarray:
     """First-guess swing pitch: the push-off angle relaxing to flat over the first
     ``_SWING_PITCH_SHARE`` of the swing (refined from the legs' posture, see ``_synthesise``)."""
-    return start_pitch * (1.0 - _smoothstep(_SWING_SAMPLES / _SWING_PITCH_SHARE))
+    return start_pitch * (1.0 - smoothstep(_SWING_SAMPLES / _SWING_PITCH_SHARE))
 
 
 def _relaxed_swing_pitch(start_pitch: float, shin_pitch: np.ndarray) -> np.ndarray:
@@ -384,14 +307,10 @@ def _relaxed_swing_pitch(start_pitch: float, shin_pitch: np.ndarray) -> np.ndarr
     pitch a foot square to the shin would have, sampled at ``_SWING_SAMPLES``), blended from
     the push-off angle after lift-off and to flat before touch-down."""
     relaxed = np.clip(shin_pitch + _SWING_ANKLE, -_SWING_PITCH_LIMIT, _SWING_PITCH_LIMIT)
-    after_lift = _smoothstep(_SWING_SAMPLES / _SWING_RELAX_SHARE)
+    after_lift = smoothstep(_SWING_SAMPLES / _SWING_RELAX_SHARE)
     flatten_from, flat_by = _SWING_FLATTEN
-    before_land = 1.0 - _smoothstep((_SWING_SAMPLES - flatten_from) / (flat_by - flatten_from))
+    before_land = 1.0 - smoothstep((_SWING_SAMPLES - flatten_from) / (flat_by - flatten_from))
     return ((1.0 - after_lift) * start_pitch + after_lift * relaxed) * before_land
-
-
-def _bump(phase: np.ndarray, share: float) -> np.ndarray:
-    return _smoothstep(phase / share) * _smoothstep((1.0 - phase) / share)
 
 
 # Swing timings tried: (move_start, move_end, bump_share); the preference cost favours the first.
@@ -403,8 +322,8 @@ _SWING_TIMINGS = tuple(
 )
 _SWING_SAMPLES = np.linspace(0.0, 1.0, 241)
 # Forward progress and bump of every candidate timing at the samples: (candidates, samples).
-_SWING_PROGRESS = np.array([_smoothstep((_SWING_SAMPLES - s0) / (s1 - s0)) for s0, s1, _ in _SWING_TIMINGS])
-_SWING_BUMPS = np.array([_bump(_SWING_SAMPLES, share) for _, _, share in _SWING_TIMINGS])
+_SWING_PROGRESS = np.array([smoothstep((_SWING_SAMPLES - s0) / (s1 - s0)) for s0, s1, _ in _SWING_TIMINGS])
+_SWING_BUMPS = np.array([bump(_SWING_SAMPLES, share) for _, _, share in _SWING_TIMINGS])
 _SWING_TIMING_PENALTY = np.array([s0 + 1.0 - s1 + 0.5 - share for s0, s1, share in _SWING_TIMINGS])
 # Metres of extra peak height worth one unit of (lift delay + early arrival + narrower bump):
 # overlapping lift and forward motion look natural, so they win unless they cost height.
@@ -461,7 +380,7 @@ def _plan_swing(start: np.ndarray, pitch_profile: np.ndarray, end: np.ndarray, s
     corner_low = corners[:, :, 0].min(axis=1)
     corner_high = corners[:, :, 0].max(axis=1)
     lowest = corners[:, :, 1].min(axis=1)  # z of the lowest corner relative to the ankle
-    base = start[2] + (end[2] - start[2]) * _smoothstep(_SWING_SAMPLES)
+    base = start[2] + (end[2] - start[2]) * smoothstep(_SWING_SAMPLES)
     # All candidate timings at once: (candidates, samples).
     x = start[0] + (end[0] - start[0]) * _SWING_PROGRESS
     # The horizontal clearance grows with the distance travelled from the start and shrinks
@@ -479,7 +398,7 @@ def _plan_swing(start: np.ndarray, pitch_profile: np.ndarray, end: np.ndarray, s
         (low >= end_region[0]) & (high <= end_region[1]))
     resting |= (np.abs(x - start[0]) < _UNMOVED) & not_higher(start_region)
     resting |= (np.abs(end[0] - x) < _UNMOVED) & not_higher(end_region)
-    required_ankle = ground + np.where(resting, 0.0, clearance.edge) + _SOLE_GAP - lowest
+    required_ankle = ground + np.where(resting, 0.0, clearance.edge) + SOLE_GAP - lowest
     deficit = required_ankle - base
     bump = _SWING_BUMPS
     free = bump < 1e-12
@@ -500,14 +419,10 @@ def _plan_swing(start: np.ndarray, pitch_profile: np.ndarray, end: np.ndarray, s
     return _Swing(start.copy(), end.copy(), pitch_profile, move_start, move_end, share, float(lift[best]))
 
 
-# Contact states of a foot.
-_SWINGING, _FLAT, _PUSH_OFF = 0, 1, 2
-
-
 @dataclass(frozen=True)
 class _FootTracks:
     """Both feet over time: ankle positions (T, 2, 3), pitch toes-down (T, 2), contact state
-    (T, 2) in {_SWINGING, _FLAT, _PUSH_OFF}, the ground height under a foot in contact (T, 2; NaN
+    (T, 2) in {SWINGING, FLAT, PUSH_OFF}, the ground height under a foot in contact (T, 2; NaN
     in swing), and for swinging feet the footstep they swing to and the swing phase (T, 2;
     -1 and NaN otherwise)."""
 
@@ -530,7 +445,7 @@ def _foot_tracks(plan: _GaitPlan, times: np.ndarray, clearance: _Clearance,
     count = len(times)
     ankle = np.empty((count, 2, 3))
     pitch = np.zeros((count, 2))
-    contact = np.full((count, 2), _SWINGING)
+    contact = np.full((count, 2), SWINGING)
     ground = np.full((count, 2), np.nan)
     swing_target = np.full((count, 2), -1)
     swing_phase = np.full((count, 2), np.nan)
@@ -563,14 +478,14 @@ def _foot_tracks(plan: _GaitPlan, times: np.ndarray, clearance: _Clearance,
             t = times[rows]
             flat = rows[t < plan.heel_off[step]]
             ankle[flat, side] = plan.ankles[step]
-            contact[flat, side] = _FLAT
+            contact[flat, side] = FLAT
             rolling = rows[(t >= plan.heel_off[step]) & (t < plan.liftoff[step])]
             roll_time = plan.liftoff[step] - plan.heel_off[step]
             if len(rolling):
-                angle = plan.push_off[step] * _smoothstep((times[rolling] - plan.heel_off[step]) / roll_time)
+                angle = plan.push_off[step] * smoothstep((times[rolling] - plan.heel_off[step]) / roll_time)
                 ankle[rolling, side] = rolled(plan.ankles[step], angle)
                 pitch[rolling, side] = angle
-                contact[rolling, side] = _PUSH_OFF
+                contact[rolling, side] = PUSH_OFF
             ground[np.concatenate((flat, rolling)), side] = plan.soles[step]
             airborne = rows[t >= plan.liftoff[step]]
             if len(airborne):
@@ -666,41 +581,6 @@ def _pelvis_height(hips_xy: np.ndarray, feet: _FootTracks, nominal_over_support:
     return _smooth_from_below(raw, radius)
 
 
-# --- inverse kinematics --------------------------------------------------------------------------
-def _leg_ik(pelvis_pos: np.ndarray, pelvis_rot: Rotation, ankle: np.ndarray, foot_rot: Rotation,
-            side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Hip XYZ angles (T, 3), knee angle (T,), ankle XYZ angles (T, 3) placing the ankle at
-    ``ankle`` with the foot at orientation ``foot_rot`` (world), for a pelvis pose.
-
-    The knee hinge axis (the thigh's y axis) is set parallel to the foot's lateral axis,
-    projected perpendicular to the hip-ankle line, so the knee bends forward over the foot.
-    """
-    geo = leg_geometry()
-    l1, l2 = geo.thigh, geo.shin
-    hip_offset = geo.hip_offset * np.array([1.0, _SIDE_SIGN[side], 1.0])
-    pelvis_mat = pelvis_rot.as_matrix()
-    hip = pelvis_pos + pelvis_mat @ hip_offset
-    to_ankle = np.einsum("tji,tj->ti", pelvis_mat, ankle - hip)  # pelvis frame
-    length = np.clip(np.linalg.norm(to_ankle, axis=1), abs(l1 - l2) + 1e-6, l1 + l2 - 1e-9)
-    cos_knee = (length**2 - l1**2 - l2**2) / (2.0 * l1 * l2)
-    knee = np.arccos(np.clip(cos_knee, -1.0, 1.0))
-    # Ankle seen from the hip in the thigh frame.
-    in_thigh = np.stack((-l2 * np.sin(knee), np.zeros_like(knee), -l1 - l2 * np.cos(knee)), axis=1)
-    direction = to_ankle / np.linalg.norm(to_ankle, axis=1, keepdims=True)
-    foot_in_pelvis = pelvis_rot.inv() * foot_rot
-    lateral = foot_in_pelvis.apply(np.array([0.0, 1.0, 0.0]))
-    lateral -= np.sum(lateral * direction, axis=1, keepdims=True) * direction
-    lateral /= np.linalg.norm(lateral, axis=1, keepdims=True)
-    target = np.stack((direction, lateral, np.cross(direction, lateral)), axis=2)
-    v = in_thigh / np.linalg.norm(in_thigh, axis=1, keepdims=True)
-    e_y = np.broadcast_to(np.array([0.0, 1.0, 0.0]), v.shape)
-    source = np.stack((v, e_y, np.cross(v, e_y)), axis=2)
-    hip_rot = Rotation.from_matrix(target @ np.transpose(source, (0, 2, 1)))
-    shin_rot = hip_rot * Rotation.from_euler("y", knee[:, None])
-    ankle_rot = shin_rot.inv() * foot_in_pelvis
-    return hip_rot.as_euler("XYZ"), knee, ankle_rot.as_euler("XYZ")
-
-
 # --- whole-body synthesis ------------------------------------------------------------------------
 @dataclass(frozen=True)
 class _Style:
@@ -753,13 +633,13 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         pelvic_rotation = -_PELVIC_ROTATION_GAIN * left_lead
         yaw = plan.heading + pelvic_rotation
         lateral = np.stack((-np.sin(yaw), np.cos(yaw)), axis=1)
-        hips_xy = np.stack([pelvis_xy + _SIDE_SIGN[s] * geo.hip_offset[1] * lateral for s in (RIGHT, LEFT)],
+        hips_xy = np.stack([pelvis_xy + SIDE_SIGN[s] * geo.hip_offset[1] * lateral for s in (RIGHT, LEFT)],
                            axis=1)
         # Pelvic obliquity: the pelvis drops towards the swinging leg (roll > 0 lifts the left
         # hip), most at mid-swing, when the feet's lead changes fastest.
         lead_rate = np.gradient(left_lead, times)
         roll = -style.obliquity * np.tanh(lead_rate / _OBLIQUITY_RATE)
-        hips_dz = np.stack([_SIDE_SIGN[s] * geo.hip_offset[1] * np.sin(roll) for s in (RIGHT, LEFT)], axis=1)
+        hips_dz = np.stack([SIDE_SIGN[s] * geo.hip_offset[1] * np.sin(roll) for s in (RIGHT, LEFT)], axis=1)
         pelvis_z = _pelvis_height(hips_xy, feet, nominal_height, monotone, level_reference, radius, hips_dz)
         pelvis_pos = np.column_stack((pelvis_xy, pelvis_z))
         pelvis_rot = Rotation.from_euler("ZYX", np.column_stack((yaw, pelvis_pitch, roll)))
@@ -768,10 +648,10 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         shin_pitch = np.zeros((len(times), 2))
         for side, name in zip((RIGHT, LEFT), ("right", "left")):
             foot_rot = plan.foot_rotation(feet.pitch[:, side])
-            hip, knee, ankle = _leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side)
-            joints[:, _dof(f"{name}_hip_x"):_dof(f"{name}_hip_z") + 1] = hip
-            joints[:, _dof(f"{name}_knee")] = knee
-            joints[:, _dof(f"{name}_ankle_x"):_dof(f"{name}_ankle_z") + 1] = ankle
+            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side)
+            joints[:, dof_index(f"{name}_hip_x"):dof_index(f"{name}_hip_z") + 1] = hip
+            joints[:, dof_index(f"{name}_knee")] = knee
+            joints[:, dof_index(f"{name}_ankle_x"):dof_index(f"{name}_ankle_z") + 1] = ankle
             shin_pitch[:, side] = feet.pitch[:, side] - ankle[:, 1]
         # Next pass: each swing's pitch from the shin it had in this pass.
         swing_pitch = {}
@@ -785,24 +665,24 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
 
     # Trunk and head: lean, thorax counter-rotation and counter-roll, head level with the
     # heading, gaze down.
-    joints[:, _dof("abdomen_x")] = -_THORAX_COUNTER_ROLL * roll
-    joints[:, _dof("abdomen_y")] = abdomen_pitch
-    joints[:, _dof("abdomen_z")] = -_THORAX_COUNTER_ROTATION * pelvic_rotation
-    joints[:, _dof("neck_x")] = -(roll + joints[:, _dof("abdomen_x")])
-    joints[:, _dof("neck_y")] = gaze - lean
-    joints[:, _dof("neck_z")] = -(pelvic_rotation + joints[:, _dof("abdomen_z")])
+    joints[:, dof_index("abdomen_x")] = -_THORAX_COUNTER_ROLL * roll
+    joints[:, dof_index("abdomen_y")] = abdomen_pitch
+    joints[:, dof_index("abdomen_z")] = -_THORAX_COUNTER_ROTATION * pelvic_rotation
+    joints[:, dof_index("neck_x")] = -(roll + joints[:, dof_index("abdomen_x")])
+    joints[:, dof_index("neck_y")] = gaze - lean
+    joints[:, dof_index("neck_z")] = -(pelvic_rotation + joints[:, dof_index("abdomen_z")])
 
     # Arms swing opposite to the legs: the right arm forward (shoulder y < 0) when the left foot leads.
     for name, sign in (("right", 1.0), ("left", -1.0)):
         swing_forward = sign * style.arm_swing * left_lead
-        joints[:, _dof(f"{name}_shoulder_y")] = -swing_forward
+        joints[:, dof_index(f"{name}_shoulder_y")] = -swing_forward
         # The arm swings slightly out (abduction) the further it leaves the hanging pose, and
         # turns inward as it swings forward.
         out = np.sqrt(swing_forward**2 + 0.05**2) - 0.05  # smooth |swing|
-        joints[:, _dof(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
-        joints[:, _dof(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
+        joints[:, dof_index(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
+        joints[:, dof_index(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
         forward = 0.5 * (swing_forward + np.sqrt(swing_forward**2 + 0.05**2))  # smooth max(0, .)
-        joints[:, _dof(f"{name}_elbow")] = -(style.elbow + _ELBOW_SWING_GAIN * forward)
+        joints[:, dof_index(f"{name}_elbow")] = -(style.elbow + _ELBOW_SWING_GAIN * forward)
 
     # Safety net: the plan keeps every joint inside its range; clip rounding-level excursions.
     excess = np.maximum(geo.dof_low - joints, joints - geo.dof_high)[crop]
@@ -817,16 +697,6 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     quat = pelvis_rot.as_quat(scalar_first=True)
     qpos = np.column_stack((pelvis_pos, quat, joints))
     return qpos[crop], feet.contact[crop]
-
-
-def _contact_ranges(contact: np.ndarray, state: int) -> dict[str, list[list[int]]]:
-    """Inclusive [first, last] frame ranges in which each foot is in contact ``state``."""
-    out: dict[str, list[list[int]]] = {}
-    for side, body in enumerate(FOOT_BODIES):
-        flags = np.concatenate(([False], contact[:, side] == state, [False]))
-        edges = np.flatnonzero(np.diff(flags.astype(int)))
-        out[body] = [[int(a), int(b) - 1] for a, b in zip(edges[::2], edges[1::2])]
-    return out
 
 
 # --- public generators ---------------------------------------------------------------------------
@@ -885,16 +755,6 @@ class GaitTiming:
         _check_number("double_support", self.double_support, 0.0, 0.6)
         _check_number("heel_off", self.heel_off, 0.0, 0.6, low_open=False)
         _check_number("push_off_angle", self.push_off_angle, 0.0, 0.8, low_open=False)
-
-
-def _clip_meta(generator: str, params: dict, contact: np.ndarray, **extra) -> dict:
-    return {
-        "generator": generator,
-        "parameters": params,
-        "stance_frames": _contact_ranges(contact, _FLAT),
-        "push_off_frames": _contact_ranges(contact, _PUSH_OFF),
-        **extra,
-    }
 
 
 def walk(speed: float = 1.0, step_length: float | None = None, duration: float = 4.0,
@@ -1034,7 +894,7 @@ def _walk_clip(speed: float, step_length: float | None, duration: float, fps: fl
                   **asdict(timing))
     return MotionClip(
         qpos, fps, name or f"walk_{speed:.2f}mps", loop=True, source=SOURCE,
-        meta=_clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text=text, skill="walk",
+        meta=clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text=text, skill="walk",
                        style=style),
     )
 
@@ -1174,7 +1034,7 @@ def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach
     default_name = f"stairs_{direction}_h{step_height:.2f}_d{step_depth:.2f}_n{num_steps}_{lead_foot}"
     return MotionClip(
         qpos, fps, name or default_name, loop=False, source=SOURCE,
-        meta=_clip_meta("climb_stairs", params, contact, stairs=stairs, skill="walk",
+        meta=clip_meta("climb_stairs", params, contact, stairs=stairs, skill="walk",
                         text="walk up the stairs" if direction == "up" else "walk down the stairs"),
     )
 

@@ -29,14 +29,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy import ndimage
+
+from stairenv.numba_jit import jit
 
 from .costmap import Costmap
 from .errors import PlanningError, check_cells, check_range
 from .locomotion import LOCOMOTIONS
-
-jit = njit(cache=True, nogil=True)
 
 SQRT2 = math.sqrt(2.0)
 _DI = np.array([-1, -1, -1, 0, 0, 1, 1, 1], dtype=np.int64)

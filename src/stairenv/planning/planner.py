@@ -150,7 +150,7 @@ def plan_path(
     path = refine_path(costmap, search.cells, passable=search.passable, start_xy=start_xy, ds=settings.ds,
                        smoothing=settings.smoothing, comfort=settings.comfort, head_slope=settings.head_slope,
                        head_smoothing=settings.head_smoothing, curvature_scale=settings.curvature_scale)
-    return _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment)
+    return timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment)
 
 
 def _point_on_grid(name: str, xy: Sequence[float] | np.ndarray, grid: PlanningGrid) -> np.ndarray:
@@ -169,7 +169,7 @@ def _point_on_grid(name: str, xy: Sequence[float] | np.ndarray, grid: PlanningGr
                      f"got {xy!r}")
 
 
-def _timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment,
+def timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment,
                 emergency_brake: float | None = None) -> Plan:
     """The speed QP along ``path`` and the timed plan. ``emergency_brake`` (m/s^2, < 0; replanning
     only): speeds on the braking curve from ``v_start`` at that rate are allowed even where the

@@ -37,14 +37,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy import ndimage
+
+from stairenv.numba_jit import jit
 
 from .astar import SQRT2, edge_cost, edge_ok
 from .costmap import Costmap
 from .errors import check_range
-
-jit = njit(cache=True, nogil=True)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -38,7 +38,7 @@ import numpy as np
 
 from .astar import astar, disc_cells
 from .errors import PlanningError, check_range
-from .planner import Plan, _timed_plan
+from .planner import Plan, timed_plan
 from .refine import profile_along, smooth_path, string_pull
 from .waypoints import Trajectory
 
@@ -247,7 +247,7 @@ def _timed_replan(cm, search, path, plan: Plan, v_start: float, v_end: float, t_
     attempts = ((plan.settings, None), (emergency, None), (emergency, emergency.a_min))
     for k, (settings, brake) in enumerate(attempts):
         try:
-            return _timed_plan(cm, search, path, plan.target, settings, v_start, v_end, t_now, extra, plan.segment,
+            return timed_plan(cm, search, path, plan.target, settings, v_start, v_end, t_now, extra, plan.segment,
                                emergency_brake=brake)
         except PlanningError as err:
             if err.reason != "speed" or k == len(attempts) - 1:

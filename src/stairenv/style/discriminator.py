@@ -13,45 +13,46 @@ layer's weights (``logit_reg * ||W_out||^2``) and weight decay on every weight
 (``weight_decay * sum ||W||^2``). Inputs are normalised by running statistics
 of everything the discriminator has been trained on (clipped to +-5).
 
-Speed (the discriminator is the whole price of AMP on a CPU): scoring a
-vectorised step runs a compiled numba kernel (single-threaded, no BLAS, no torch
-dispatch) on a cached plan (float32 normaliser constants, views of the weights),
-rebuilt only when a parameter or statistic changed; large batches use torch's
-(oneDNN) kernels. ``scoring="bf16"`` scores with bfloat16 weights and activations
-(torch; about half the float32 time where the CPU has AVX512-BF16; logits within
-~1% of float32's), ``scoring="numba-parallel"`` splits each layer's output units
-over numba's threads (``NUMBA_NUM_THREADS``, default: the cores; each core then
-streams only its share of the weights). ``freeze_scoring()`` snapshots the plan (copies), so that
-training may change the parameters in another thread while scoring goes on
-(``AMPStyleReward(background_training=True)``).
-Training's matrix products go through oneDNN (a differentiable ``_MatMul``, so
-the gradient penalty's double backward uses it too), weight decay and logit
-regularisation add their gradients in place, and Adam is the fused kernel. All
-of it is float32 and equals the plain torch path up to rounding (tests compare
-them). ``AMPDiscriminator(..., backend="aten")`` trains with plain torch kernels;
-``STAIRENV_AMP_BACKEND=aten`` does so for every discriminator left at "auto".
-On AMD CPUs MKL's sgemm runs without AVX-512 and oneDNN is about twice as fast.
+Scoring (``logits``, ``window_logits``, ``reward``) runs one of the back-ends of
+:mod:`stairenv.style.scoring` (``scoring=``: "auto", "numba", "numba-parallel", "torch",
+"bf16") on a cached plan (float32 normaliser constants, views of the weights), rebuilt only
+when a parameter or statistic changed. ``freeze_scoring()`` snapshots the plan (copies), so
+that training may change the parameters in another thread while scoring goes on
+(``AMPStyleReward(background_training=True)``). Training's matrix products go through oneDNN
+where it works (:mod:`stairenv.style.onednn`), weight decay and logit regularisation add their
+gradients in place, and Adam is the fused kernel; all of it float32, equal to the plain torch
+path up to rounding (tests compare them). ``AMPDiscriminator(..., backend="aten")`` trains with
+plain torch kernels; ``STAIRENV_AMP_BACKEND=aten`` does so for every discriminator left at
+"auto". Why and how fast: ``docs/amp-speed.md``.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import asdict, dataclass
 
-import numba
 import numpy as np
 import torch
-from numba import njit, prange
 from torch import nn
-from torch.nn import functional as F
 
+from stairenv.style.onednn import BACKENDS, linear, onednn_available, use_onednn
+from stairenv.style.scoring import SCORERS, fused_layers, plan_logits, window_logits
 from stairenv.validation import check_choice, check_number
 
+__all__ = [
+    "BACKENDS",
+    "LOSSES",
+    "SCORERS",
+    "AMPDiscriminator",
+    "DiscriminatorConfig",
+    "ReplayBuffer",
+    "RunningNorm",
+    "onednn_available",
+    "plain_config",
+    "plain_values",
+    "style_reward",
+]
+
 LOSSES = ("lsgan", "bce")
-BACKENDS = ("auto", "onednn", "aten")
-SCORERS = ("auto", "numba", "numba-parallel", "torch", "bf16")
-# "auto" scoring: the numba kernel up to this many windows (a vectorised step), torch's kernels above.
-_NUMBA_MAX_WINDOWS = 64
 
 
 @dataclass(frozen=True)
@@ -70,9 +71,8 @@ class DiscriminatorConfig:
     # of the double backward's cost.
     grad_penalty_batch: int | None = None
     # Instance noise: Gaussian noise of this std added to every normalised training input,
-    # reference and agent alike (0 = none, the paper). Without it our short CPU runs saw the
-    # discriminator win within ~100k steps and the style reward fall all run; blurring both
-    # classes keeps it from separating on tiny feature differences (baselines/train_ppo.py).
+    # reference and agent alike (0 = none, the paper); blurring both classes keeps the
+    # discriminator from separating them on tiny feature differences (docs/amp-speed.md).
     # Scoring sees clean inputs.
     input_noise: float = 0.0
 
@@ -107,115 +107,6 @@ def plain_config(config: DiscriminatorConfig) -> dict:
     return plain_values(asdict(config))
 
 
-# --- oneDNN matrix products -------------------------------------------------------
-# Below this size in any dimension a product goes to ATen: oneDNN's setup costs more than it saves.
-_MIN_ONEDNN_DIM = 16
-_onednn_ok: bool | None = None
-
-
-def _lp(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None = None, act: str = "none") -> torch.Tensor:
-    """x @ weight.T + bias (then ``act``) by oneDNN; ``weight`` dense (out, in) or pre-packed."""
-    return torch.ops.mkldnn._linear_pointwise(x, weight, bias, act, [None], "")
-
-
-def onednn_available() -> bool:
-    """Whether this torch's oneDNN linear kernels exist and agree with ATen (probed once)."""
-    global _onednn_ok
-    if _onednn_ok is None:
-        try:
-            gen = torch.Generator().manual_seed(0)
-            a = torch.randn(40, 24, generator=gen)
-            w = torch.randn(20, 24, generator=gen)
-            b = torch.randn(20, generator=gen)
-            c = torch.randn(40, 20, generator=gen)
-            with torch.no_grad():
-                packed = torch.ops.mkldnn._reorder_linear_weight(w, 8)
-                checks = [
-                    (_lp(a, w, b, "relu"), torch.relu(F.linear(a, w, b))),
-                    (_lp(a[:5], packed, b, "relu"), torch.relu(F.linear(a[:5], w, b))),
-                    (_lp(a.t(), c.t()), a.t() @ c),  # transposed (strided) operands
-                ]
-            _onednn_ok = bool(torch.backends.mkldnn.is_available()) and all(
-                x.shape == y.shape and torch.allclose(x, y, rtol=1e-4, atol=1e-4) for x, y in checks)
-        except Exception:  # noqa: BLE001  (no oneDNN or a torch without these ops: ATen does it)
-            _onednn_ok = False
-    return _onednn_ok
-
-
-def _use_onednn(backend: str) -> bool:
-    """``backend``: "onednn", "aten", or "auto" (oneDNN if it works here; ``STAIRENV_AMP_BACKEND`` overrides)."""
-    check_choice("backend", backend, BACKENDS)
-    if backend == "auto":
-        backend = check_choice("STAIRENV_AMP_BACKEND", os.environ.get("STAIRENV_AMP_BACKEND", "auto"), BACKENDS)
-    if backend == "aten":
-        return False
-    if not onednn_available():
-        if backend == "onednn":
-            raise RuntimeError("backend='onednn' but this torch has no working oneDNN linear kernels")
-        return False
-    return True
-
-
-def _onednn_shape(dtype: torch.dtype, *dims: int) -> bool:
-    return dtype == torch.float32 and min(dims) >= _MIN_ONEDNN_DIM
-
-
-class _MatMul(torch.autograd.Function):
-    """``a @ b`` by oneDNN. Its backward is made of ``matmul`` again, so it can be
-    differentiated any number of times (the gradient penalty needs a double backward)."""
-
-    @staticmethod
-    def forward(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-        return _lp(a, b.t())
-
-    @staticmethod
-    def setup_context(ctx, inputs, output) -> None:
-        ctx.save_for_backward(*inputs)
-
-    @staticmethod
-    def backward(ctx, grad: torch.Tensor):
-        a, b = ctx.saved_tensors
-        grad_a = matmul(grad, b.t(), True) if ctx.needs_input_grad[0] else None
-        grad_b = matmul(a.t(), grad, True) if ctx.needs_input_grad[1] else None
-        return grad_a, grad_b
-
-
-def matmul(a: torch.Tensor, b: torch.Tensor, onednn: bool) -> torch.Tensor:
-    """``a @ b`` for 2-D tensors, by oneDNN when asked and worth it, else ATen; differentiable."""
-    if onednn and _onednn_shape(a.dtype, a.shape[0], a.shape[1], b.shape[1]) and b.dtype == a.dtype:
-        return _MatMul.apply(a, b)
-    return a @ b
-
-
-class _Linear(torch.autograd.Function):
-    """``F.linear`` by oneDNN, differentiable any number of times (via ``matmul``)."""
-
-    @staticmethod
-    def forward(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
-        return _lp(x, weight, bias)
-
-    @staticmethod
-    def setup_context(ctx, inputs, output) -> None:
-        x, weight, _ = inputs
-        ctx.save_for_backward(x, weight)
-
-    @staticmethod
-    def backward(ctx, grad: torch.Tensor):
-        x, weight = ctx.saved_tensors
-        grad_x = matmul(grad, weight, True) if ctx.needs_input_grad[0] else None
-        grad_w = matmul(grad.t(), x, True) if ctx.needs_input_grad[1] else None
-        grad_b = grad.sum(0) if ctx.needs_input_grad[2] else None
-        return grad_x, grad_w, grad_b
-
-
-def linear(x: torch.Tensor, layer: nn.Linear, onednn: bool) -> torch.Tensor:
-    """``layer(x)`` for a batch (N, in), by oneDNN when asked and worth it; differentiable."""
-    w = layer.weight
-    if onednn and x.dim() == 2 and _onednn_shape(x.dtype, x.shape[0], w.shape[0], w.shape[1]):
-        return _Linear.apply(x, w, layer.bias)
-    return F.linear(x, w, layer.bias)
-
-
 def _adam(params: list[torch.Tensor], lr: float) -> torch.optim.Adam:
     """Adam with the fused kernel where this torch has it for CPU tensors (>= 2.4): the same
     update in one pass over the parameters, ~10x faster than the default on a CPU."""
@@ -223,116 +114,6 @@ def _adam(params: list[torch.Tensor], lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr, fused=True)
     except (RuntimeError, TypeError, ValueError):
         return torch.optim.Adam(params, lr=lr)
-
-
-# --- scoring kernels (numba) -----------------------------------------------------
-# Reassociation and contraction let the dot products vectorise and fuse; no finite-math
-# assumptions, so NaN and inf propagate as in torch.
-_FASTMATH = {"reassoc", "contract", "nsz"}
-
-
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _normalise(x, mean, std, clip, out):
-    for i in range(x.shape[0]):
-        for t in range(x.shape[1]):
-            v = (x[i, t] - mean[t]) / std[t]
-            out[i, t] = clip if v > clip else (-clip if v < -clip else v)  # noqa: FURB136  (NaN stays NaN)
-    return out
-
-
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _dot(w, x, j, i, k):
-    acc = np.float32(0.0)
-    for t in range(k):
-        acc += w[j, t] * x[i, t]
-    return acc
-
-
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _dense(x, w, b, out, relu):
-    """out = x @ w.T + b (then ReLU), register-blocked: 2 weight rows x 4 windows per pass,
-    so each loaded weight feeds 4 products and each loaded input 2."""
-    n, k = x.shape
-    m = w.shape[0]
-    n4, m2 = n - n % 4, m - m % 2
-    for j in range(0, m2, 2):
-        w0, w1 = w[j], w[j + 1]
-        for i in range(0, n4, 4):
-            x0, x1, x2, x3 = x[i], x[i + 1], x[i + 2], x[i + 3]
-            a0 = a1 = a2 = a3 = c0 = c1 = c2 = c3 = np.float32(0.0)
-            for t in range(k):
-                u, v = w0[t], w1[t]
-                y0, y1, y2, y3 = x0[t], x1[t], x2[t], x3[t]
-                a0 += u * y0
-                a1 += u * y1
-                a2 += u * y2
-                a3 += u * y3
-                c0 += v * y0
-                c1 += v * y1
-                c2 += v * y2
-                c3 += v * y3
-            out[i, j], out[i + 1, j], out[i + 2, j], out[i + 3, j] = a0, a1, a2, a3
-            out[i, j + 1], out[i + 1, j + 1], out[i + 2, j + 1], out[i + 3, j + 1] = c0, c1, c2, c3
-        for i in range(n4, n):
-            out[i, j] = _dot(w, x, j, i, k)
-            out[i, j + 1] = _dot(w, x, j + 1, i, k)
-    for j in range(m2, m):
-        for i in range(n):
-            out[i, j] = _dot(w, x, j, i, k)
-    for i in range(n):
-        for j in range(m):
-            v = out[i, j] + b[j]
-            out[i, j] = (np.float32(0.0) if v <= 0.0 else v) if relu else v  # NaN stays NaN, as in torch
-    return out
-
-
-@njit(cache=True, nogil=True, parallel=True, fastmath=_FASTMATH)
-def _dense_parallel(x, w, b, out, relu, parts):
-    """:func:`_dense` with the output units split into ``parts`` even blocks, one per thread."""
-    m = w.shape[0]
-    block = (m // parts + 1) // 2 * 2
-    for part in prange(parts):
-        j0 = min(m, part * block)
-        j1 = m if part == parts - 1 else min(m, j0 + block)
-        if j1 > j0:
-            tmp = np.empty((x.shape[0], j1 - j0), dtype=np.float32)
-            _dense(x, w[j0:j1], b[j0:j1], tmp, relu)
-            out[:, j0:j1] = tmp
-    return out
-
-
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _window_logit(x, mean, std, clip, weights, biases, a, b):
-    """The logit of one window ``x`` (1, input_dim) (normalised, then every layer: ReLU but the
-    last), in one call.
-
-    ``weights`` / ``biases``: tuples of the layers' float32 arrays; ``a``, ``b``: scratch rows
-    (1, width) from :meth:`AMPDiscriminator.window_scratch`. One window at a time, so the result
-    does not depend on how windows are grouped: the pipelined scorer (``style.pipeline``) and
-    :meth:`AMPDiscriminator.window_logits` give the same bits."""
-    _normalise(x, mean, std, clip, a[:, : x.shape[1]])
-    last = len(weights) - 1
-    for layer in range(last + 1):
-        w, bias = weights[layer], biases[layer]
-        src, dst = (a, b) if layer % 2 == 0 else (b, a)
-        for j in range(w.shape[0]):
-            v = _dot(w, src, j, 0, w.shape[1]) + bias[j]
-            dst[0, j] = np.float32(0.0) if layer < last and v <= 0.0 else v  # NaN stays NaN, as in torch
-    return b[0, 0] if last % 2 == 0 else a[0, 0]
-
-
-@njit(cache=True, fastmath=_FASTMATH)
-def _window_logits(x, mean, std, clip, weights, biases, a, b, out):
-    """:func:`_window_logit` of each row of ``x`` into ``out``. Keeps the GIL: the calling thread
-    steps envs, and handing the GIL to a training thread for the length of a few windows would
-    cost it more than the windows (see ``style.pipeline``)."""
-    for i in range(x.shape[0]):
-        out[i] = _window_logit(x[i: i + 1], mean, std, clip, weights, biases, a, b)
-    return out
-
-
-# Layers narrower than this are not worth splitting over threads.
-_MIN_PARALLEL_UNITS = 64
 
 
 @dataclass(frozen=True)
@@ -386,7 +167,7 @@ class AMPDiscriminator(nn.Module):
         self.logit.weight.data *= 0.01  # small initial logits: rewards start near the middle
         nn.init.zeros_(self.logit.bias)
         self.backend = backend
-        self.onednn = _use_onednn(backend)
+        self.onednn = use_onednn(backend)
         self.scoring = check_choice("scoring", scoring, SCORERS)
         self.optimizer = _adam(list(self.parameters()), config.learning_rate)
         self._plan: dict | None = None  # scoring's cache, see _inference_plan
@@ -461,24 +242,6 @@ class AMPDiscriminator(nn.Module):
         """Score with the live parameters again."""
         self._frozen = None
 
-    def _bf16_layers(self, plan: dict) -> list:
-        if plan.get("bf16") is None:
-            with torch.inference_mode():
-                plan["bf16"] = [(layer.weight.detach().to(torch.bfloat16), layer.bias.detach().to(torch.bfloat16), r)
-                                for layer, r in zip(plan["linears"], plan["relu"])]
-        return plan["bf16"]
-
-    def _torch_layers(self, plan: dict) -> list:
-        if plan["torch"] is None:
-            layers = []
-            with torch.inference_mode():
-                for layer, r in zip(plan["linears"], plan["relu"]):
-                    w, b = layer.weight.detach(), layer.bias.detach()
-                    packed = self.onednn and r and min(w.shape) >= _MIN_ONEDNN_DIM
-                    layers.append((torch.ops.mkldnn._reorder_linear_weight(w, 8) if packed else w, b, r, packed))
-            plan["torch"] = layers
-        return plan["torch"]
-
     def scoring_plan(self) -> dict:
         """The plan scoring uses now: the snapshot while frozen, else the live one. A new
         dict whenever what it holds changed (callers may compare plans by identity)."""
@@ -486,14 +249,13 @@ class AMPDiscriminator(nn.Module):
 
     @staticmethod
     def fused_layers(plan: dict) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-        """A plan's layers as the tuples of weights and biases that :func:`_window_logit` takes."""
-        if plan.get("fused") is None:
-            plan["fused"] = (tuple(np.ascontiguousarray(w) for w, _, _ in plan["numba"]),
-                             tuple(np.ascontiguousarray(b) for _, b, _ in plan["numba"]))
-        return plan["fused"]
+        """A plan's layers as the tuples of weights and biases that
+        :func:`stairenv.style.scoring.window_logit` takes."""
+        return fused_layers(plan)
 
     def window_scratch(self) -> tuple[np.ndarray, np.ndarray]:
-        """Two scratch rows (1, width) for :func:`_window_logit`: as wide as the input or the widest layer."""
+        """Two scratch rows (1, width) for :func:`stairenv.style.scoring.window_logit`: as wide as the
+        input or the widest layer."""
         width = max(self.input_dim, *(layer.out_features for layer in self.linears))
         return np.empty((1, width), dtype=np.float32), np.empty((1, width), dtype=np.float32)
 
@@ -508,7 +270,7 @@ class AMPDiscriminator(nn.Module):
         weights, biases = self.fused_layers(plan)
         a, b = self.window_scratch()
         mean, std, clip = plan["mean"].numpy(), plan["std"].numpy(), np.float32(self.norm.clip)
-        return _window_logits(x, mean, std, clip, weights, biases, a, b, np.empty(len(x), dtype=np.float32))
+        return window_logits(x, mean, std, clip, weights, biases, a, b, np.empty(len(x), dtype=np.float32))
 
     def logits(self, features: np.ndarray) -> np.ndarray:
         """Logits of raw feature windows (N, input_dim), without autograd: (N,).
@@ -524,38 +286,7 @@ class AMPDiscriminator(nn.Module):
             raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
         if len(x) == 0:
             return np.zeros(0, dtype=np.float32)
-        plan = self.scoring_plan()
-        clip = self.norm.clip
-        if self.scoring == "bf16":
-            with torch.inference_mode():
-                h = torch.clamp((torch.from_numpy(x) - plan["mean"]) / plan["std"], -clip, clip).to(torch.bfloat16)
-                for w, b, relu in self._bf16_layers(plan):
-                    h = torch.relu(F.linear(h, w, b)) if relu else F.linear(h, w, b)
-                return h[:, 0].float().numpy()
-        if self.scoring == "numba-parallel":
-            parts = numba.get_num_threads() if self.scoring_threads is None else self.scoring_threads
-            h = _normalise(x, plan["mean"].numpy(), plan["std"].numpy(), np.float32(clip), np.empty_like(x))
-            for w, b, relu in plan["numba"]:
-                out = np.empty((len(h), w.shape[0]), dtype=np.float32)
-                if parts > 1 and w.shape[0] >= _MIN_PARALLEL_UNITS:
-                    h = _dense_parallel(h, w, b, out, relu, parts)
-                else:
-                    h = _dense(h, w, b, out, relu)
-            return h[:, 0]
-        if self.scoring == "numba" or (self.scoring == "auto" and len(x) <= _NUMBA_MAX_WINDOWS):
-            h = _normalise(x, plan["mean"].numpy(), plan["std"].numpy(), np.float32(clip), np.empty_like(x))
-            for w, b, relu in plan["numba"]:
-                h = _dense(h, w, b, np.empty((len(h), w.shape[0]), dtype=np.float32), relu)
-            return h[:, 0]
-        layers = self._torch_layers(plan)
-        with torch.inference_mode():
-            h = torch.clamp((torch.from_numpy(x) - plan["mean"]) / plan["std"], -clip, clip)
-            for w, b, relu, packed in layers:
-                if packed:
-                    h = _lp(h, w, b, "relu")
-                else:
-                    h = torch.relu(F.linear(h, w, b)) if relu else F.linear(h, w, b)
-            return h[:, 0].numpy()
+        return plan_logits(x, self.scoring_plan(), self.norm.clip, self.scoring, self.onednn, self.scoring_threads)
 
     def reward(self, features: np.ndarray) -> np.ndarray:
         """Style reward of K-frame feature windows (N, input_dim): (N,)."""

@@ -59,7 +59,8 @@ import numpy as np
 from numba import njit
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from stairenv.style.discriminator import AMPDiscriminator, _window_logit
+from stairenv.style.discriminator import AMPDiscriminator
+from stairenv.style.scoring import window_logit as _window_logit
 
 PIPELINE_CHOICES = ("auto", "on", "off")
 

@@ -10,11 +10,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from stairenv.humanoid.state import JOINT_ROWS, PARENT_ROWS, PELVIS
-
-jit = njit(cache=True, nogil=True)
+from stairenv.numba_jit import jit
 
 
 @jit
