@@ -34,7 +34,7 @@ from stairenv.world.rooms import (
     generate_house,
     generate_room,
 )
-from stairenv.world.rooms.graph import _segment_hits_box
+from stairenv.world.rooms.graph import segment_hits_box
 from stairenv.world.scenes import Box
 
 SEEDS = (0, 1, 2, 3)
@@ -418,7 +418,7 @@ def test_house_joins_rooms_through_passable_doors():
     for a, b in graph.edges:
         assert graph.nodes[a]["room"] and graph.nodes[b]["room"]
         p, q = np.asarray(graph.nodes[a]["position"]), np.asarray(graph.nodes[b]["position"])
-        assert not any(_segment_hits_box(p, q, w) for w in house.walls)
+        assert not any(segment_hits_box(p, q, w) for w in house.walls)
     # Requested contents per room.
     custom = generate_house(config, np.random.default_rng(5), 2, categories=[["bed", "lamp"], ["table", "chair"]])
     assert [Counter(r.categories) for r in custom.rooms] == [Counter(["bed", "lamp"]), Counter(["table", "chair"])]

@@ -76,7 +76,7 @@ class SB3Policy:
         return f"SB3Policy({type(self.model).__name__}: {self.path}{norm})"
 
 
-class _SpacesEnv(gym.Env):
+class SpacesEnv(gym.Env):
     """A stand-in env with given spaces, only for ``VecNormalize.load``."""
 
     def __init__(self, observation_space: gym.Space, action_space: gym.Space) -> None:
@@ -210,7 +210,7 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
         if normalizer.observation_space.shape != expected:
             raise ValueError(f"VecNormalize statistics {str(stats)!r} are for observations of shape "
                              f"{normalizer.observation_space.shape}, the env gives {expected}")
-        normalizer.set_venv(DummyVecEnv([lambda: _SpacesEnv(env.observation_space, env.action_space)]))
+        normalizer.set_venv(DummyVecEnv([lambda: SpacesEnv(env.observation_space, env.action_space)]))
         normalizer.training = False
         normalizer.norm_reward = False
     return SB3Policy(model, normalizer, str(model_path))
@@ -224,6 +224,6 @@ def policy_label(policy: Any) -> str:
 
 
 __all__ = [
-    "BUILTIN_POLICIES", "Policy", "RandomPolicy", "SB3Policy", "ZeroPolicy", "load_policy",
+    "BUILTIN_POLICIES", "Policy", "RandomPolicy", "SB3Policy", "SpacesEnv", "ZeroPolicy", "load_policy",
     "normalizer_beside", "policy_label", "read_normalizer",
 ]

@@ -26,7 +26,7 @@ from stairenv.world.furniture.configs import (
 )
 from stairenv.world.furniture.fields import FurnitureConfig
 from stairenv.world.furniture.model import FAMILIES, Furniture
-from stairenv.world.furniture.parts import Part, _rot_y, _rot_z, cylinder_points, rounded_bar_points
+from stairenv.world.furniture.parts import Part, cylinder_points, rot_y, rot_z, rounded_bar_points
 
 
 def _u(rng: np.random.Generator, r: tuple[float, float]) -> float:
@@ -50,7 +50,7 @@ def _build_chair(c: ChairConfig, rng: np.random.Generator) -> Built:
         x0 = d / 2 - lt if sx > 0 else -d / 2
         y0 = w / 2 - lt if sy > 0 else -w / 2
         parts.append(Part.from_bounds("leg", (x0, y0, 0.0), (x0 + lt, y0 + lt, h - ts)))
-    rot = _rot_y(-tilt)  # the top leans back (towards -x)
+    rot = rot_y(-tilt)  # the top leans back (towards -x)
     pivot = np.array([-d / 2 + bt / 2, 0.0, h])
     parts.append(Part.box("backrest", pivot + rot @ np.array([0.0, 0.0, bh / 2]), (bt / 2, w / 2, bh / 2), rot))
     return parts, {"seat_height": h, "seat_width": w, "seat_depth": d, "seat_thickness": ts,
@@ -124,7 +124,7 @@ def _build_stool(c: StoolConfig, rng: np.random.Generator) -> Built:
     for k in range(n):
         a = 2.0 * math.pi * k / n + (math.pi / 4 if n == 4 else 0.0)
         center = (leg_r * math.cos(a), leg_r * math.sin(a), 0.5 * (h - ts))
-        parts.append(Part.box("leg", center, (lt / 2, lt / 2, 0.5 * (h - ts)), _rot_z(a)))
+        parts.append(Part.box("leg", center, (lt / 2, lt / 2, 0.5 * (h - ts)), rot_z(a)))
     return parts, {"seat_height": h, "seat_radius": r, "num_legs": n, "round": is_round}
 
 

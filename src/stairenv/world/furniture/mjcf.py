@@ -11,7 +11,7 @@ import numpy as np
 
 from stairenv.world.furniture.colors import part_rgba
 from stairenv.world.furniture.model import Furniture
-from stairenv.world.furniture.placement import PlacedFurniture, _pose
+from stairenv.world.furniture.placement import PlacedFurniture, check_pose
 
 
 @dataclass(eq=False)
@@ -53,7 +53,7 @@ def add_furniture_to_spec(spec: mujoco.MjSpec, furniture: Furniture, pose: Seque
     collides with its convex hull, which is the part itself). Colours from ``part_rgba``
     unless ``rgba`` is given. ``name`` defaults to the family.
     """
-    x, y, yaw = _pose(pose)
+    x, y, yaw = check_pose(pose)
     name = furniture.family if name is None else str(name)
     body = spec.worldbody.add_body(name=name, pos=[x, y, 0.0], quat=[math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)])
     names: dict[str, list[str]] = {}

@@ -18,12 +18,12 @@ ROUND_SEGMENTS = 24
 _BOX_SIGNS = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
 
 # --- geometry helpers ----------------------------------------------------------------------------
-def _rot_y(angle: float) -> np.ndarray:
+def rot_y(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def _rot_z(angle: float) -> np.ndarray:
+def rot_z(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 

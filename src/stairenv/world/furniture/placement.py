@@ -9,12 +9,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from stairenv.world.furniture.model import Furniture
-from stairenv.world.furniture.parts import ContactSurface, _rot_z
+from stairenv.world.furniture.parts import ContactSurface, rot_z
 from stairenv.world.scenes import Box
 
 
 # --- placement and MuJoCo ------------------------------------------------------------------------
-def _pose(pose: Sequence[float]) -> tuple[float, float, float]:
+def check_pose(pose: Sequence[float]) -> tuple[float, float, float]:
     try:
         x, y, yaw = (float(v) for v in pose)
     except (TypeError, ValueError):
@@ -36,7 +36,7 @@ class PlacedFurniture:
     pose: tuple[float, float, float]
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "pose", _pose(self.pose))
+        object.__setattr__(self, "pose", check_pose(self.pose))
 
     @property
     def category(self) -> str:
@@ -57,7 +57,7 @@ class PlacedFurniture:
 
     @property
     def rotation(self) -> np.ndarray:
-        return _rot_z(self.pose[2])
+        return rot_z(self.pose[2])
 
     @property
     def translation(self) -> np.ndarray:

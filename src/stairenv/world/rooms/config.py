@@ -35,9 +35,9 @@ WALL_FAMILIES: frozenset[str] = frozenset({"bed", "double_bed", "wardrobe", "boo
 FRONT_ACCESS_FAMILIES: frozenset[str] = frozenset({"armchair", "sofa", "cabinet", "wardrobe", "bookshelf"})
 # Families with minimal interaction (SIMS marks them as less important graph nodes).
 MINOR_FAMILIES: frozenset[str] = frozenset({"lamp"})
-_ORDER = {"bed": 0, "double_bed": 0, "wardrobe": 1, "sofa": 1, "bookshelf": 2, "cabinet": 3, "table": 4,
+PLACEMENT_ORDER = {"bed": 0, "double_bed": 0, "wardrobe": 1, "sofa": 1, "bookshelf": 2, "cabinet": 3, "table": 4,
           "armchair": 5, "chair": 6, "stool": 7, "lamp": 8}
-_TABLE_SEATS = frozenset({"chair", "stool"})
+TABLE_SEATS = frozenset({"chair", "stool"})
 
 # --- config --------------------------------------------------------------------------------------
 @dataclass(frozen=True)

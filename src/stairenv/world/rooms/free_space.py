@@ -60,7 +60,7 @@ def _cell_centres(shape: tuple[int, int], origin: tuple[float, float], c: float)
     return np.stack((gx, gy), axis=-1)
 
 
-def _label_free(blocked: np.ndarray, c: float, body_radius: float) -> np.ndarray:
+def label_free(blocked: np.ndarray, c: float, body_radius: float) -> np.ndarray:
     """4-connected component labels of the cells whose centre is more than ``body_radius`` from blocked cells."""
     padded = np.pad(blocked, 1, constant_values=True)
     dist = ndimage.distance_transform_edt(~padded)[1:-1, 1:-1] * c
@@ -69,7 +69,7 @@ def _label_free(blocked: np.ndarray, c: float, body_radius: float) -> np.ndarray
     return labels
 
 
-def _reach_points(placed: PlacedFurniture, body_radius: float, reach: float, c: float) -> np.ndarray:
+def reach_points(placed: PlacedFurniture, body_radius: float, reach: float, c: float) -> np.ndarray:
     """World (N, 2) standing points from which the piece is within ``reach`` (m): its front
     edge for ``FRONT_ACCESS_FAMILIES``, otherwise any side."""
     hx, hy = placed.furniture.footprint
@@ -91,7 +91,7 @@ def _reach_points(placed: PlacedFurniture, body_radius: float, reach: float, c: 
     local3 = np.column_stack((local, np.zeros(len(local))))
     return placed.to_world(local3)[:, :2]
 
-def _free_space(rooms: Sequence[Room], walls: Sequence[Box], doors: Sequence[Door],
+def build_free_space(rooms: Sequence[Room], walls: Sequence[Box], doors: Sequence[Door],
                 furniture: Sequence[PlacedFurniture], c: float, body_radius: float) -> FreeSpace:
     t = max(r.wall_thickness for r in rooms)
     lo = np.min([r.bounds[:2] for r in rooms], axis=0) - t - 2 * c
@@ -109,10 +109,10 @@ def _free_space(rooms: Sequence[Room], walls: Sequence[Box], doors: Sequence[Doo
         blocked |= w.overlapping_cells(shape, c, origin)
     for f in furniture:
         blocked |= f.footprint_box().overlapping_cells(shape, c, origin)
-    return FreeSpace(_label_free(blocked, c, body_radius), origin, c)
+    return FreeSpace(label_free(blocked, c, body_radius), origin, c)
 
 
-def _check_reachable(space: FreeSpace, rooms: Sequence[Room], doors: Sequence[Door],
+def all_reachable(space: FreeSpace, rooms: Sequence[Room], doors: Sequence[Door],
                      furniture: Sequence[PlacedFurniture], body_radius: float, reach: float, c: float) -> bool:
     targets = []
     for d in doors:
@@ -126,4 +126,4 @@ def _check_reachable(space: FreeSpace, rooms: Sequence[Room], doors: Sequence[Do
         return False
     if any(space.label_at(p)[0] != start for p in targets[1:]):
         return False
-    return all(np.any(space.label_at(_reach_points(f, body_radius, reach, c)) == start) for f in furniture)
+    return all(np.any(space.label_at(reach_points(f, body_radius, reach, c)) == start) for f in furniture)

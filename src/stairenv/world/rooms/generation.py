@@ -13,7 +13,7 @@ from stairenv.world.furniture import FAMILIES
 from stairenv.world.rooms.config import ROOM_TYPES, RoomConfig
 from stairenv.world.rooms.doors import Door
 from stairenv.world.rooms.model import House, Room
-from stairenv.world.rooms.placement import _furnish
+from stairenv.world.rooms.placement import furnish
 from stairenv.world.scenes import Box
 
 
@@ -113,7 +113,7 @@ def generate_room(config: RoomConfig, rng: np.random.Generator, categories: Sequ
         door = _room_door(config, rng, cell, float(rng.uniform(*config.door_width)), side, (name, "outside"))
         if door is None:
             continue
-        placed = _furnish(config, rng, bounds, [door], required, optional, "")
+        placed = furnish(config, rng, bounds, [door], required, optional, "")
         if placed is None:
             continue
         walls = tuple(_walls_of_cell(cell, [door], cfg_t, config.wall_height))
@@ -224,7 +224,7 @@ def generate_house(config: RoomConfig, rng: np.random.Generator, num_rooms: int 
                     required, optional = [], []
                 else:
                     required, optional = _template(config, rng, types[k])
-                placed = _furnish(config, rng, bounds, room_doors, required, optional, f"{names[k]}_")
+                placed = furnish(config, rng, bounds, room_doors, required, optional, f"{names[k]}_")
                 if placed is not None:
                     break
             if placed is None:

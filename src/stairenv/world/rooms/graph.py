@@ -14,7 +14,7 @@ from stairenv.world.scenes import Box
 
 
 # --- room and house ------------------------------------------------------------------------------
-def _segment_hits_box(p: np.ndarray, q: np.ndarray, box: Box) -> bool:
+def segment_hits_box(p: np.ndarray, q: np.ndarray, box: Box) -> bool:
     """Whether the segment p-q (world xy) crosses the footprint of ``box`` (Liang-Barsky)."""
     u, v = box.axes
     a = np.array([(p - box.center) @ u, (p - box.center) @ v])
@@ -54,7 +54,7 @@ def footprint_distance(a: Box, b: Box) -> float:
     return best
 
 
-def _layout_graph(items: Sequence[PlacedFurniture], walls: Sequence[Box], room_of: Mapping[str, str],
+def build_layout_graph(items: Sequence[PlacedFurniture], walls: Sequence[Box], room_of: Mapping[str, str],
                   threshold: float, obstruction_height: float | None) -> nx.Graph:
     graph = nx.Graph()
     boxes = {f.name: f.footprint_box() for f in items}
@@ -68,10 +68,10 @@ def _layout_graph(items: Sequence[PlacedFurniture], walls: Sequence[Box], room_o
             if gap > threshold:
                 continue
             p, q = a.position, b.position
-            if any(_segment_hits_box(p, q, w) for w in walls):
+            if any(segment_hits_box(p, q, w) for w in walls):
                 continue
             if obstruction_height is not None and any(
-                    _segment_hits_box(p, q, boxes[o.name]) for o in items
+                    segment_hits_box(p, q, boxes[o.name]) for o in items
                     if o.name not in (a.name, b.name) and o.furniture.height > obstruction_height):
                 continue
             graph.add_edge(a.name, b.name, distance=gap)

@@ -10,8 +10,8 @@ import numpy as np
 
 from stairenv.world.furniture import PlacedFurniture
 from stairenv.world.rooms.doors import Door
-from stairenv.world.rooms.free_space import FreeSpace, _check_reachable, _free_space
-from stairenv.world.rooms.graph import _layout_graph
+from stairenv.world.rooms.free_space import FreeSpace, all_reachable, build_free_space
+from stairenv.world.rooms.graph import build_layout_graph
 from stairenv.world.scenes import Box
 
 
@@ -82,12 +82,12 @@ class Room:
 
     def free_space(self, *, cell_size: float | None = None, body_radius: float | None = None) -> FreeSpace:
         """Free floor of the room(s) (door gaps passable, outside blocked) with its components."""
-        return _free_space(self.rooms, self.walls, self.doors, self.furniture,
+        return build_free_space(self.rooms, self.walls, self.doors, self.furniture,
                            cell_size or self.cell_size, self.body_radius if body_radius is None else body_radius)
 
     def is_connected(self) -> bool:
         """Whether every door and every piece is reachable from the first door (see the module doc)."""
-        return _check_reachable(self.free_space(), self.rooms, self.doors, self.furniture,
+        return all_reachable(self.free_space(), self.rooms, self.doors, self.furniture,
                                 self.body_radius, self.reach_distance, self.cell_size)
 
     def layout_graph(self, *, threshold: float = 1.0, obstruction_height: float | None = None) -> nx.Graph:
@@ -100,7 +100,7 @@ class Room:
         lamps). Edge attribute: ``distance`` (the footprint gap, m).
         """
         room_of = {f.name: r.name for r in self.rooms for f in r.furniture}
-        return _layout_graph(list(self.furniture), list(self.walls), room_of, threshold, obstruction_height)
+        return build_layout_graph(list(self.furniture), list(self.walls), room_of, threshold, obstruction_height)
 
 
 @dataclass(frozen=True, eq=False)

@@ -13,9 +13,9 @@ from stairenv.world.furniture import (
     PlacedFurniture,
     make_furniture,
 )
-from stairenv.world.rooms.config import _ORDER, _TABLE_SEATS, WALL_FAMILIES, RoomConfig
+from stairenv.world.rooms.config import PLACEMENT_ORDER, TABLE_SEATS, WALL_FAMILIES, RoomConfig
 from stairenv.world.rooms.doors import Door
-from stairenv.world.rooms.free_space import _label_free, _reach_points
+from stairenv.world.rooms.free_space import label_free, reach_points
 from stairenv.world.scenes import Box
 
 
@@ -65,7 +65,7 @@ class _Layout:
         return i, j
 
     def _reach(self, f: PlacedFurniture) -> tuple[np.ndarray, np.ndarray]:
-        pts = _reach_points(f, self.radius, self.reach, self.cfg.cell_size)
+        pts = reach_points(f, self.radius, self.reach, self.cfg.cell_size)
         c = self.cfg.cell_size
         j = np.floor((pts[:, 0] - self.origin[0]) / c).astype(int)
         i = np.floor((pts[:, 1] - self.origin[1]) / c).astype(int)
@@ -93,7 +93,7 @@ class _Layout:
     def connected_with(self, cand: PlacedFurniture) -> tuple[bool, np.ndarray]:
         """Whether the doors and all pieces (with ``cand``) stay reachable; and cand's mask."""
         mask = cand.footprint_box().overlapping_cells(self.shape, self.cfg.cell_size, self.origin)
-        labels = _label_free(self.occupied | mask, self.cfg.cell_size, self.radius)
+        labels = label_free(self.occupied | mask, self.cfg.cell_size, self.radius)
         if self.door_cells:
             start = labels[self.door_cells[0]]
         else:  # no door: the largest free component
@@ -180,7 +180,7 @@ def _candidate(rng: np.random.Generator, layout: _Layout, family: str,
     sides = ("west", "east", "south", "north")
     if family in WALL_FAMILIES:
         return _wall_pose(rng, bounds, fp, sides[int(rng.integers(0, 4))], cfg.wall_gap), None
-    if family in _TABLE_SEATS:
+    if family in TABLE_SEATS:
         tables = [f for f in layout.placed if f.family == "table"]
         if tables and rng.uniform() < 0.9:
             table = tables[int(rng.integers(0, len(tables)))]
@@ -205,11 +205,11 @@ def _candidate(rng: np.random.Generator, layout: _Layout, family: str,
     return (x, y, yaw), None
 
 
-def _furnish(cfg: RoomConfig, rng: np.random.Generator, bounds: tuple[float, float, float, float],
+def furnish(cfg: RoomConfig, rng: np.random.Generator, bounds: tuple[float, float, float, float],
              doors: list[Door], required: list[str], optional: list[str], prefix: str) -> list[PlacedFurniture] | None:
     """Place ``required`` (all, or None) and as many ``optional`` pieces as fit."""
     layout = _Layout(cfg, bounds, doors)
-    items = sorted([(f, True) for f in required] + [(f, False) for f in optional], key=lambda it: _ORDER.get(it[0], 9))
+    items = sorted([(f, True) for f in required] + [(f, False) for f in optional], key=lambda it: PLACEMENT_ORDER.get(it[0], 9))
     counts: dict[str, int] = {}
     for family, is_required in items:
         furniture = make_furniture(family, rng)

@@ -22,7 +22,7 @@ from stairenv.world.scenes.patches import (
     generate_patch,
 )
 from stairenv.world.scenes.reachability import connected_free_space
-from stairenv.world.scenes.shapes import Box, _floats, _int_range, _yaw_axes
+from stairenv.world.scenes.shapes import Box, check_floats, check_int_range, check_integer, yaw_axes
 
 
 # --- random scenes -------------------------------------------------------------------------------
@@ -107,35 +107,35 @@ class SceneConfig:
         def put(name: str, value: Any) -> None:
             object.__setattr__(self, name, value)
 
-        size = _floats("size", self.size, 2)
+        size = check_floats("size", self.size, 2)
         for axis, value in zip("xy", size):
             check_number(f"size ({axis})", value, 2.0, 200.0)
         put("size", size)
         put("cell_size", check_number("cell_size", self.cell_size, 0.01, 0.5))
         put("patch_size", check_number("patch_size", self.patch_size, 0.5, 100.0))
-        weights = _floats("terrain_weights", self.terrain_weights, len(TERRAIN_KINDS))
+        weights = check_floats("terrain_weights", self.terrain_weights, len(TERRAIN_KINDS))
         if min(weights) < 0.0 or sum(weights) <= 0.0:
             raise ValueError(
                 f"terrain_weights must be {len(TERRAIN_KINDS)} numbers >= 0 with a positive sum "
                 f"(odds of {', '.join(TERRAIN_KINDS)}), got {self.terrain_weights!r}"
             )
         put("terrain_weights", weights)
-        put("min_flat_patches", self._integer("min_flat_patches", self.min_flat_patches, 0, 10000))
+        put("min_flat_patches", check_integer("min_flat_patches", self.min_flat_patches, 0, 10000))
         for name, cls in (("flat", FlatPatchConfig), ("slope", SlopePatchConfig),
                           ("rough", RoughPatchConfig), ("stairs", StairsPatchConfig)):
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}")
-        put("num_walls", _int_range("num_walls", self.num_walls, 0, 100))
+        put("num_walls", check_int_range("num_walls", self.num_walls, 0, 100))
         put("wall_length", check_range("wall_length", self.wall_length, 0.1, 100.0))
         put("wall_thickness", check_number("wall_thickness", self.wall_thickness, 0.01, 5.0))
         put("wall_height", check_range("wall_height", self.wall_height, 0.05, 10.0))
-        put("num_ceilings", _int_range("num_ceilings", self.num_ceilings, 0, 50))
+        put("num_ceilings", check_int_range("num_ceilings", self.num_ceilings, 0, 50))
         put("tunnel_probability", check_number("tunnel_probability", self.tunnel_probability, 0.0, 1.0))
         put("ceiling_clearance", check_range("ceiling_clearance", self.ceiling_clearance, 0.2, 5.0))
         put("ceiling_length", check_range("ceiling_length", self.ceiling_length, 0.3, 50.0))
         put("ceiling_width", check_range("ceiling_width", self.ceiling_width, 0.3, 50.0))
         put("ceiling_thickness", check_number("ceiling_thickness", self.ceiling_thickness, 0.01, 2.0))
-        put("num_landmarks", self._integer("num_landmarks", self.num_landmarks, 1, 100))
+        put("num_landmarks", check_integer("num_landmarks", self.num_landmarks, 1, 100))
         names = tuple(self.landmark_names) if not isinstance(self.landmark_names, str) else (self.landmark_names,)
         if (len(names) < self.num_landmarks or len(set(names)) != len(names)
                 or not all(isinstance(n, str) and n for n in names)):
@@ -149,21 +149,14 @@ class SceneConfig:
         put("landmark_wall_clearance",
             check_number("landmark_wall_clearance", self.landmark_wall_clearance, 0.0, 10.0))
         put("landmark_flatness", check_number("landmark_flatness", self.landmark_flatness, 0.0, 1.0))
-        put("num_dynamic_obstacles", self._integer("num_dynamic_obstacles", self.num_dynamic_obstacles, 0, 20))
+        put("num_dynamic_obstacles", check_integer("num_dynamic_obstacles", self.num_dynamic_obstacles, 0, 20))
         put("ball_radius", check_range("ball_radius", self.ball_radius, 0.02, 2.0))
         put("ball_speed", check_range("ball_speed", self.ball_speed, 0.0, 20.0))
         put("ball_path_length", check_range("ball_path_length", self.ball_path_length, 0.5, 100.0))
         put("max_step_height", check_number("max_step_height", self.max_step_height, 0.0, 2.0))
         put("min_clearance", check_number("min_clearance", self.min_clearance, 0.1, 3.0))
         put("body_radius", check_number("body_radius", self.body_radius, 0.0, 2.0))
-        put("max_attempts", self._integer("max_attempts", self.max_attempts, 1, 10000))
-
-    @staticmethod
-    def _integer(name: str, value: Any, low: int, high: int) -> int:
-        number = check_number(name, value, low, high)
-        if int(number) != number:
-            raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-        return int(number)
+        put("max_attempts", check_integer("max_attempts", self.max_attempts, 1, 10000))
 
     @property
     def patch_configs(self) -> tuple[PatchConfig, ...]:
@@ -210,7 +203,7 @@ def _low_ceiling_structures(config: SceneConfig, rng: np.random.Generator, heigh
         ground_low, ground_high = _ground_under(outer, heights, c, origin)
         underside = ground_high + clearance
         slabs.append(Box(center, (0.5 * length, 0.5 * width), yaw, underside, underside + config.ceiling_thickness))
-        u, v = _yaw_axes(yaw)
+        u, v = yaw_axes(yaw)
         base = ground_low - 0.1
         if tunnel:
             for side in (-1.0, 1.0):

@@ -18,7 +18,7 @@ from scipy import ndimage
 from stairenv.planning.grid import PlanningGrid
 from stairenv.validation import check_number
 from stairenv.world.scenes.obstacles import DynamicObstacle
-from stairenv.world.scenes.shapes import Box, _floats, _from_mapping
+from stairenv.world.scenes.shapes import Box, check_floats, kwargs_from_json
 
 # Terrain kinds, in the order of ``Scene.terrain_labels`` codes and ``SceneConfig.terrain_weights``.
 TERRAIN_KINDS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
@@ -66,9 +66,9 @@ class Landmark:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ValueError(f"a landmark needs a non-empty name, got {self.name!r}")
-        object.__setattr__(self, "center", _floats("center", self.center, 2))
+        object.__setattr__(self, "center", check_floats("center", self.center, 2))
         object.__setattr__(self, "radius", check_number("radius", self.radius, 0.0))
-        object.__setattr__(self, "display_position", _floats("display_position", self.display_position, 3))
+        object.__setattr__(self, "display_position", check_floats("display_position", self.display_position, 3))
 
     def cells(self, shape: tuple[int, int], cell_size: float, origin: tuple[float, float]) -> np.ndarray:
         """(K, 2) int cells (i, j) of the landmark on a grid; may be empty if it lies off the grid."""
@@ -96,7 +96,7 @@ class Landmark:
 
     @classmethod
     def from_dict(cls, data: Any) -> Landmark:
-        return cls(**_from_mapping(cls, data, "landmark"))
+        return cls(**kwargs_from_json(cls, data, "landmark"))
 
 
 # --- the scene -----------------------------------------------------------------------------------
@@ -134,7 +134,7 @@ class Scene:
         if not np.isfinite(self.heights).all():
             raise ValueError("heights must be finite")
         self.cell_size = check_number("cell_size", self.cell_size, 0.0, low_open=True)
-        self.origin = _floats("origin", self.origin, 2)
+        self.origin = check_floats("origin", self.origin, 2)
         self.walls = list(self.walls)
         self.ceilings = list(self.ceilings)
         self.dynamic_obstacles = list(self.dynamic_obstacles)

@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from stairenv.validation import check_number
-from stairenv.world.scenes.shapes import _floats, _from_mapping
+from stairenv.world.scenes.shapes import check_floats, kwargs_from_json
 
 
 # --- dynamic obstacles ---------------------------------------------------------------------------
@@ -49,7 +49,7 @@ class MotionModel(abc.ABC):
         if kind not in MOTION_MODELS:
             raise ValueError(f"motion kind must be one of {sorted(MOTION_MODELS)}, got {kind!r}")
         cls = MOTION_MODELS[kind]
-        return cls(**_from_mapping(cls, data, f"{kind} motion"))
+        return cls(**kwargs_from_json(cls, data, f"{kind} motion"))
 
 
 @dataclass(frozen=True)
@@ -61,8 +61,8 @@ class ConstantVelocity(MotionModel):
     kind: ClassVar[str] = "constant_velocity"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "start", _floats("start", self.start, 3))
-        object.__setattr__(self, "velocity", _floats("velocity", self.velocity, 3))
+        object.__setattr__(self, "start", check_floats("start", self.start, 3))
+        object.__setattr__(self, "velocity", check_floats("velocity", self.velocity, 3))
 
     def position(self, t: float | np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float)[..., None]
@@ -88,7 +88,7 @@ class Loop(MotionModel):
     kind: ClassVar[str] = "loop"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _floats("center", self.center, 3))
+        object.__setattr__(self, "center", check_floats("center", self.center, 3))
         object.__setattr__(self, "radius", check_number("radius", self.radius, 0.0))
         object.__setattr__(self, "period", check_number("period", self.period, 0.0, low_open=True))
         object.__setattr__(self, "phase", check_number("phase", self.phase))
@@ -125,7 +125,7 @@ class WaypointLoop(MotionModel):
 
     def __post_init__(self) -> None:
         try:
-            points = tuple(_floats(f"waypoints[{k}]", p, 3) for k, p in enumerate(self.waypoints))
+            points = tuple(check_floats(f"waypoints[{k}]", p, 3) for k, p in enumerate(self.waypoints))
         except TypeError:
             raise ValueError(f"waypoints must be a sequence of (x, y, z) points, got {self.waypoints!r}") from None
         if len(points) < 2:
@@ -201,6 +201,6 @@ class DynamicObstacle:
 
     @classmethod
     def from_dict(cls, data: Any) -> DynamicObstacle:
-        kwargs = _from_mapping(cls, data, "dynamic obstacle")
+        kwargs = kwargs_from_json(cls, data, "dynamic obstacle")
         kwargs["motion"] = MotionModel.from_dict(kwargs.get("motion"))
         return cls(**kwargs)

@@ -10,7 +10,7 @@ import numpy as np
 from scipy import ndimage
 
 from stairenv.validation import check_number, check_range
-from stairenv.world.scenes.shapes import _int_range
+from stairenv.world.scenes.shapes import check_int_range
 
 # --- terrain patches -----------------------------------------------------------------------------
 # A patch is an (h, w) array of heights (m) on the scene's grid. Every generator leaves the
@@ -103,7 +103,7 @@ class StairsPatchConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "step_height", check_range("step_height", self.step_height, 0.01, 0.30))
         object.__setattr__(self, "tread_depth", check_range("tread_depth", self.tread_depth, 0.10, 1.0))
-        object.__setattr__(self, "num_steps", _int_range("num_steps", self.num_steps, 1, 30))
+        object.__setattr__(self, "num_steps", check_int_range("num_steps", self.num_steps, 1, 30))
         object.__setattr__(self, "aspect", check_range("aspect", self.aspect, 0.05, 1.0))
         object.__setattr__(self, "border", check_number("border", self.border, 0.0, 10.0))
 

@@ -13,7 +13,7 @@ from stairenv.validation import check_number, check_range
 
 
 # --- small helpers -------------------------------------------------------------------------------
-def _floats(name: str, value: Any, count: int) -> tuple[float, ...]:
+def check_floats(name: str, value: Any, count: int) -> tuple[float, ...]:
     """``value`` as a tuple of ``count`` finite floats (lists from JSON become tuples)."""
     try:
         numbers = tuple(float(v) for v in value)
@@ -24,14 +24,22 @@ def _floats(name: str, value: Any, count: int) -> tuple[float, ...]:
     return numbers
 
 
-def _int_range(name: str, value: Sequence[float], low: int, high: int) -> tuple[int, int]:
+def check_integer(name: str, value: Any, low: int, high: int) -> int:
+    """``value`` as an int in [low, high]; a float without a fraction (3.0) is accepted."""
+    number = check_number(name, value, low, high)
+    if int(number) != number:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(number)
+
+
+def check_int_range(name: str, value: Sequence[float], low: int, high: int) -> tuple[int, int]:
     lo, hi = check_range(name, value, low, high)
     if int(lo) != lo or int(hi) != hi:
         raise ValueError(f"{name} must be a (min, max) pair of integers within [{low}, {high}], got {value!r}")
     return int(lo), int(hi)
 
 
-def _from_mapping(cls: type, data: Any, what: str) -> dict[str, Any]:
+def kwargs_from_json(cls: type, data: Any, what: str) -> dict[str, Any]:
     """Keyword arguments for dataclass ``cls`` from a JSON object, with clear errors."""
     if not isinstance(data, dict):
         raise TypeError(f"{what} must be a JSON object, got {type(data).__name__}")
@@ -42,7 +50,7 @@ def _from_mapping(cls: type, data: Any, what: str) -> dict[str, Any]:
     return {k: v for k, v in data.items() if k in names}
 
 
-def _yaw_axes(yaw: float) -> tuple[np.ndarray, np.ndarray]:
+def yaw_axes(yaw: float) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors u (the x axis turned by ``yaw``) and v (u turned by another 90 degrees)."""
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array([c, s]), np.array([-s, c])
@@ -65,8 +73,8 @@ class Box:
     top: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _floats("center", self.center, 2))
-        half = _floats("half_size", self.half_size, 2)
+        object.__setattr__(self, "center", check_floats("center", self.center, 2))
+        half = check_floats("half_size", self.half_size, 2)
         if min(half) <= 0.0:
             raise ValueError(f"half_size must be > 0, got {half!r}")
         object.__setattr__(self, "half_size", half)
@@ -80,7 +88,7 @@ class Box:
     @property
     def axes(self) -> tuple[np.ndarray, np.ndarray]:
         """Unit vectors (u, v) of the footprint in the world's xy plane."""
-        return _yaw_axes(self.yaw)
+        return yaw_axes(self.yaw)
 
     @property
     def center_xyz(self) -> np.ndarray:
@@ -152,4 +160,4 @@ class Box:
 
     @classmethod
     def from_dict(cls, data: Any) -> Box:
-        return cls(**_from_mapping(cls, data, "box"))
+        return cls(**kwargs_from_json(cls, data, "box"))

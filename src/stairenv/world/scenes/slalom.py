@@ -7,9 +7,8 @@ import math
 import numpy as np
 
 from stairenv.validation import check_number
-from stairenv.world.scenes.generation import SceneConfig
 from stairenv.world.scenes.model import LANDMARK_MARKER_HEIGHT, Landmark, Scene
-from stairenv.world.scenes.shapes import Box
+from stairenv.world.scenes.shapes import Box, check_integer
 
 
 def slalom_scene(*, num_walls: int = 5, wall_spacing: float = 3.0, corridor_width: float = 4.0,
@@ -25,7 +24,7 @@ def slalom_scene(*, num_walls: int = 5, wall_spacing: float = 3.0, corridor_widt
     first wall's line, ``"goal"`` the same after the last. ``side_walls`` closes the
     corridor's long sides (each ``wall_thickness`` thick, outside the corridor).
     """
-    num_walls = SceneConfig._integer("num_walls", num_walls, 1, 100)
+    num_walls = check_integer("num_walls", num_walls, 1, 100)
     wall_spacing = check_number("wall_spacing", wall_spacing, 0.5, 50.0)
     corridor_width = check_number("corridor_width", corridor_width, 1.0, 50.0)
     gap_width = check_number("gap_width", gap_width, 0.1, corridor_width - 0.1)
