@@ -24,31 +24,11 @@ walks and stair ascents, or for SIMS envs walks plus sit / lie / reach / get-up
 clips), reward 0.5 task + 0.5 style, episodes started half from
 reference states (``--init hybrid``).
 
-``--preset style-short`` (``PRESETS``; flags and ``--config`` keys win over it),
-from 35-minute (~1M-step) runs on InterLevel-v0 with the built-in clips on a
-2-core CPU. Without instance noise (the preset otherwise) the discriminator
-wins within ~100k steps (accuracy ~1) and the style reward falls for the whole
-run (0.35 -> 0.09 over 1.1M steps); slower discriminators (lr 1e-5, one
-minibatch per round), weight decay 1e-3, higher style weight and lower action
-noise only delay or shift the fall. What helped:
-
-- Instance noise on the discriminator's training inputs (``--disc-input-noise 1``)
-  keeps it from separating the classes on tiny feature differences. Same run
-  otherwise: the style reward rises after the discriminator's first trough
-  (0.46 -> 0.52 over 100k-300k steps), dips (0.42 at 500k-800k) and recovers
-  (0.48 at 1.37M) while the episode length rises (25 -> 38 steps); without the
-  noise it falls from 0.32 to 0.10 (1.37M steps). Continued to 4.66M steps, the
-  preset's run reaches episodes of 80 steps with the style reward at 0.46-0.50
-  (``docs/reproducing.md``). Giving the synthesised clips
-  pelvis roll and arm motion (before, 22 of the 105 features never varied in
-  them) did not change either curve.
-- A policy learning rate of 1e-4 (used before) gives PPO approx-KL 0.1-5 and
-  clip fractions 0.5-0.75 per update. With the policy's std lowered to 0.135
-  (``--log-std-init -2``, near AMP's fixed action noise; longer episodes from
-  the start), 1e-5 keeps approx-KL ~0.01-0.03.
-
-The preset also weights style 0.8 (task 0.2) and uses gradient penalty 10 and a
-200k-window replay buffer.
+``--preset style-short`` (``PRESETS``; flags and ``--config`` keys win over it) is
+for short runs on a CPU: instance noise 1.0 on the discriminator's training inputs,
+policy learning rate 1e-5 with log std -2, style weighted 0.8 (task 0.2), gradient
+penalty 10 and a 200k-window replay buffer. The runs behind each setting are in
+``docs/reproducing.md`` ("Why --preset style-short").
 
 Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
 checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +

@@ -1,4 +1,4 @@
-"""The body: ``stairenv.humanoid`` and ``xml/humanoid.xml`` against the design brief (section 1)."""
+"""The body: ``stairenv.humanoid`` and ``xml/humanoid.xml`` against the body specification written out below."""
 
 from __future__ import annotations
 
@@ -23,16 +23,16 @@ from stairenv.humanoid import (
     pd_action_offset_scale,
 )
 
-# --- the brief, written out -------------------------------------------------------------------
-BRIEF_BODIES = [
+# --- the specification, written out --------------------------------------------------------------
+SPEC_BODIES = [
     "pelvis", "torso", "head", "right_upper_arm", "right_lower_arm", "right_hand",
     "left_upper_arm", "left_lower_arm", "left_hand", "right_thigh", "right_shin", "right_foot",
     "left_thigh", "left_shin", "left_foot",
 ]
-BRIEF_PARENTS = [-1, 0, 1, 1, 3, 4, 1, 6, 7, 0, 9, 10, 0, 12, 13]
+SPEC_PARENTS = [-1, 0, 1, 1, 3, 4, 1, 6, 7, 0, 9, 10, 0, 12, 13]
 
 # joint -> per-axis range in degrees (x, y, z) or (y,) for the one-axis joints
-BRIEF_RANGES_DEG = {
+SPEC_RANGES_DEG = {
     "abdomen": [(-60, 60), (-60, 90), (-50, 50)],
     "neck": [(-50, 50), (-40, 60), (-45, 45)],
     "right_shoulder": [(-180, 45), (-180, 60), (-90, 90)],
@@ -46,20 +46,20 @@ BRIEF_RANGES_DEG = {
     "left_knee": [(0, 160)],
     "left_ankle": [(-30, 30), (-55, 55), (-40, 40)],
 }
-JOINT_ORDER = list(BRIEF_RANGES_DEG)  # qpos order (the MJCF comment and the brief agree)
+JOINT_ORDER = list(SPEC_RANGES_DEG)  # qpos order (the MJCF comment and the specification agree)
 JOINT_BODY = {
     "abdomen": "torso", "neck": "head", "right_shoulder": "right_upper_arm", "right_elbow": "right_lower_arm",
     "left_shoulder": "left_upper_arm", "left_elbow": "left_lower_arm", "right_hip": "right_thigh",
     "right_knee": "right_shin", "right_ankle": "right_foot", "left_hip": "left_thigh", "left_knee": "left_shin",
     "left_ankle": "left_foot",
 }
-BRIEF_MASSES = {
+SPEC_MASSES = {
     "pelvis": 10.0, "torso": 12.0, "head": 3.88, "right_thigh": 4.5, "left_thigh": 4.5, "right_shin": 3.0,
     "left_shin": 3.0, "right_upper_arm": 1.5, "left_upper_arm": 1.5, "right_lower_arm": 1.0,
     "left_lower_arm": 1.0, "right_hand": 0.5, "left_hand": 0.5, "right_foot": 1.0, "left_foot": 1.0,
 }
 # stiffness / damping: config A ("soft") and config B ("stiff")
-BRIEF_GAINS = {
+SPEC_GAINS = {
     "soft": {"abdomen": (600, 60), "neck": (50, 5), "shoulder": (200, 20), "elbow": (150, 15),
              "hip": (300, 30), "knee": (300, 30), "ankle": (200, 20)},
     "stiff": {"abdomen": (1000, 100), "neck": (100, 10), "shoulder": (400, 40), "elbow": (300, 30),
@@ -67,11 +67,11 @@ BRIEF_GAINS = {
 }
 
 
-def _brief_dofs():
+def _spec_dofs():
     """(dof name, joint, axis, (lo, hi) degrees) in qpos order."""
     out = []
     for joint in JOINT_ORDER:
-        ranges = BRIEF_RANGES_DEG[joint]
+        ranges = SPEC_RANGES_DEG[joint]
         if len(ranges) == 3:
             out += [(f"{joint}_{a}", joint, a, r) for a, r in zip("xyz", ranges)]
         else:
@@ -79,7 +79,7 @@ def _brief_dofs():
     return out
 
 
-BRIEF_DOFS = _brief_dofs()
+SPEC_DOFS = _spec_dofs()
 
 
 def _kind(joint: str) -> str:
@@ -92,23 +92,23 @@ def model():
 
 
 # --- structure -------------------------------------------------------------------------------------
-def test_constants_match_brief():
-    assert list(BODY_NAMES) == BRIEF_BODIES
-    assert list(PARENT_INDICES) == BRIEF_PARENTS
+def test_constants_match_spec():
+    assert list(BODY_NAMES) == SPEC_BODIES
+    assert list(PARENT_INDICES) == SPEC_PARENTS
     assert NUM_DOFS == 28
-    assert list(DOF_NAMES) == [d[0] for d in BRIEF_DOFS]
+    assert list(DOF_NAMES) == [d[0] for d in SPEC_DOFS]
 
 
 def test_bodies_and_parents(model):
-    # world, then the 15 bodies in the brief's order
+    # world, then the 15 bodies in the specification's order
     assert model.nbody == 16
     names = [model.body(i).name for i in range(1, 16)]
-    assert names == BRIEF_BODIES
+    assert names == SPEC_BODIES
     parents = []
     for i in range(1, 16):
         p = int(model.body_parentid[i])
-        parents.append(-1 if p == 0 else BRIEF_BODIES.index(model.body(p).name))
-    assert parents == BRIEF_PARENTS
+        parents.append(-1 if p == 0 else SPEC_BODIES.index(model.body(p).name))
+    assert parents == SPEC_PARENTS
 
 
 def test_free_root_and_28_hinges(model):
@@ -121,7 +121,7 @@ def test_free_root_and_28_hinges(model):
         assert model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
     # joints in qpos order, on the right bodies, about the right axes
     axes = {"x": [1, 0, 0], "y": [0, 1, 0], "z": [0, 0, 1]}
-    for k, (name, joint, axis, _) in enumerate(BRIEF_DOFS):
+    for k, (name, joint, axis, _) in enumerate(SPEC_DOFS):
         j = model.joint(name).id
         assert j == k + 1
         assert model.jnt_qposadr[j] == 7 + k
@@ -131,25 +131,25 @@ def test_free_root_and_28_hinges(model):
     for hand in ("right_hand", "left_hand"):
         assert model.body_jntnum[model.body(hand).id] == 0
     # actuators drive the DoFs in the same order
-    for k, (name, _, _, _) in enumerate(BRIEF_DOFS):
+    for k, (name, _, _, _) in enumerate(SPEC_DOFS):
         assert model.actuator(k).name == name
         assert model.actuator_trnid[k, 0] == model.joint(name).id
 
 
-def test_joint_ranges_match_brief(model):
-    for name, _, _, (lo, hi) in BRIEF_DOFS:
+def test_joint_ranges_match_spec(model):
+    for name, _, _, (lo, hi) in SPEC_DOFS:
         j = model.joint(name).id
         assert model.jnt_limited[j]
         np.testing.assert_allclose(np.degrees(model.jnt_range[j]), [lo, hi], atol=1e-9, err_msg=name)
-    expected = np.radians([r for *_, r in BRIEF_DOFS])
+    expected = np.radians([r for *_, r in SPEC_DOFS])
     np.testing.assert_allclose(dof_ranges(model), expected, atol=1e-12)
 
 
 def test_masses(model):
-    for name, mass in BRIEF_MASSES.items():
+    for name, mass in SPEC_MASSES.items():
         assert model.body_mass[model.body(name).id] == pytest.approx(mass, rel=1e-9), name
     assert model.body_mass.sum() == pytest.approx(48.88, abs=1e-6)
-    assert sum(BRIEF_MASSES.values()) == pytest.approx(48.88)
+    assert sum(SPEC_MASSES.values()) == pytest.approx(48.88)
 
 
 def test_segment_offsets(model):
@@ -200,8 +200,8 @@ def test_stands_on_floor_without_penetration(model):
 @pytest.mark.parametrize("preset", ["soft", "stiff"])
 def test_pd_gains(preset):
     m = load_humanoid_spec(preset).compile()
-    for k, (name, joint, _, _) in enumerate(BRIEF_DOFS):
-        kp, kv = BRIEF_GAINS[preset][_kind(joint)]
+    for k, (name, joint, _, _) in enumerate(SPEC_DOFS):
+        kp, kv = SPEC_GAINS[preset][_kind(joint)]
         assert PD_GAINS[preset][_kind(joint)] == (kp, kv)
         a = m.actuator(name).id
         assert m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
@@ -230,10 +230,10 @@ def test_unknown_preset():
     assert "pd_gains" in msg and "soft" in msg and "stiff" in msg and "wobbly" in msg
 
 
-def _brief_offset_scale():
+def _spec_offset_scale():
     offset, scale = [], []
     for joint in JOINT_ORDER:
-        ranges = np.radians(BRIEF_RANGES_DEG[joint])
+        ranges = np.radians(SPEC_RANGES_DEG[joint])
         if len(ranges) == 3:
             s = min(1.2 * np.abs(ranges).max(), math.pi)
             offset += [0.0] * 3
@@ -246,12 +246,12 @@ def _brief_offset_scale():
     return np.array(offset), np.array(scale)
 
 
-def test_pd_action_offset_scale_matches_brief():
-    offset, scale = pd_action_offset_scale(np.radians([r for *_, r in BRIEF_DOFS]))
-    e_offset, e_scale = _brief_offset_scale()
+def test_pd_action_offset_scale_matches_spec():
+    offset, scale = pd_action_offset_scale(np.radians([r for *_, r in SPEC_DOFS]))
+    e_offset, e_scale = _spec_offset_scale()
     np.testing.assert_allclose(offset, e_offset, atol=1e-12)
     np.testing.assert_allclose(scale, e_scale, rtol=1e-12)
-    deg = {name: (math.degrees(o - s), math.degrees(o + s)) for (name, *_), o, s in zip(BRIEF_DOFS, offset, scale)}
+    deg = {name: (math.degrees(o - s), math.degrees(o + s)) for (name, *_), o, s in zip(SPEC_DOFS, offset, scale)}
     # written-out examples
     for knee in ("right_knee", "left_knee"):
         assert deg[knee] == pytest.approx((-32.0, 192.0))
@@ -267,7 +267,7 @@ def test_pd_action_offset_scale_matches_brief():
 @pytest.mark.parametrize("preset", ["soft", "stiff"])
 def test_compiled_ctrlrange_is_offset_pm_scale(preset):
     m = load_humanoid_spec(preset).compile()
-    e_offset, e_scale = _brief_offset_scale()
+    e_offset, e_scale = _spec_offset_scale()
     assert np.all(m.actuator_ctrllimited == 1)
     np.testing.assert_allclose(m.actuator_ctrlrange[:, 0], e_offset - e_scale, atol=1e-9)
     np.testing.assert_allclose(m.actuator_ctrlrange[:, 1], e_offset + e_scale, atol=1e-9)
@@ -276,7 +276,7 @@ def test_compiled_ctrlrange_is_offset_pm_scale(preset):
 def test_env_maps_action_to_pd_targets():
     env = gym.make("InterLevel-v0")
     env.reset(seed=0)
-    e_offset, e_scale = _brief_offset_scale()
+    e_offset, e_scale = _spec_offset_scale()
     action = np.random.default_rng(1).uniform(-1, 1, 28)
     action[0], action[1] = -1.0, 1.0
     env.step(action)
@@ -334,7 +334,7 @@ BAD_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQV
 def test_random_action_soak(preset):
     m = load_humanoid_spec(preset).compile()
     d = mujoco.MjData(m)
-    offset, scale = _brief_offset_scale()
+    offset, scale = _spec_offset_scale()
     rng = np.random.default_rng(12345)
     counts = dict.fromkeys(BAD_WARNINGS, 0)
     steps, reset_every, frame_skip = 20_000, 500, 4

@@ -1,8 +1,8 @@
 """The InterLevel and InterScene reward / termination functions against hand computations.
 
-Every expected value here is written from the paper's equations (InterLevel Eq. 1-9,
-``/work/shared/papers/000_abbfb7600098bb19.txt``; InterScene as in the design brief, section 3)
-with ``math``: the package's helpers are only the functions under test.
+Every expected value here is written from the equations (InterLevel, Eq. 1-9; InterScene's
+2-D navigation reward as ``stairenv.tasks.interscene`` states it) with ``math``: the package's
+helpers are only the functions under test.
 """
 
 from __future__ import annotations

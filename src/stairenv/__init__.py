@@ -1,7 +1,10 @@
 """stairenv: physics-based humanoid scene navigation for MuJoCo and Gymnasium.
 
-``import stairenv`` registers the envs whose presets are in ``envs/``:
-``InterLevel-v0``, ``InterLevel2D-v0`` and ``InterSceneStairs-v0``.
+``import stairenv`` registers one env per preset in ``envs/`` (their ids: ``ENV_IDS``):
+
+- InterLevel / InterScene stairs: ``InterLevel-v0``, ``InterLevel2D-v0``, ``InterSceneStairs-v0``;
+- PlaMo: ``PlaMo-v0``, ``PlaMoNaivePaths-v0``, ``PlaMoScene-v0``;
+- SIMS: ``SIMS-Walk-v0``, ``SIMS-Sit-v0``, ``SIMS-Lie-v0``, ``SIMS-Reach-v0``, ``SIMS-GetUp-v0``.
 """
 
 import os as _os
