@@ -13,7 +13,7 @@ from test_amp import gait_clip
 import stairenv  # noqa: F401
 from stairenv.motion import MotionLibrary
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
-from stairenv.style.pipeline import PipelinedScorer, in_process_envs, pipeline_unavailable_reason
+from stairenv.style.pipeline import PipelinedScorer, in_process_envs, pipeline_unavailable_reason, set_amp_sink
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper, AMPVectorWrapper
 
@@ -228,16 +228,16 @@ def test_gymnasium_sync_vector_env_is_pipelined(reference):
 def test_envs_post_their_step_window_and_only_on_step():
     env = gym.make("InterLevel-v0")
     posts = []
-    env.unwrapped.set_amp_sink(lambda window, condition: posts.append((window, condition)))
+    set_amp_sink(env, lambda window, condition: posts.append((window, condition)))
     env.reset(seed=0)
     assert posts == []
     _, _, _, _, info = env.step(np.zeros(28))
     assert len(posts) == 1 and posts[0][0] is info["amp_obs"] and posts[0][1] is None
-    env.unwrapped.set_amp_sink(None)
+    set_amp_sink(env, None)
     env.step(np.zeros(28))
     assert len(posts) == 1
     with pytest.raises(TypeError, match="callable"):
-        env.unwrapped.set_amp_sink("not a function")
+        set_amp_sink(env, "not a function")
 
 
 def test_a_logit_of_the_old_weights_is_never_reused():

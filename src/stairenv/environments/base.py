@@ -5,17 +5,22 @@ from __future__ import annotations
 import os
 import zipfile
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.humanoid import NUM_DOFS, PD_GAINS, HumanoidIndices
-from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, load_reference_library
+from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
+from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.placement import place_reference_state
+from stairenv.humanoid.state import read_state
+from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_reference_library
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
+from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory
-from stairenv.validation import check_choice, check_int
+from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
@@ -26,6 +31,8 @@ _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
 # is a divergence on its way, flagged long before MuJoCo's own 1e10 check fires.
 MAX_JOINT_SPEED = 250.0        # rad/s, every hinge and the root's angular velocity
 MAX_ROOT_SPEED = 50.0          # m/s, the root's linear velocity
+#: start poses: standing, a frame of a reference clip, or either (``hybrid_fraction`` of them reference)
+INITS = ("default", "reference", "hybrid")
 
 
 def check_humanoid_keywords(frame_skip, amp_history, render_mode, width, height,
@@ -59,72 +66,216 @@ def check_reference_motion(source) -> None:
         raise ValueError(f"reference_motion {str(source)!r} could not be loaded: {error}") from error
 
 
-class HumanoidEnv(gym.Env):
-    """Base class: subclasses build a spec (humanoid + world), call ``_setup`` and implement the task.
+class Evaluation(NamedTuple):
+    """What a task makes of its world after a step (or at the episode's start): ``_evaluate``'s result.
 
-    - actions (28,) in [-1, 1] become PD targets ``offset + scale * a`` (the range
-      ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it);
-      wrong shapes and NaN/inf raise ``ValueError``;
-    - ``_simulate`` steps the physics ``frame_skip`` times and reports divergence
-      (MuJoCo resets the data, so the simulation time jumps back) or a speed no body
-      reaches (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``), so that no huge state is observed;
-    - ``self._amp`` keeps the last ``amp_history`` frames of style features;
-    - ``step`` runs the subclass's ``_step`` and hands the step's ``info["amp_obs"]`` (and
-      ``info["amp_condition"]`` if any) to the sink set by ``set_amp_sink``: the AMP wrappers
-      score it on another core while the next envs step (``style.pipeline``);
-    - ``render()`` follows the pelvis; subclasses may override ``_render_lines``.
+    ``results`` are the task's named per-world numbers (``progress``, ``success``, ``contact_error``...)
+    that ``_info`` presents; ``terms`` the reward terms by their ``info`` key (``reward_*``), which
+    add up to ``reward``. A batched env holds the same fields with a leading world dimension.
+    """
+
+    obs: np.ndarray
+    reward: float
+    terms: dict[str, float]
+    terminated: bool
+    results: dict[str, Any]
+
+
+class HumanoidEnv(gym.Env):
+    """Base class: owns the episode template; subclasses supply their world, task and info.
+
+    ``reset``: gymnasium's seeding -> ``_build_world(rng, options)`` (a new staircase, terrain or
+    scene; may recompile the model with ``_compile``) -> ``mj_resetData`` ->
+    ``_place_character(rng, options)`` (returns whether it started from a reference state;
+    ``_reference_pose`` draws one as ``init`` asks, ``_place_at`` places a standing or reference
+    character on a floor) -> ``_new_goal(rng, options)`` (what the task draws once the character
+    stands, optional) -> ``_begin_episode`` (bookkeeping, ``_start_tracking(state)``, the first
+    ``_evaluate``, style features filled).
+
+    ``step``: ``_check_action`` (wrong shapes and NaN/inf raise ``ValueError``, a needed reset
+    ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range
+    ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it) ->
+    ``_before_physics`` (optional: moving obstacles, replanning) -> ``_simulate`` (``frame_skip``
+    physics steps; divergence, i.e. MuJoCo resetting the data, or a speed no body reaches,
+    ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED``, takes the one unstable branch: truncated, the last
+    good observation, ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
+    features (``self._amp``, the last ``amp_history`` frames) -> ``_info(results)`` plus what every
+    env reports (``time``, ``physics_unstable``, ``amp_obs``, ``reference_start``, the reward terms).
+
+    ``render()`` follows the pelvis; subclasses may override ``_render_lines``.
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
     #: ``load_reference_library`` source used when ``reference_motion`` is None (RSI and AMP reference).
     DEFAULT_REFERENCE_MOTION: str | None = None
+    #: the clips of the reference library that starts are drawn from (``init`` "reference" or "hybrid").
+    start_clips = staticmethod(level_clips)
 
+    # --- construction ---------------------------------------------------------
     def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,
                width: int, height: int) -> None:
+        """``_init_humanoid`` and ``_compile`` in one (an env whose world is fixed at construction)."""
+        self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
+        self._compile(spec)
+
+    def _init_humanoid(self, frame_skip: int, amp_history: int, render_mode: str | None, width: int,
+                       height: int) -> None:
+        """What does not depend on the world: the keywords, the action space, the render settings."""
         frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
             frame_skip, amp_history, render_mode, width, height)
         self.frame_skip = frame_skip
         self._amp = FeatureHistory(amp_history)
         self.render_mode = render_mode
         self.width, self.height = width, height
-        spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
-        spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
-        self.model = spec.compile()
-        self.data = mujoco.MjData(self.model)
-        self._idx = HumanoidIndices.from_model(self.model)
-        low, high = self.model.actuator_ctrlrange.T.copy()
-        self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
-        self.dt = self.model.opt.timestep * self.frame_skip
-        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
         self.action_space = spaces.Box(-1.0, 1.0, shape=(NUM_DOFS,), dtype=np.float32)
         self._needs_reset = True
         self._camera: FollowCamera | None = None
         self._viewer: HumanViewer | None = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
-        self._amp_sink = None
+        self._reference_start = False
+        self.model: mujoco.MjModel | None = None
 
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self._step(action)
-        if self._amp_sink is not None:
-            self._amp_sink(info["amp_obs"], info.get("amp_condition"))
-        return obs, reward, terminated, truncated, info
+    def _compile(self, spec: mujoco.MjSpec) -> None:
+        """Compile the humanoid and its world into ``self.model`` (again after a world rebuild)."""
+        spec.visual.global_.offwidth = max(self.width, spec.visual.global_.offwidth)
+        spec.visual.global_.offheight = max(self.height, spec.visual.global_.offheight)
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self._idx = HumanoidIndices.from_model(self.model)
+        self._geoms = humanoid_geoms(self.model, self._idx)
+        low, high = self.model.actuator_ctrlrange.T.copy()
+        self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
+        self.dt = self.model.opt.timestep * self.frame_skip
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+        self._needs_reset = True
+        self._camera = None
+        self._viewer = None
+        self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
 
-    def _step(self, action):
+    def _setup_starts(self, init: str, hybrid_fraction: float, reference_motion) -> None:
+        """Check ``init``, ``hybrid_fraction`` and ``reference_motion`` (its files loaded whatever ``init``
+        is) and load the clips starts are drawn from (``start_clips`` of the library; none for "default")."""
+        self.init = check_choice("init", init, INITS)
+        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
+        check_reference_motion(reference_motion)
+        self.reference_motion = reference_motion
+        self._library = None if self.init == "default" else self.start_clips(load_reference_library(
+            self.DEFAULT_REFERENCE_MOTION if reference_motion is None else reference_motion))
+
+    # --- the episode template ---------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        rng = self.np_random
+        # A world kept between resets is rebuilt on a seed: a seeded episode depends on no earlier one.
+        self._seeded_reset = seed is not None
+        self._build_world(rng, options)
+        mujoco.mj_resetData(self.model, self.data)
+        self._reference_start = bool(self._place_character(rng, options))
+        self._new_goal(rng, options)
+        return self._begin_episode()
+
+    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """The episode's world: write it into the model, or rebuild the model (``_compile``)."""
         raise NotImplementedError
 
-    def set_amp_sink(self, sink) -> None:
-        """``sink(amp_obs, amp_condition_or_None)`` is called at the end of every ``step``
-        (None: no sink). The AMP wrappers set it for in-process vec envs."""
-        if sink is not None and not callable(sink):
-            raise TypeError(f"sink must be callable or None, got {type(sink).__name__}")
-        self._amp_sink = sink
+    def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
+        """Place the character (servos holding its pose, ``mj_forward`` run); True if it starts
+        from a reference state."""
+        raise NotImplementedError
+
+    def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """What the task draws once the character is placed (a path from its start, a contact goal)."""
+
+    def _begin_episode(self):
+        """Start counting from the current state: the first evaluation, the style history filled.
+        Returns ``reset``'s ``(obs, info)``."""
+        self._needs_reset = False
+        self._steps = 0
+        state = read_state(self.data, self._idx)
+        self._amp.fill(state)
+        self._start_tracking(state)
+        self._evaluation = self._evaluate(state)
+        return self._evaluation.obs, self._full_info(self._evaluation, unstable=False, terms=False)
+
+    def _start_tracking(self, state) -> None:
+        """Reset what ``_evaluate`` carries from step to step (the previous root position...)."""
+
+    def _evaluate(self, state) -> Evaluation:
+        """The task's view of ``state`` (``read_state``): observation, reward, end, named results."""
+        raise NotImplementedError
+
+    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
+        """The task's part of ``info`` from an evaluation's results."""
+        return dict(results)
+
+    def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
+        """The results an unstable step reports, from the last good evaluation (default: its results)."""
+        return dict(last.results)
+
+    def step(self, action):
+        action = self._check_action(action)
+        self._apply_action(action)
+        self._before_physics()
+        stable = self._simulate()
+        self._steps += 1
+        if not stable:
+            return self._unstable_step()
+        state = read_state(self.data, self._idx)
+        evaluation = self._evaluation = self._evaluate(state)
+        self._amp.push(state)
+        info = self._full_info(evaluation, unstable=False, terms=True)
+        if self.render_mode == "human":
+            self.render()
+        return evaluation.obs, evaluation.reward, bool(evaluation.terminated), False, info
+
+    def _before_physics(self) -> None:
+        """Called by ``step`` after the action is applied, before the physics."""
+
+    def _unstable_step(self):
+        """The simulation diverged (MuJoCo reset the data) or went faster than a body can: truncate,
+        keep the last good observation, reward 0, every reward term 0; the env needs a reset."""
+        last = self._evaluation
+        evaluation = Evaluation(last.obs.copy(), 0.0, dict.fromkeys(last.terms, 0.0), False,
+                                self._unstable_results(last))
+        return evaluation.obs, 0.0, False, True, self._full_info(evaluation, unstable=True, terms=True)
+
+    def _full_info(self, evaluation: Evaluation, unstable: bool, terms: bool) -> dict[str, Any]:
+        info = self._info(evaluation.results)
+        info.update(time=self._steps * self.dt, physics_unstable=unstable, amp_obs=self._amp.flat(),
+                    reference_start=self._reference_start)
+        if terms:
+            info.update(evaluation.terms)
+        return info
+
+    # --- pieces -----------------------------------------------------------------
+    def _reference_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray] | None:
+        """A reference state ``(qpos (35,), qvel (34,))`` to start from, or None to start standing:
+        always with ``init="reference"``, in ``hybrid_fraction`` of the episodes with "hybrid"."""
+        if not (self.init == "reference" or (self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)):
+            return None
+        qpos, qvel = self._library.states(*self._library.sample(1, rng))
+        return qpos[0], qvel[0]
+
+    def _place_at(self, xy, heading: float, reference: tuple[np.ndarray, np.ndarray] | None,
+                  floor: float = 0.0) -> None:
+        """Put the character at ``xy`` facing ``heading``, its lowest point just above ``floor``: in the
+        ``reference`` state, or standing. Servos hold the pose; runs mj_forward."""
+        model, data = self.model, self.data
+        if reference is not None:
+            place_reference_state(model, data, self._idx, reference[0], reference[1], xy, heading, floor)
+        else:
+            data.qpos[self._idx.qpos_root] = (*xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+            mujoco.mj_kinematics(model, data)
+            data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
 
     def _hold_pose_ctrl(self) -> None:
         """Servo targets = the current joint angles (an episode starts holding its pose)."""
         self.data.ctrl[:] = np.clip(self.data.qpos[self._idx.qpos_joints], *self.model.actuator_ctrlrange.T)
 
-    def _simulate(self, action) -> bool:
-        """Apply ``action`` for ``frame_skip`` physics steps; False if the physics diverged."""
+    def _check_action(self, action) -> np.ndarray:
+        """``action`` as float64 (28,); ``ValueError`` for a wrong shape or NaN/inf, ``ResetNeeded`` before a reset."""
         action = np.asarray(action, dtype=np.float64)
         if action.shape != (NUM_DOFS,):
             raise ValueError(f"action must have shape ({NUM_DOFS},), got {action.shape}")
@@ -133,8 +284,15 @@ class HumanoidEnv(gym.Env):
             raise ValueError(f"action must be finite, got NaN or inf at indices {bad}")
         if self._needs_reset:
             raise gym.error.ResetNeeded("call reset() before step() (after an unstable-physics truncation too)")
+        return action
+
+    def _apply_action(self, action: np.ndarray) -> None:
+        """PD targets ``offset + scale * action``."""
+        self.data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
+
+    def _simulate(self) -> bool:
+        """``frame_skip`` physics steps; False (and a reset needed) if the physics diverged."""
         data = self.data
-        data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
         expected_time = data.time + self.frame_skip * self.model.opt.timestep
         mujoco.mj_step(self.model, data, self.frame_skip)
         # MuJoCo resets the data when positions, velocities or accelerations blow up:

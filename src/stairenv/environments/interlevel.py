@@ -9,11 +9,9 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
-from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import PELVIS, read_state
-from stairenv.motion.rsi import level_clips, load_reference_library
+from stairenv.humanoid.state import PELVIS
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
@@ -21,7 +19,6 @@ from stairenv.validation import check_bool, check_choice, check_float, check_num
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
-INITS = ("default", "reference", "hybrid")
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw").
@@ -175,7 +172,7 @@ class InterLevelEnv(HumanoidEnv):
             **weights, w_scale=None if w_scale is None else check_float("w_scale", w_scale),
             progress_scaling=check_bool("progress_scaling", progress_scaling),
         )
-        self._reward_array = self.reward_config.as_array()
+        self._reward_params = self.reward_config.params()
         self.success_reward = check_float("success_reward", success_reward)
         self.failure_reward = check_float("failure_reward", failure_reward)
         self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
@@ -200,12 +197,8 @@ class InterLevelEnv(HumanoidEnv):
                 f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
             )
         self.reset_noise_scale = check_float("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
-        self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
-        check_reference_motion(reference_motion)
-        self.reference_motion = reference_motion
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
-        self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))
+        self._setup_starts(init, hybrid_fraction, reference_motion)
 
         spec = load_humanoid_spec(pd_gains)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)
@@ -219,71 +212,74 @@ class InterLevelEnv(HumanoidEnv):
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """New staircase and start pose. ``options={"stairs": Staircase}`` fixes the staircase."""
-        super().reset(seed=seed)
-        rng = self.np_random
+        return super().reset(seed=seed, options=options)
+
+    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         stairs = generate_stairs(self.stairs_config, rng)
         if options and "stairs" in options:
             stairs = self._check_stairs_option(options["stairs"])
         self._set_stairs(stairs)
 
+    def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
+        """In a disc of ``start_radius`` around the centre; standing with joint noise or a reference state."""
         model, data = self.model, self.data
-        mujoco.mj_resetData(model, data)
         radius = self.start_radius * math.sqrt(rng.uniform())
         angle = rng.uniform(0.0, 2.0 * math.pi)
-        heading = rng.uniform(-math.pi, math.pi) if self.random_start_heading else stairs.yaw
+        heading = rng.uniform(-math.pi, math.pi) if self.random_start_heading else self.stairs.yaw
         start_xy = (radius * math.cos(angle), radius * math.sin(angle))
-        use_reference = self.init == "reference" or (
-            self.init == "hybrid" and rng.uniform() < self.hybrid_fraction
-        )
-        if use_reference:
-            clip_ids, times = self._library.sample(1, rng)
-            ref_qpos, ref_qvel = self._library.states(clip_ids, times)
-            place_reference_state(model, data, self._idx, ref_qpos[0], ref_qvel[0], start_xy, heading)
-        else:
-            data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-            noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
-            joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
-            data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
-        self._reference_start = use_reference
+        reference = self._reference_pose(rng)
+        if reference is not None:
+            self._place_at(start_xy, heading, reference)
+            return True
+        data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
+        noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
+        joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
+        data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
+        return False
 
-        self._needs_reset = False
-        self._steps = 0
-        state = read_state(data, self._idx)
+    def _start_tracking(self, state) -> None:
         self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._amp.fill(state)
-        self._obs, results = self._evaluate(state)
-        results[3] = results[4] = 0.0  # nothing has happened yet
-        return self._obs, self._info(results)
 
-    def _step(self, action):
-        stable = self._simulate(action)
-        self._steps += 1
-        if not stable:
-            return self._unstable()
-        state = read_state(self.data, self._idx)
-        obs, results = self._evaluate(state)
-        fell, success = results[3] > 0.5, results[4] > 0.5
+    def _evaluate(self, state) -> Evaluation:
+        """One compiled call (``task.interlevel_evaluate``), then the reward: the task terms (zero on a
+        fall), the success bonus and the failure reward. Nothing has happened yet at the episode's start."""
+        obs, results = task.interlevel_evaluate(
+            state, self._prev_root, self._goal, self._reward_params, self.dt, self.termination_height,
+            self.success_radius, self._packed_goal,
+        )
+        started = self._steps > 0
+        fell, success = started and bool(results.fell[0]), started and bool(results.success[0])
         if self.reward_name == "interlevel":
-            values = results[:3]
+            values = (float(results.reward_location[0]), float(results.reward_facing[0]),
+                      float(results.reward_velocity[0]))
         else:
             values = interscene.interscene_reward_terms(state, self._prev_root, self._goal.target, self.dt)[0].tolist()
-        info = self._info(results)
         # A fall replaces the task terms by the failure reward.
-        reward = 0.0
+        terms, reward = {}, 0.0
         for key, value in zip(self._term_names, values):
             value = 0.0 if fell else value
-            info[key] = value
+            terms[key] = value
             reward += value
-        info["reward_success"] = self.success_reward if success else 0.0
-        info["reward_failure"] = self.failure_reward if fell else 0.0
-        reward += info["reward_success"] + info["reward_failure"]
+        terms["reward_success"] = self.success_reward if success else 0.0
+        terms["reward_failure"] = self.failure_reward if fell else 0.0
+        reward += terms["reward_success"] + terms["reward_failure"]
         self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._obs = obs
-        if self.render_mode == "human":
-            self.render()
-        return obs, reward, fell or (success and self.terminate_on_success), False, info
+        return Evaluation(obs[0], reward, terms, fell or (success and self.terminate_on_success), {
+            "progress": float(results.progress[0]),
+            "height_progress": float(results.height_progress[0]),
+            "success": success,
+            "fell": fell,
+            "distance_to_target": float(results.distance_to_target[0]),
+        })
+
+    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
+        return {**results, "stairs": dict(self._stairs_info)}
+
+    def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
+        return {"progress": last.results["progress"], "height_progress": 0.0, "success": False, "fell": False,
+                "distance_to_target": float(np.linalg.norm(last.obs[task.OBSERVATION_STRUCTURE["target_offset"]]))}
 
     # --- pieces -------------------------------------------------------------
     def _check_stairs_option(self, stairs: Any) -> Staircase:
@@ -303,42 +299,6 @@ class InterLevelEnv(HumanoidEnv):
         self._packed_goal = self._goal.pack()
         self._stairs_info = stairs.as_dict()
         self._camera_azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
-
-    def _evaluate(self, state) -> tuple[np.ndarray, list[float]]:
-        """Observation and STEP_RESULTS of one world (one compiled call); records AMP features."""
-        obs, results = task.interlevel_step(
-            state, self._prev_root, self._packed_goal, self._goal.rotation, self._reward_array, self.dt,
-            self.termination_height, self.success_radius,
-        )
-        self._amp.push(state)
-        return obs[0], results[0].tolist()
-
-    def _info(self, results: list[float]) -> dict[str, Any]:
-        self._last_progress = results[5]
-        return {
-            "progress": results[5],
-            "height_progress": results[6],
-            "success": results[4] > 0.5,
-            "fell": results[3] > 0.5,
-            "time": self._steps * self.dt,
-            "distance_to_target": results[7],
-            "physics_unstable": False,
-            "stairs": dict(self._stairs_info),
-            "amp_obs": self._amp.flat(),
-            "reference_start": self._reference_start,
-        }
-
-    def _unstable(self):
-        """The simulation diverged and MuJoCo reset the data: truncate, keep the last good observation."""
-        info = {
-            "progress": self._last_progress, "height_progress": 0.0, "success": False, "fell": False,
-            "time": self._steps * self.dt,
-            "distance_to_target": float(np.linalg.norm(self._obs[task.OBSERVATION_STRUCTURE["target_offset"]])),
-            "physics_unstable": True, "stairs": dict(self._stairs_info), "amp_obs": self._amp.flat(),
-            "reference_start": self._reference_start,
-            **dict.fromkeys(self._term_names + ("reward_success", "reward_failure"), 0.0),
-        }
-        return self._obs.copy(), 0.0, False, True, info
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

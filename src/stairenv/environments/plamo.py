@@ -9,21 +9,16 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
-from stairenv.humanoid import STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
-from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import HEAD, PELVIS, read_state
-from stairenv.motion.rsi import level_clips, load_reference_library
+from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
+from stairenv.humanoid import load_humanoid_spec
+from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
-from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.validation import check_choice, check_float, check_grid, check_int
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 
 PATH_GENERATORS = ("coupled", "naive")
-INITS = ("default", "reference", "hybrid")
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
@@ -125,24 +120,17 @@ class PlaMoEnv(HumanoidEnv):
         self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
         self.max_xy_error = check_float("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
         self.min_head_height = check_float("min_head_height", min_head_height, 0.0, 1.0)
-        self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
-        check_reference_motion(reference_motion)
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
-        self._library = None if self.init == "default" else level_clips(load_reference_library(reference_motion))
+        self._setup_starts(init, hybrid_fraction, reference_motion)
         if self.locomotion is not None:
             self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                                speed_range=self.locomotion.speed_range)
         else:
             self.path_config = task.PathConfig(coupled=self.path_generator == "coupled")
 
-        spec = load_humanoid_spec(pd_gains)
-        self._terrain_slot = HeightfieldSlot(spec, terrain_size, terrain_cell_size)
-        self._setup(spec, frame_skip, amp_history, render_mode, width, height)
-        self._terrain_slot.bind(self.model)
-        self._geoms = humanoid_geoms(self.model, self._idx)
-        self._heights = np.zeros((self._terrain_slot.n, self._terrain_slot.n))
+        self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
         self._terrain_dirty = False
+        self._build_initial_world(pd_gains, terrain_size, terrain_cell_size)
 
         hm = self.heightmap_size ** 2
         size = PROPRIOCEPTION_SIZE + hm + 3 * NUM_WAYPOINTS
@@ -155,78 +143,49 @@ class PlaMoEnv(HumanoidEnv):
         self.path: task.PathSamples | None = None
 
     # --- terrain --------------------------------------------------------------
+    def _build_initial_world(self, pd_gains: str, terrain_size: float, terrain_cell_size: float) -> None:
+        """The model, with a height field that every reset rewrites."""
+        spec = load_humanoid_spec(pd_gains)
+        self._terrain_slot = HeightfieldSlot(spec, terrain_size, terrain_cell_size)
+        self._compile(spec)
+        self._terrain_slot.bind(self.model)
+        self._heights = np.zeros((self._terrain_slot.n, self._terrain_slot.n))
+
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
         return bilinear_height(self._heights, self._terrain_slot.size, xy)
 
     # --- episode ------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        rng = self.np_random
+    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         self._heights = terrain_heights(self.terrain, rng, self._terrain_slot.size, self._terrain_slot.cell_size)
         self._terrain_slot.write(self.model, self._heights)
         self._terrain_dirty = True
 
-        model, data = self.model, self.data
-        mujoco.mj_resetData(model, data)
+    def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         start = rng.uniform(-1.0, 1.0, 2)
         heading = rng.uniform(-math.pi, math.pi)
-        self._reference_start = self.init == "reference" or (
-            self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
-        reference = self._library.states(*self._library.sample(1, rng)) if self._reference_start else None
-        self._place_character(start, heading, reference)
+        reference = self._reference_pose(rng)
+        self._start = start, heading
+        self._place_at(start, heading, reference, self._floor_under(start))
+        return reference is not None
 
+    def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        start, heading = self._start
         self.path = task.random_head_path(
             self.path_config, rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
             self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
         )
-        self._needs_reset = False
-        self._steps = 0
-        state = read_state(data, self._idx)
-        self._amp.fill(state)
-        obs, results = self._evaluate(state)
-        self._obs = obs
-        return obs, self._info(results, terms=None)
-
-    def _step(self, action):
-        stable = self._simulate(action)
-        self._steps += 1
-        if not stable:
-            info = self._info(self._last_results, terms=np.zeros(len(task.REWARD_TERMS)))
-            info["physics_unstable"] = True
-            return self._obs.copy(), 0.0, False, True, info
-        state = read_state(self.data, self._idx)
-        self._amp.push(state)
-        obs, results = self._evaluate(state)
-        terms = results["terms"]
-        info = self._info(results, terms)
-        terminated = results["xy_error"] > self.max_xy_error or results["head_clearance"] < self.min_head_height
-        self._obs = obs
-        if self.render_mode == "human":
-            self.render()
-        return obs, float(terms.sum()), bool(terminated), False, info
 
     # --- pieces -------------------------------------------------------------
-    def _place_character(self, xy: np.ndarray, heading: float, reference=None) -> None:
-        """Put the character at ``xy`` facing ``heading`` on the highest ground under its body
-        (so nothing starts inside a slope or a step): standing, or in a reference state
-        ``(qpos (1, 35), qvel (1, 34))``. Servos hold the pose; runs mj_forward."""
-        model, data = self.model, self.data
+    def _floor_under(self, xy: np.ndarray) -> float:
+        """The highest ground under a body standing at ``xy`` (so nothing starts inside a slope or a step)."""
         around = xy + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
-        floor = float(np.max(self.ground_height(np.vstack((xy, around)))))
-        if reference is not None:
-            place_reference_state(model, data, self._idx, reference[0][0], reference[1][0], xy, heading, floor)
-        else:
-            data.qpos[self._idx.qpos_root] = (*xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-            mujoco.mj_kinematics(model, data)
-            data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
-        self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
+        return float(np.max(self.ground_height(np.vstack((xy, around)))))
 
     def _head(self) -> tuple[np.ndarray, np.ndarray]:
         head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
         return self.data.xpos[self._idx.head_id] + head_mat @ HEAD_CENTRE_OFFSET, head_mat
 
-    def _evaluate(self, state) -> tuple[np.ndarray, dict[str, Any]]:
+    def _evaluate(self, state) -> Evaluation:
         t = self._steps * self.dt
         root = state.body_pos[0, PELVIS]
         root_mat = state.body_mat[0, PELVIS]
@@ -248,29 +207,15 @@ class PlaMoEnv(HumanoidEnv):
         max_body_z = max(float(state.body_pos[0, :, 2].max()), float(head[2]))
         terms = task.path_reward_terms(target, head, self.path.yaw[k], self.path.pitch[k], head_yaw, head_pitch,
                                        max_body_z)
-        results = {
-            "terms": terms,
-            "xy_error": float(np.hypot(*(target[:2] - head[:2]))),
-            "z_error": float(abs(target[2] - head[2])),
-            "head_clearance": float(head[2] - self.ground_height(head[:2])),
-        }
-        self._last_results = results
-        return obs, results
+        xy_error = float(np.hypot(*(target[:2] - head[:2])))
+        head_clearance = float(head[2] - self.ground_height(head[:2]))
+        terminated = xy_error > self.max_xy_error or head_clearance < self.min_head_height
+        return Evaluation(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())), bool(terminated),
+                          {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2]))})
 
-    def _info(self, results: dict[str, Any], terms: np.ndarray | None) -> dict[str, Any]:
-        info = {
-            "xy_error": results["xy_error"],
-            "z_error": results["z_error"],
-            "time": self._steps * self.dt,
-            "terrain": self.terrain,
-            "locomotion": None if self.locomotion is None else self.locomotion.name,
-            "physics_unstable": False,
-            "amp_obs": self._amp.flat(),
-            "reference_start": self._reference_start,
-        }
-        if terms is not None:
-            info.update(zip(task.REWARD_TERMS, terms.tolist()))
-        return info
+    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
+        return {**results, "terrain": self.terrain,
+                "locomotion": None if self.locomotion is None else self.locomotion.name}
 
     # --- rendering ----------------------------------------------------------
     def render(self):

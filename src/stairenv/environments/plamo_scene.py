@@ -6,13 +6,11 @@ import dataclasses
 import math
 from typing import Any
 
-import mujoco
 import numpy as np
 
+from stairenv.environments.base import Evaluation
 from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
-from stairenv.humanoid.kinematics import humanoid_geoms
-from stairenv.humanoid.state import read_state
 from stairenv.planning.errors import PlanningError
 from stairenv.planning.planner import Plan, Planner, plan_path
 from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
@@ -143,8 +141,6 @@ class PlaMoSceneEnv(PlaMoEnv):
         super().__init__(terrain="flat", heightmap_size=heightmap_size, heightmap_extent=heightmap_extent,
                          max_xy_error=max_xy_error, pd_gains=pd_gains, frame_skip=frame_skip,
                          amp_history=amp_history, render_mode=render_mode, width=width, height=height)
-        self._pd_gains = pd_gains
-        self._build_args = (frame_skip, amp_history, render_mode, width, height)
         self.scene = None
 
     @property
@@ -153,17 +149,19 @@ class PlaMoSceneEnv(PlaMoEnv):
         positions ``xyz`` and speeds ``v`` over time. Set by ``reset``."""
         return self._trajectory
 
+    def _build_initial_world(self, pd_gains: str, terrain_size: float, terrain_cell_size: float) -> None:
+        """Nothing yet: the first ``reset`` builds the scene (its model); the time step is the humanoid's."""
+        self._pd_gains = pd_gains
+        self.dt = load_humanoid_spec(pd_gains).option.timestep * self.frame_skip
+
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
-        if getattr(self, "scene", None) is None:
-            return super().ground_height(xy)
         return self.scene.height_at(xy)
 
     # --- episode ------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super(PlaMoEnv, self).reset(seed=seed)  # gymnasium's seeding only: this env builds its own world
-        rng = self.np_random
+    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """The scene (kept between resets, see the class docstring) and the episode's planned route."""
         if self.scene is None or (self.scene_kind == "random" and (
-                seed is not None or self._resets % self.scene_resample_every == 0)):
+                self._seeded_reset or self._resets % self.scene_resample_every == 0)):
             self._build_scene(rng)
         self._resets += 1
         # Random instructions are redrawn if the planner finds them impossible in this scene;
@@ -192,30 +190,37 @@ class PlaMoSceneEnv(PlaMoEnv):
         self._refresh_path()
         goal = self.scene.landmark(self._plans[-1].segment.target)
         self._goal_xy = np.asarray(goal.center, dtype=float)
+        self._start_xy = np.asarray(start_xy, dtype=float)
 
-        model, data = self.model, self.data
-        mujoco.mj_resetData(model, data)
-        self._reference_start = False
-        self._scene_handles.update(model, data, 0.0)
-        self._place_character(np.asarray(start_xy, dtype=float), float(self.path.yaw[0]))
-        self._needs_reset = False
-        self._steps = 0
-        state = read_state(data, self._idx)
-        self._amp.fill(state)
-        obs, results = self._evaluate(state)
-        self._obs = obs
-        return obs, self._scene_info(self._info(results, terms=None), success=False)
+    def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
+        """Standing at the route's start, facing along it; the scene's moving obstacles at time 0."""
+        self._scene_handles.update(self.model, self.data, 0.0)
+        self._place_at(self._start_xy, float(self.path.yaw[0]), None, self._floor_under(self._start_xy))
+        return False
 
-    def _step(self, action):
+    def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """Nothing: the route is planned with the world (the start depends on it)."""
+
+    def _before_physics(self) -> None:
+        """Move the obstacles; every ``replan_every`` seconds replan around them."""
         self._scene_handles.update(self.model, self.data, self.data.time)
-        t = (self._steps + 1) * self.dt
         if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
             self._maybe_replan(self._steps * self.dt)
-        obs, reward, terminated, truncated, info = super()._step(action)
+
+    def _evaluate(self, state) -> Evaluation:
+        """PlaMo's, and success: the head within ``success_radius`` of the last landmark after its
+        planned arrival (never at the episode's start)."""
+        evaluation = super()._evaluate(state)
         head, _ = self._head()
-        success = t >= self._trajectory.end_time - 1e-9 and \
+        success = self._steps > 0 and self._steps * self.dt >= self._trajectory.end_time - 1e-9 and \
             float(np.hypot(*(head[:2] - self._goal_xy))) < self.success_radius
-        return obs, reward, bool(terminated or success), truncated, self._scene_info(info, success)
+        return evaluation._replace(terminated=bool(evaluation.terminated or success),
+                                   results={**evaluation.results, "success": bool(success)})
+
+    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
+        return {**super()._info(results), "instructions": self.instructions_text, "replans": self._replans,
+                "replan_failures": self._replan_failures, "waits": self._waits,
+                "planned_time": self._trajectory.end_time}
 
     # --- pieces -------------------------------------------------------------
     def _build_scene(self, rng: np.random.Generator) -> None:
@@ -224,9 +229,8 @@ class PlaMoSceneEnv(PlaMoEnv):
         self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
         spec = load_humanoid_spec(self._pd_gains)
         self._scene_handles = add_scene_to_spec(spec, self.scene)
-        self._setup(spec, *self._build_args)
+        self._compile(spec)
         self._scene_handles.bind(self.model)
-        self._geoms = humanoid_geoms(self.model, self._idx)
         self._camera_distance, self._camera_elevation = 7.0, -30.0
         self._planner = Planner(self.scene.planning_grid(cell_size=0.1))
 
@@ -282,11 +286,6 @@ class PlaMoSceneEnv(PlaMoEnv):
                                                                      before.end_time - plan.trajectory.start_time))
             self._plans[k] = plan
             before = plan.trajectory
-
-    def _scene_info(self, info: dict[str, Any], success: bool) -> dict[str, Any]:
-        info.update(success=bool(success), instructions=self.instructions_text, replans=self._replans,
-                    replan_failures=self._replan_failures, waits=self._waits, planned_time=self._trajectory.end_time)
-        return info
 
 
 class _GroundTrack:

@@ -14,15 +14,13 @@ from gymnasium import spaces
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from stairenv.environments.base import HumanoidEnv, check_humanoid_keywords, check_reference_motion
-from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
-from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import HEAD, PELVIS, read_state
-from stairenv.motion.rsi import load_reference_library, standing_clips
+from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
+from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
+from stairenv.humanoid.kinematics import humanoid_lowest_z
+from stairenv.humanoid.state import HEAD, PELVIS
+from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
-from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
@@ -37,7 +35,6 @@ from stairenv.world.furniture import (
 from stairenv.world.rooms import Room, RoomConfig, add_room_to_spec, generate_room
 
 SCENES = ("object", "room")
-INITS = ("default", "reference", "hybrid")
 GETUP_FROM = ("sit", "lie", "any")
 # Families each skill trains on by default (SIMS trains sit/lie/reach on single objects).
 SKILL_FAMILIES: dict[str, tuple[str, ...]] = {
@@ -242,6 +239,8 @@ class SIMSEnv(HumanoidEnv):
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
+    #: Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
+    start_clips = staticmethod(standing_clips)
 
     def __init__(
         self,
@@ -299,15 +298,9 @@ class SIMSEnv(HumanoidEnv):
         self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
         self.fall_height = check_float("fall_height", fall_height, 0.0, 1.5)
         self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
-        self.init = check_choice("init", init, INITS)
-        self.hybrid_fraction = check_float("hybrid_fraction", hybrid_fraction, 0.0, 1.0)
-        check_reference_motion(reference_motion)
-        # Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
-        self._library = None if self.init == "default" else standing_clips(
-            load_reference_library(reference_motion if reference_motion is not None else self.DEFAULT_REFERENCE_MOTION))
+        self._setup_starts(init, hybrid_fraction, reference_motion)
         self._pd_gains = pd_gains
-        self._frame_skip, self._amp_history = frame_skip, amp_history
-        self._render_args = (render_mode, width, height)
+        self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
         self._resets = 0
         self._caption_pools: dict[str | None, tuple[tuple[str, str], ...]] = {}
         self.furniture: dict[str, PlacedFurniture] = {}
@@ -327,6 +320,7 @@ class SIMSEnv(HumanoidEnv):
             "text": slice(g0 + GOAL_SIZE, size),
         }
         self.goal: task.ContactGoal | None = None
+        self._targets: np.ndarray | None = None
 
     # --- scene --------------------------------------------------------------------------------
     def _build_scene(self, rng: np.random.Generator) -> None:
@@ -354,10 +348,9 @@ class SIMSEnv(HumanoidEnv):
             self._heights = task.SceneHeights.build(placed, margin=self.heightmap_extent + max(self.start_distance[1], 1.0))
             self._free_xy = None
         self.furniture = {p.name: p for p in placed}
-        self._setup(spec, self._frame_skip, self._amp_history, *self._render_args)
+        self._compile(spec)
         if self.room is not None:  # look down over the walls
             self._camera_distance, self._camera_elevation = 5.0, -65.0
-        self._geoms = humanoid_geoms(self.model, self._idx)
         self._humanoid_geom_mask = np.zeros(self.model.ngeom, dtype=bool)
         self._humanoid_geom_mask[self._geoms] = True
 
@@ -379,38 +372,44 @@ class SIMSEnv(HumanoidEnv):
         return [p for p in self.furniture.values() if p.family in families]
 
     # --- episode ------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        rng = self.np_random
-        # a fixed room is built once; generated scenes change every scene_resample_every resets
-        if self.fixed_room is None and (seed is not None or self._resets % self.scene_resample_every == 0):
+    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """The scene (a fixed room is built once; generated scenes change every ``scene_resample_every``
+        resets and on a seed) and the piece of furniture to use."""
+        if self.fixed_room is None and (self._seeded_reset or self._resets % self.scene_resample_every == 0):
             self._build_scene(rng)
         self._resets += 1
-        mujoco.mj_resetData(self.model, self.data)
-
         candidates = self._candidates(self.skill)
         target = candidates[int(rng.integers(0, len(candidates)))] if candidates else None
         if self.skill != "walk" and target is None:
             raise RuntimeError(f"the scene has no furniture to {self.skill} on among {sorted(self.furniture)}")
-        self._reference_start = False
+        self._target = target
+
+    def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
+        """Get up: seated or lying on the piece; otherwise standing (or in a reference state) on the floor."""
+        target = self._target
         if self.skill == "getup":
             pose = self.getup_from
             if pose == "any":
                 pose = "lie" if target.family in LYING_FAMILIES and rng.uniform() < 0.5 else "sit"
             self.place_on(target, pose)
+            return False
+        self._start = self._random_start(rng, target)
+        heading = float(rng.uniform(-math.pi, math.pi))
+        reference = self._reference_pose(rng)
+        self._place_at(self._start, heading, reference, 0.0)
+        return reference is not None
+
+    def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        """The contact goal, a caption of the skill and the target speed."""
+        target = self._target
+        if self.skill == "getup":
             goal = task.contact_goal("getup", target, rng, details=self.details)
         else:
-            start = self._random_start(rng, target)
-            heading = float(rng.uniform(-math.pi, math.pi))
-            self._reference_start = self.init == "reference" or (
-                self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)
-            self._place_standing(start, heading, rng)
-            walk_target = self.random_walk_target(rng, start) if self.skill == "walk" else None
+            walk_target = self.random_walk_target(rng, self._start) if self.skill == "walk" else None
             goal = task.contact_goal(self.skill, target, rng, walk_target=walk_target, details=self.details)
-        self._needs_reset = False
         pool = self._caption_pool(None if target is None or self.skill == "walk" else target.family)
         style, caption = pool[int(rng.integers(0, len(pool)))]
-        return self._begin(goal, caption, style, float(rng.uniform(*self.speed_range(style))))
+        self._set_goal(goal, caption, style, float(rng.uniform(*self.speed_range(style))))
 
     def set_task(self, skill: str, furniture: str | None = None, *, part: str | None = None,
                  hand: str | None = None, caption: str | None = None, style: str = "neutral",
@@ -438,7 +437,8 @@ class SIMSEnv(HumanoidEnv):
                                  details=self.details)
         # self.skill stays the episode skill that reset() draws; the goal carries the current one
         speed = float(np.mean(self.speed_range(style))) if target_speed is None else float(target_speed)
-        return self._begin(goal, caption if caption is not None else skill, style, speed)
+        self._set_goal(goal, caption if caption is not None else skill, style, speed)
+        return self._begin_episode()
 
     def speed_range(self, style: str) -> tuple[float, float]:
         """The target speeds (m/s) an episode in ``style`` draws from: +-20% around the style's
@@ -457,20 +457,15 @@ class SIMSEnv(HumanoidEnv):
             point = self._free_xy[int(np.argmin(d))]
         return np.asarray(point, dtype=float)
 
-    def _begin(self, goal: task.ContactGoal, caption: str, style: str, speed: float):
+    def _set_goal(self, goal: task.ContactGoal, caption: str, style: str, speed: float) -> None:
         self.goal = goal
         self.caption, self.style = caption, style
         self._z = self.embed_text(f"{caption}") if self.text_conditioned else np.zeros(self.text_dim)
         self._target_speed = speed
-        self._steps = 0
+
+    def _start_tracking(self, state) -> None:
         self._success_once = False
-        state = read_state(self.data, self._idx)
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
-        self._amp.fill(state)
-        obs, results = self._evaluate(state)
-        self._obs = obs
-        self._success_once = results["success"]
-        return obs, self._info(results, None)
 
     def embed_text(self, text: str) -> np.ndarray:
         """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
@@ -485,26 +480,6 @@ class SIMSEnv(HumanoidEnv):
             if self._encoder.dim != self.text_dim:
                 raise ValueError(f"text_encoder gives {self._encoder.dim}-d vectors, text_dim is {self.text_dim}")
         return np.asarray(self._encoder.encode([text])[0], dtype=np.float64)
-
-    def _step(self, action):
-        stable = self._simulate(action)
-        self._steps += 1
-        if not stable:
-            info = self._info(self._last_results, np.zeros(len(self._terms_names())))
-            info["physics_unstable"] = True
-            return self._obs.copy(), 0.0, False, True, info
-        state = read_state(self.data, self._idx)
-        self._amp.push(state)
-        obs, results = self._evaluate(state)
-        self._prev_root_vel = state.root_lin_vel[0, :2].copy()
-        self._success_once |= results["success"]
-        terms = results["terms"]
-        info = self._info(results, terms)
-        terminated = results["fell"] or (self.terminate_on_success and results["success"])
-        self._obs = obs
-        if self.render_mode == "human":
-            self.render()
-        return obs, float(terms.sum()), bool(terminated), False, info
 
     # --- the character's pose and the scene, for scripted controllers (the kinematic stand-in) -
     def pose(self) -> np.ndarray:
@@ -594,18 +569,6 @@ class SIMSEnv(HumanoidEnv):
                 return xy
         return start.copy()
 
-    def _place_standing(self, xy: np.ndarray, heading: float, rng: np.random.Generator) -> None:
-        model, data = self.model, self.data
-        if self._reference_start:
-            qpos, qvel = self._library.states(*self._library.sample(1, rng))
-            place_reference_state(model, data, self._idx, qpos[0], qvel[0], xy, heading, 0.0)
-        else:
-            data.qpos[self._idx.qpos_root] = (*xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
-            mujoco.mj_kinematics(model, data)
-            data.qpos[self._idx.qpos_root.start + 2] += 0.002 - humanoid_lowest_z(model, data, self._geoms)
-        self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
-
     def place_on(self, placed: PlacedFurniture, pose: str) -> None:
         """Seat the character on (``pose="sit"``) or lay it on (``"lie"``) ``placed``, resting on it."""
         model, data = self.model, self.data
@@ -687,7 +650,7 @@ class SIMSEnv(HumanoidEnv):
     def _terms_names(self) -> tuple[str, ...]:
         return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
 
-    def _evaluate(self, state) -> tuple[np.ndarray, dict[str, Any]]:
+    def _evaluate(self, state) -> Evaluation:
         goal = self.goal
         root = state.body_pos[0, PELVIS]
         root_mat = state.body_mat[0, PELVIS]
@@ -713,44 +676,34 @@ class SIMSEnv(HumanoidEnv):
             terms = task.contact_reward_terms(goal.root_target, root, vel, facing, self._target_speed,
                                               targets, joints, mask)
             error = float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
-        results = {
-            "terms": terms,
-            "contact_error": error,
-            "success": bool(error < task.SUCCESS_DISTANCE[goal.skill]),
-            "fell": bool(state.body_pos[0, HEAD, 2] < self.fall_height),
-            "targets": targets,
-        }
-        self._last_results = results
-        return obs, results
+        success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
+        fell = bool(state.body_pos[0, HEAD, 2] < self.fall_height)
+        self._targets = targets
+        self._prev_root_vel = state.root_lin_vel[0, :2].copy()
+        self._success_once |= success
+        return Evaluation(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())),
+                          fell or (self.terminate_on_success and success),
+                          {"contact_error": error, "success": success, "fell": fell})
 
-    def _info(self, results: dict[str, Any], terms: np.ndarray | None) -> dict[str, Any]:
+    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         goal = self.goal
-        info = {
+        return {
             "skill": goal.skill,
             "furniture": goal.furniture,
             "part": goal.part,
             "caption": self.caption,
             "style": self.style,
-            "contact_error": results["contact_error"],
-            "success": results["success"],
+            **results,
             "success_once": self._success_once,
-            "fell": results["fell"],
-            "time": self._steps * self.dt,
-            "physics_unstable": False,
-            "amp_obs": self._amp.flat(),
             "amp_condition": self._z.astype(np.float32),
-            "reference_start": self._reference_start,
         }
-        if terms is not None:
-            info.update(zip(self._terms_names(), terms.tolist()))
-        return info
 
     # --- rendering ----------------------------------------------------------------------------
     def _render_lines(self) -> tuple:
-        if self.goal is None or not hasattr(self, "_last_results"):
+        if self.goal is None or self._targets is None:
             return ()
         joints = self.data.xpos[self._idx.body_ids]
-        targets = self._last_results["targets"]
+        targets = self._targets
         return tuple((joints[j], targets[j], (1.0, 0.5, 0.1, 1.0)) for j in np.flatnonzero(self.goal.mask))
 
 

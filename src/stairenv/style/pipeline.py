@@ -1,9 +1,9 @@
 """Pipelined AMP scoring: each env's window is scored on a second core while the next envs step.
 
 In an in-process vec env (SB3 ``DummyVecEnv``, gymnasium ``SyncVectorEnv``) the envs
-step one after another in the calling thread. Every stairenv env hands its style
-window to an optional sink at the end of ``step`` (``HumanoidEnv.set_amp_sink``);
-:class:`PipelinedScorer` copies it into a shared buffer and wakes a worker thread,
+step one after another in the calling thread. :func:`set_amp_sink` has a stairenv env
+hand its style window to a sink at the end of its ``step`` (the env itself knows nothing
+of it); :class:`PipelinedScorer` copies it into a shared buffer and wakes a worker thread,
 which scores it with the discriminator's one-window kernel while the next env
 steps. When the vec env returns, only the last env's window may still be in
 flight, so the forward pass leaves the step loop's critical path.
@@ -179,6 +179,29 @@ if _SEMAPHORES is not None:
         return False
 
 
+def set_amp_sink(env, sink) -> None:
+    """Have ``env`` (a stairenv env, or a wrapper of one) call ``sink(amp_obs, amp_condition_or_None)``
+    with its ``info`` at the end of every ``step`` (``reset`` posts nothing); None stops it.
+
+    The pipeline's side of the envs: it shadows the env's ``step`` on that one instance (every
+    wrapper above calls it) and records the sink as ``env.unwrapped._amp_sink``."""
+    if sink is not None and not callable(sink):
+        raise TypeError(f"sink must be callable or None, got {type(sink).__name__}")
+    base = env.unwrapped
+    base.__dict__.pop("step", None)
+    base._amp_sink = sink
+    if sink is None:
+        return
+    step = base.step
+
+    def posting_step(action):
+        result = step(action)
+        info = result[4]
+        sink(info["amp_obs"], info.get("amp_condition"))
+        return result
+    base.step = posting_step
+
+
 def _worker(sem_buffer, *arrays) -> None:
     # A module function holding only arrays, so the scorer itself can be garbage-collected.
     _serve(ctypes.addressof(sem_buffer), *arrays)
@@ -195,7 +218,7 @@ def _stop(control: np.ndarray, sem_buffer, thread: threading.Thread) -> None:
 class PipelinedScorer:
     """Scores windows posted by in-process envs in a worker thread; see the module docstring.
 
-    ``attach(envs)`` sets each env's sink (env ``i`` posts to slot ``i``, see ``sink``);
+    ``attach(envs)`` sets each env's sink (``set_amp_sink``; env ``i`` posts to slot ``i``, see ``sink``);
     ``logits(windows)`` is the wrapper's, after the vec env stepped:
     the logits of the step's windows (as the wrapper stacked them from ``info``); ``refresh()``
     after the discriminator may have trained; ``close()`` detaches the envs and stops the worker.
@@ -253,7 +276,7 @@ class PipelinedScorer:
         if len(envs) != self.num_envs:
             raise ValueError(f"{len(envs)} envs for {self.num_envs} slots")
         for slot, env in enumerate(envs):
-            env.unwrapped.set_amp_sink(self.sink(slot))
+            set_amp_sink(env, self.sink(slot))
         self._envs = list(envs)
 
     # --- the env side -------------------------------------------------------------
@@ -363,7 +386,7 @@ class PipelinedScorer:
         """Detach the envs and stop the worker (idempotent); later calls score in the calling thread."""
         self.active = False
         for env in self._envs:
-            env.unwrapped.set_amp_sink(None)
+            set_amp_sink(env, None)
         self._envs = []
         self._finalizer()
 

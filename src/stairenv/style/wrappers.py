@@ -54,6 +54,7 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from stairenv.environments.base import HumanoidEnv
 from stairenv.style.discriminator import (
     SCORERS,
     AMPDiscriminator,
@@ -292,8 +293,8 @@ def _attach_pipeline(mode: str, venv, style: AMPStyleReward, num_envs: int) -> P
     if envs is None:
         reasons.append("pipelined scoring needs an in-process vec env (DummyVecEnv or SyncVectorEnv), "
                        f"not {type(venv).__name__}")
-    elif not all(callable(getattr(env.unwrapped, "set_amp_sink", None)) for env in envs):
-        reasons.append("pipelined scoring needs stairenv envs (they post their windows through set_amp_sink)")
+    elif not all(isinstance(env.unwrapped, HumanoidEnv) for env in envs):
+        reasons.append("pipelined scoring needs stairenv envs (set_amp_sink has them post their windows)")
     if style.disc.scoring not in ("auto", "numba"):
         reasons.append(f"pipelined scoring runs the numba kernel; scoring={style.disc.scoring!r} asks otherwise")
     reasons = [r for r in reasons if r]

@@ -68,21 +68,22 @@ OBSERVATION_STRUCTURE: dict[str, slice] = {
     "stairs_angle": slice(117, 118),         # heading yaw - ascent yaw, in [-pi, pi)
 }
 REWARD_TERMS: tuple[str, ...] = ("reward_location", "reward_facing", "reward_velocity")
+# Where the observation kernel writes the task's entries (compile-time constants).
+_OBS_TARGET_OFFSET = OBSERVATION_STRUCTURE["target_offset"].start
+_OBS_MARKER_DISTANCE = OBSERVATION_STRUCTURE["marker_distance"].start
+_OBS_STAIRS_ANGLE = OBSERVATION_STRUCTURE["stairs_angle"].start
 
 # A root this far above the landing surface is standing on it (standing height 0.885 m).
 STANDING_ON_TOP_MARGIN = 0.5
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 _EPS = 1e-9
-_jit = jit
 
 
 class StairsGoal(NamedTuple):
-    """Per-world constants of the task, batch-first, fixed for an episode.
-
-    ``pack()`` lays the vectors and scalars side by side in one (B, GOAL_SIZE) array
-    (columns ``GOAL_COLUMNS``) for the fused step kernel, which then takes one argument
-    instead of thirteen.
+    """Per-world constants of the task, batch-first, fixed for an episode; the step kernel takes it
+    as it is and reads its fields by name. ``pack()`` lays the fields side by side in one
+    (B, GOAL_SIZE) array (``GOAL_LAYOUT``, computed from ``GOAL_SHAPES``), ``unpack`` reads one back.
     """
 
     target: np.ndarray           # (B, 3) M_T, world
@@ -105,6 +106,13 @@ class StairsGoal(NamedTuple):
             [np.reshape(getattr(self, name), (b, -1)) for name in GOAL_COLUMNS], axis=1))
 
     @classmethod
+    def unpack(cls, packed: np.ndarray) -> StairsGoal:
+        """The goal ``pack()`` laid out in ``packed`` (B, GOAL_SIZE); every field a contiguous copy."""
+        b = packed.shape[0]
+        return cls(**{name: np.ascontiguousarray(packed[:, GOAL_LAYOUT[name]].reshape((b, *shape)))
+                      for name, shape in GOAL_SHAPES.items()})
+
+    @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
         target = np.stack([s.marker_top for s in stairs])
         bottom = np.stack([s.marker_bottom for s in stairs])
@@ -125,19 +133,69 @@ class StairsGoal(NamedTuple):
         )
 
 
-# Field order of StairsGoal.pack(); the step kernel reads columns by these offsets.
-GOAL_COLUMNS: tuple[str, ...] = (
-    "target", "bottom", "origin", "rotation", "yaw", "marker_distance", "target_local", "bottom_local",
-    "top_height", "step_depth", "num_steps", "landing_end", "half_width",
-)
-GOAL_SIZE = 31
-_T, _B, _O, _R, _YAW, _MD, _TL, _BL, _TOP, _DEPTH, _N, _END, _HW = 0, 3, 6, 9, 18, 19, 20, 23, 26, 27, 28, 29, 30
+# Each field's per-world shape; pack()'s layout (offsets in this order) is computed from them.
+GOAL_SHAPES: dict[str, tuple[int, ...]] = {
+    "target": (3,), "bottom": (3,), "origin": (3,), "rotation": (3, 3), "yaw": (), "marker_distance": (),
+    "target_local": (3,), "bottom_local": (3,), "top_height": (), "step_depth": (), "num_steps": (),
+    "landing_end": (), "half_width": (),
+}
+assert tuple(GOAL_SHAPES) == StairsGoal._fields
+GOAL_COLUMNS: tuple[str, ...] = StairsGoal._fields
 
-# Columns of the fused step kernel's per-world results.
-STEP_RESULTS: tuple[str, ...] = (
-    "reward_location", "reward_facing", "reward_velocity", "fell", "success", "progress", "height_progress",
-    "distance_to_target",
-)
+
+def _layout(shapes: dict[str, tuple[int, ...]]) -> dict[str, slice]:
+    layout, at = {}, 0
+    for name, shape in shapes.items():
+        size = math.prod(shape)
+        layout[name] = slice(at, at + size)
+        at += size
+    return layout
+
+
+GOAL_LAYOUT: dict[str, slice] = _layout(GOAL_SHAPES)
+GOAL_SIZE = GOAL_LAYOUT[GOAL_COLUMNS[-1]].stop
+
+
+class RewardParams(NamedTuple):
+    """``InterLevelReward`` as the step kernel takes it (``InterLevelReward.params()``)."""
+
+    w_location: float
+    w_facing: float
+    w_velocity: float
+    sigma_before: float
+    sigma_after: float
+    sigma_across: float
+    w_scale: float
+    target_speed: float
+    progress_scaling: bool
+
+    @classmethod
+    def from_array(cls, reward: np.ndarray) -> RewardParams:
+        """From ``InterLevelReward.as_array()`` (the flag stored as 0.0 or 1.0)."""
+        return cls(*(float(v) for v in reward[:8]), bool(reward[8] > 0.5))
+
+
+class StepResults(NamedTuple):
+    """Per-world results of the step kernel, each (B,): the three weighted reward terms of Eq. (1),
+    the episode's end (``fell``, ``success``), the progress up the stairs (``surface_progress``), the
+    root's height progress (``progress``) and the distance from the root to M_T (m)."""
+
+    reward_location: np.ndarray
+    reward_facing: np.ndarray
+    reward_velocity: np.ndarray
+    fell: np.ndarray              # 1.0 where the character fell, else 0.0
+    success: np.ndarray           # 1.0 where it arrived, else 0.0
+    progress: np.ndarray
+    height_progress: np.ndarray
+    distance_to_target: np.ndarray
+
+    @classmethod
+    def from_columns(cls, results: np.ndarray) -> StepResults:
+        """Views of the kernel's (B, 8) array, whose columns are in field order."""
+        return cls(*results.T)
+
+
+STEP_RESULTS: tuple[str, ...] = StepResults._fields
 
 
 @dataclass(frozen=True)
@@ -172,6 +230,10 @@ class InterLevelReward:
     def as_array(self) -> np.ndarray:
         return np.array(self.as_tuple(), dtype=np.float64)
 
+    def params(self) -> RewardParams:
+        """The step kernel's argument."""
+        return RewardParams(*self.as_tuple())
+
 
 def equal_peak_scale(sigma_before: float, sigma_after: float) -> float:
     """w_scale that gives both halves of the threshold Gaussian the same peak."""
@@ -179,38 +241,38 @@ def equal_peak_scale(sigma_before: float, sigma_after: float) -> float:
 
 
 # --- scalar formulas (compiled; also callable with numpy arrays) ----------------
-@_jit
+@jit
 def gaussian(x, mu, sigma):
     """Eq. (2): the normal density N(x; mu, sigma^2)."""
     return np.exp((x - mu) * (x - mu) * (-0.5 / (sigma * sigma))) / (sigma * _SQRT_2PI)
 
 
-@_jit
+@jit
 def _threshold_gaussian(x, mu, sigma_before, sigma_after, w_scale):
     if mu - x >= 0.0:
         return gaussian(x, mu, sigma_before)
     return w_scale * gaussian(x, mu, sigma_after)
 
 
-@_jit
+@jit
 def _height_progress(z, bottom_z, top_z):
     return max((z - bottom_z) / (top_z - bottom_z), 0.0)
 
 
-@_jit
+@jit
 def _velocity_reward(speed, target_speed):
     error = max(target_speed - speed, 0.0)
     return math.exp(-2.0 * error * error)
 
 
-@_jit
+@jit
 def _facing(hx, hy, tx, ty):
     norm = math.sqrt(hx * hx + hy * hy) * math.sqrt(tx * tx + ty * ty)
     return max((hx * tx + hy * ty) / (norm + _EPS), 0.0)
 
 
 # --- batched reward pieces ------------------------------------------------------
-@_jit
+@jit
 def threshold_gaussian(x, mu, sigma_before, sigma_after, w_scale):
     """Eq. (3) for (B,) arrays: G(sigma_before) while mu - x >= 0, else w_scale G(sigma_after)."""
     out = np.empty(x.shape[0])
@@ -219,7 +281,7 @@ def threshold_gaussian(x, mu, sigma_before, sigma_after, w_scale):
     return out
 
 
-@_jit
+@jit
 def height_progress(z, bottom_z, top_z):
     """ReLU((z - B_z) / (T_z - B_z)), the factor of Eq. (4), for (B,) arrays."""
     out = np.empty(z.shape[0])
@@ -228,7 +290,7 @@ def height_progress(z, bottom_z, top_z):
     return out
 
 
-@_jit
+@jit
 def location_reward(root_local, target_local, bottom_local, sigma_before, sigma_after, sigma_across,
                     w_scale, progress_scaling):
     """Eq. (4), or Eq. (9) with ``progress_scaling=False``; points (B, 3) in the stairs frame."""
@@ -242,7 +304,7 @@ def location_reward(root_local, target_local, bottom_local, sigma_before, sigma_
     return out
 
 
-@_jit
+@jit
 def facing_reward(heading, root_pos, target):
     """Eq. (5)-(6): ReLU(F_tar . F_cur). heading (B, 2) any length; root_pos, target (B, 3)."""
     out = np.empty(heading.shape[0])
@@ -251,7 +313,7 @@ def facing_reward(heading, root_pos, target):
     return out
 
 
-@_jit
+@jit
 def speed_towards(prev_root, root, target, dt):
     """S_cur: the root's speed along the 3-D direction from p_{t-1} to the target, (B,)."""
     out = np.empty(root.shape[0])
@@ -265,7 +327,7 @@ def speed_towards(prev_root, root, target, dt):
     return out
 
 
-@_jit
+@jit
 def velocity_reward(speed, target_speed):
     """Eq. (7)-(8): exp(-2 ReLU(S_tar - S_cur)^2) for (B,) speeds; only being too slow is penalised."""
     out = np.empty(speed.shape[0])
@@ -274,7 +336,7 @@ def velocity_reward(speed, target_speed):
     return out
 
 
-@_jit
+@jit
 def to_stairs_frame(points, origin, rotation):
     """World points (B, 3) -> stairs frame (u, w, z) given origins (B, 3) and rotations (B, 3, 3)."""
     out = np.empty(points.shape)
@@ -288,7 +350,7 @@ def to_stairs_frame(points, origin, rotation):
 
 
 # --- termination ----------------------------------------------------------------
-@_jit
+@jit
 def has_fallen(body_pos, min_height_gap):
     """Early termination, (B, 15, 3) -> (B,) bool: the head or a foot within
     ``min_height_gap`` (vertically) of the hips, i.e. the body is close to horizontal."""
@@ -300,7 +362,7 @@ def has_fallen(body_pos, min_height_gap):
     return out
 
 
-@_jit
+@jit
 def reached_top(root_pos, target, top_height, radius):
     """Success, (B,) bool: root within ``radius`` of M_T on the ground plane and standing on the top floor."""
     out = np.empty(root_pos.shape[0], dtype=np.bool_)
@@ -310,7 +372,7 @@ def reached_top(root_pos, target, top_height, radius):
     return out
 
 
-@_jit
+@jit
 def surface_progress(root_pos, origin, rotation, step_depth, num_steps, landing_end, half_width):
     """Progress up the stairs, (B,): the tread under the root's ground point as a fraction of the
     risers (k / n on tread k, 1 on the landing, 0 on the floor). Unlike the root's height it
@@ -329,7 +391,7 @@ def surface_progress(root_pos, origin, rotation, step_depth, num_steps, landing_
     return out
 
 
-@_jit
+@jit
 def progress(root_pos, bottom, target):
     """Height progress of the root between M_B and M_T, clipped to [0, 1]: (B,)."""
     out = np.empty(root_pos.shape[0])
@@ -339,7 +401,7 @@ def progress(root_pos, bottom, target):
 
 
 # --- observation ----------------------------------------------------------------
-@_jit
+@jit
 def _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, marker_distance,
                         stairs_yaw, out):
     for b in range(body_pos.shape[0]):
@@ -347,9 +409,9 @@ def _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel,
         p = body_pos[b, PELVIS]
         yaw, c, s = heading_cos_sin(body_mat[b, PELVIS])
         write_proprioception(row, body_mat[b], root_lin_vel[b], root_ang_vel[b], dof_vel[b], p[2], c, s)
-        write_heading_vector(row, 113, target[b, 0] - p[0], target[b, 1] - p[1], target[b, 2] - p[2], c, s)
-        row[116] = marker_distance[b]
-        row[117] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi
+        write_heading_vector(row, _OBS_TARGET_OFFSET, target[b, 0] - p[0], target[b, 1] - p[1], target[b, 2] - p[2], c, s)
+        row[_OBS_MARKER_DISTANCE] = marker_distance[b]
+        row[_OBS_STAIRS_ANGLE] = (yaw - stairs_yaw[b] + math.pi) % (2.0 * math.pi) - math.pi
     return out
 
 
@@ -361,10 +423,11 @@ def interlevel_observation(state: HumanoidState, goal: StairsGoal) -> np.ndarray
 
 
 # --- the whole step -------------------------------------------------------------
-@_jit
+@jit
 def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, target_local, bottom_local, dt,
                    w_location, w_facing, w_velocity, sigma_before, sigma_after, sigma_across, w_scale,
                    target_speed, progress_scaling, out):
+    """The weighted terms into ``out`` (B, 3) in ``REWARD_TERMS`` order; the parameters are ``RewardParams``'."""
     root = body_pos[:, PELVIS]
     location = location_reward(to_stairs_frame(root, origin, rotation), target_local, bottom_local,
                                sigma_before, sigma_after, sigma_across, w_scale, progress_scaling)
@@ -383,35 +446,79 @@ def interlevel_reward_terms(
     """The weighted terms of Eq. (1), (B, 3) in ``REWARD_TERMS`` order (location, facing, velocity)."""
     out = np.empty((state.body_pos.shape[0], 3))
     return _reward_kernel(state.body_pos, state.body_mat, prev_root, goal.origin, goal.rotation, goal.target,
-                          goal.target_local, goal.bottom_local, dt, *cfg.as_tuple(), out)
+                          goal.target_local, goal.bottom_local, dt, *cfg.params(), out)
 
 
-@_jit
-def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_root, goal, rotation, reward,
-                 dt, termination_height, success_radius, obs, results):
-    target = goal[:, _T:_T + 3]
-    bottom = goal[:, _B:_B + 3]
-    _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, goal[:, _MD],
-                        goal[:, _YAW], obs)
-    _reward_kernel(body_pos, body_mat, prev_root, goal[:, _O:_O + 3], rotation, target, goal[:, _TL:_TL + 3],
-                   goal[:, _BL:_BL + 3], dt, reward[0], reward[1], reward[2], reward[3], reward[4], reward[5],
-                   reward[6], reward[7], reward[8] > 0.5, results)
+# Where the step kernel finds each goal field in ``StairsGoal.pack()`` (from ``GOAL_LAYOUT``) and puts
+# each result (``STEP_RESULTS``): compile-time constants, so the kernel takes one goal array and
+# fills one result array (a tuple argument would cost ~15 us a call in numba's dispatcher).
+(_G_TARGET, _G_BOTTOM, _G_ORIGIN, _, _G_YAW, _G_MARKER_DISTANCE, _G_TARGET_LOCAL, _G_BOTTOM_LOCAL, _G_TOP_HEIGHT, _G_STEP_DEPTH,
+ _G_NUM_STEPS, _G_LANDING_END, _G_HALF_WIDTH) = (GOAL_LAYOUT[name].start for name in GOAL_COLUMNS)
+(_R_REWARD_LOCATION, _R_REWARD_FACING, _R_REWARD_VELOCITY, _R_FELL, _R_SUCCESS, _R_PROGRESS, _R_HEIGHT_PROGRESS,
+ _R_DISTANCE_TO_TARGET) = range(len(STEP_RESULTS))
+
+
+@jit
+def _vec3(goal, at):
+    return goal[:, at:at + 3]
+
+
+@jit
+def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_root, goal, rotation, dt,
+                 termination_height, success_radius, w_location, w_facing, w_velocity, sigma_before, sigma_after,
+                 sigma_across, w_scale, target_speed, progress_scaling, obs, results):
+    """``goal`` packed, ``rotation`` its (B, 3, 3) field; the reward parameters are ``RewardParams``' fields."""
+    target, bottom, origin = _vec3(goal, _G_TARGET), _vec3(goal, _G_BOTTOM), _vec3(goal, _G_ORIGIN)
+    _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, goal[:, _G_MARKER_DISTANCE],
+                        goal[:, _G_YAW], obs)
+    terms = _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, _vec3(goal, _G_TARGET_LOCAL),
+                           _vec3(goal, _G_BOTTOM_LOCAL), dt, w_location, w_facing, w_velocity, sigma_before,
+                           sigma_after, sigma_across, w_scale, target_speed, progress_scaling,
+                           np.empty((body_pos.shape[0], 3)))
     root = body_pos[:, PELVIS]
     fell = has_fallen(body_pos, termination_height)
-    success = reached_top(root, target, goal[:, _TOP], success_radius)
-    stairs_progress = surface_progress(root, goal[:, _O:_O + 3], rotation, goal[:, _DEPTH], goal[:, _N],
-                                       goal[:, _END], goal[:, _HW])
+    success = reached_top(root, target, goal[:, _G_TOP_HEIGHT], success_radius)
+    stairs_progress = surface_progress(root, origin, rotation, goal[:, _G_STEP_DEPTH], goal[:, _G_NUM_STEPS],
+                                       goal[:, _G_LANDING_END], goal[:, _G_HALF_WIDTH])
     root_progress = progress(root, bottom, target)
     for b in range(root.shape[0]):
-        results[b, 3] = fell[b]
-        results[b, 4] = success[b]
-        results[b, 5] = stairs_progress[b]
-        results[b, 6] = root_progress[b]
+        results[b, _R_REWARD_LOCATION] = terms[b, 0]
+        results[b, _R_REWARD_FACING] = terms[b, 1]
+        results[b, _R_REWARD_VELOCITY] = terms[b, 2]
+        results[b, _R_FELL] = fell[b]
+        results[b, _R_SUCCESS] = success[b]
+        results[b, _R_PROGRESS] = stairs_progress[b]
+        results[b, _R_HEIGHT_PROGRESS] = root_progress[b]
         d2 = 0.0
         for i in range(3):
             d2 += (target[b, i] - root[b, i]) ** 2
-        results[b, 7] = math.sqrt(d2)
-    return obs, results
+        results[b, _R_DISTANCE_TO_TARGET] = math.sqrt(d2)
+
+
+def interlevel_evaluate(
+    state: HumanoidState,
+    prev_root: np.ndarray,
+    goal: StairsGoal,
+    cfg: RewardParams,
+    dt: float,
+    termination_height: float,
+    success_radius: float,
+    packed_goal: np.ndarray | None = None,
+) -> tuple[np.ndarray, StepResults]:
+    """Everything a step needs in one compiled call: the observation (B, 118) and the named
+    per-world ``StepResults``. ``cfg = InterLevelReward.params()``; ``packed_goal``: ``goal.pack()``
+    if the caller keeps it (an env does, for the episode).
+
+    It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
+    ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
+    """
+    batch = state.body_pos.shape[0]
+    obs = np.empty((batch, OBSERVATION_SIZE))
+    results = np.empty((batch, len(STEP_RESULTS)))
+    _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
+                 goal.pack() if packed_goal is None else packed_goal, goal.rotation, dt, termination_height,
+                 success_radius, *cfg, obs, results)
+    return obs, StepResults.from_columns(results)
 
 
 def interlevel_step(
@@ -424,17 +531,12 @@ def interlevel_step(
     termination_height: float,
     success_radius: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Everything a step needs in one compiled call: the observation (B, 118) and per-world
-    results (B, 8) in ``STEP_RESULTS`` order (the three weighted reward terms, fell, success,
-    progress, height progress, distance to M_T).
-
-    ``packed_goal = goal.pack()``, ``rotation = goal.rotation``, ``reward = cfg.as_array()``.
-    It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
-    ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
-    """
+    """``interlevel_evaluate`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
+    the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
     batch = state.body_pos.shape[0]
     obs = np.empty((batch, OBSERVATION_SIZE))
     results = np.empty((batch, len(STEP_RESULTS)))
-    return _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                        prev_root, packed_goal, rotation, reward, dt, termination_height, success_radius,
-                        obs, results)
+    _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
+                 packed_goal, rotation, dt, termination_height, success_radius, *RewardParams.from_array(reward),
+                 obs, results)
+    return obs, results
