@@ -3,6 +3,7 @@
 A preset is a TOML file: ``id``, ``entry_point``, ``max_episode_steps``, an
 optional ``description`` and a ``[kwargs]`` table of the keyword arguments that
 define the env. Ablations are presets of the same class with different kwargs.
+Every id also gets a ``vector_entry_point``: ``stairenv.environments.vector``'s batched env of its class.
 """
 
 from __future__ import annotations
@@ -14,6 +15,14 @@ from typing import Any
 import gymnasium as gym
 
 from stairenv.assets import asset_dir
+
+# the natively batched env of each env class (``gym.make_vec(id, n, vectorization_mode="vector_entry_point")``);
+# named here as strings so that registering imports no env module
+VECTOR_ENTRY_POINTS = {
+    f"stairenv.environments.{module}:{name}Env": f"stairenv.environments.vector:{name}VectorEnv"
+    for module, name in (("interlevel", "InterLevel"), ("plamo", "PlaMo"), ("plamo_scene", "PlaMoScene"),
+                         ("sims", "SIMS"))
+}
 
 
 def load_presets() -> dict[str, dict[str, Any]]:
@@ -44,6 +53,7 @@ def register_all() -> list[str]:
                 entry_point=preset["entry_point"],
                 max_episode_steps=int(preset["max_episode_steps"]),
                 kwargs=dict(preset["kwargs"]),
+                vector_entry_point=VECTOR_ENTRY_POINTS.get(preset["entry_point"]),
             )
         ids.append(env_id)
     return ids

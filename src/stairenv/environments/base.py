@@ -95,9 +95,9 @@ class HumanoidEnv(gym.Env):
     ``step``: ``_check_action`` (wrong shapes and NaN/inf raise ``ValueError``, a needed reset
     ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range
     ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it) ->
-    ``_before_physics`` (optional: moving obstacles, replanning) -> ``_simulate`` (``frame_skip``
-    physics steps; divergence, i.e. MuJoCo resetting the data, or a speed no body reaches,
-    ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED``, takes the one unstable branch: truncated, the last
+    ``_before_physics`` (optional: moving obstacles, replanning) -> ``_physics`` (``frame_skip``
+    physics steps) -> ``_physics_sound`` (divergence, i.e. MuJoCo resetting the data, or a speed no
+    body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED``, takes the one unstable branch: truncated, the last
     good observation, ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
     features (``self._amp``, the last ``amp_history`` frames) -> ``_info(results)`` plus what every
     env reports (``time``, ``physics_unstable``, ``amp_obs``, ``reference_start``, the reward terms).
@@ -213,10 +213,26 @@ class HumanoidEnv(gym.Env):
         return dict(last.results)
 
     def step(self, action):
-        action = self._check_action(action)
+        self._prepare_step(self._check_action(action))
+        self._physics()
+        return self._finish_step()
+
+    # The phases of ``step``: a batched env (``stairenv.environments.vector``) calls them over its
+    # worlds, the physics of all worlds at once between ``_prepare_step`` and ``_finish_step``.
+    def _prepare_step(self, action: np.ndarray) -> None:
+        """What comes before the physics: the (checked) action applied, ``_before_physics``."""
         self._apply_action(action)
         self._before_physics()
-        stable = self._simulate()
+        self._expected_time = self.data.time + self.frame_skip * self.model.opt.timestep
+
+    def _physics(self) -> None:
+        """``frame_skip`` physics steps (a batched env runs them for all its worlds instead)."""
+        mujoco.mj_step(self.model, self.data, self.frame_skip)
+
+    def _finish_step(self):
+        """What comes after the physics: the divergence check, the evaluation, the style features and
+        ``info``; ``step``'s result."""
+        stable = self._physics_sound(self._expected_time)
         self._steps += 1
         if not stable:
             return self._unstable_step()
@@ -292,9 +308,14 @@ class HumanoidEnv(gym.Env):
 
     def _simulate(self) -> bool:
         """``frame_skip`` physics steps; False (and a reset needed) if the physics diverged."""
+        expected_time = self.data.time + self.frame_skip * self.model.opt.timestep
+        self._physics()
+        return self._physics_sound(expected_time)
+
+    def _physics_sound(self, expected_time: float) -> bool:
+        """After the physics: False (and a reset needed) if it diverged or went faster than a body can;
+        otherwise body poses brought up to qpos."""
         data = self.data
-        expected_time = data.time + self.frame_skip * self.model.opt.timestep
-        mujoco.mj_step(self.model, data, self.frame_skip)
         # MuJoCo resets the data when positions, velocities or accelerations blow up:
         # the time jumps back and the warning counts (zeroed at every episode reset by
         # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.

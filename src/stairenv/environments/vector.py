@@ -1,0 +1,266 @@
+"""A natively batched ``gymnasium.vector.VectorEnv`` over N worlds of one stairenv env.
+
+``gym.make_vec("InterLevel-v0", num_envs=64, vectorization_mode="vector_entry_point")`` builds one
+(``registration`` registers a ``vector_entry_point`` for every id). The vector env holds N template envs
+(``HumanoidEnv`` instances, one per world: each keeps its own ``MjModel``, which InterLevel writes its
+staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over the batch:
+
+1. every world's action checked first (shape, NaN/inf: ``ValueError`` naming the world's index),
+   nothing applied if one is bad;
+2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
+3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a thread pool of
+   ``os.cpu_count()`` threads calling ``mujoco.mj_step``, GIL released);
+4. per world, right after its physics (in the physics thread): ``_finish_step`` (the divergence and
+   speed check, ``_evaluate``, the style features, ``info``): the same code as the single env's
+   ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
+
+Per-world parts (Python, one world at a time, overlapping other worlds' physics): the action map,
+``_before_physics``, ``_finish_step`` (the task evaluation, a compiled call of a batch of one for
+InterLevel), ``reset``. Batched: the action checks, the physics, the assembly of obs / reward /
+flags / info.
+
+Autoreset follows Gymnasium 1.x's default ``AutoresetMode.NEXT_STEP``: the step after a world's
+episode ends resets that world and returns its reset observation with reward 0, terminated and
+truncated False (its action is ignored). The episode limit (``max_episode_steps``, the registration's
+TimeLimit) truncates in the vector env. A world whose physics blows up is truncated alone, with
+``info["physics_unstable"]`` set for it. ``info`` is a dict of arrays with ``_key`` masks, as
+``SyncVectorEnv`` gives. ``reset(seed=s)`` seeds world i with ``s + i`` (as ``SyncVectorEnv``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from stairenv.environments.base import HumanoidEnv
+from stairenv.environments.batch_physics import BatchPhysics, make_physics
+
+
+class HumanoidVectorEnv(gym.vector.VectorEnv):
+    """N worlds of ``env_class(**kwargs)`` stepped as one batch (see the module docstring).
+
+    ``physics``: "threads" (default), "serial" or a ``BatchPhysics``; ``nthread``: the pool's threads
+    (default ``os.cpu_count()``); ``max_episode_steps``: the truncation limit (None: none).
+    """
+
+    env_class: type[HumanoidEnv] | None = None
+
+    def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
+                 max_episode_steps: int | None = None, physics: str | BatchPhysics = "threads",
+                 nthread: int | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 **kwargs: Any) -> None:
+        env_class = env_class or self.env_class
+        if env_class is None:
+            raise TypeError("HumanoidVectorEnv needs env_class (or a subclass that sets it)")
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if AutoresetMode(autoreset_mode) != AutoresetMode.NEXT_STEP:
+            raise ValueError(f"only AutoresetMode.NEXT_STEP is supported, got {autoreset_mode!r}")
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or max_episode_steps < 1):
+            raise ValueError(f"max_episode_steps must be None or a positive integer, got {max_episode_steps!r}")
+        self.num_envs = int(num_envs)
+        self.envs: list[HumanoidEnv] = [env_class(**kwargs) for _ in range(self.num_envs)]
+        first = self.envs[0]
+        self.max_episode_steps = max_episode_steps
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(first.observation_space, self.num_envs)
+        self.action_space = batch_space(first.action_space, self.num_envs)
+        self.metadata = {**first.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+        self.render_mode = first.render_mode
+        self.physics = make_physics(physics, nthread)
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._was_reset = False
+        self._results: list[tuple | None] = [None] * self.num_envs
+        self._last_obs = self._obs_buffer()
+
+    # --- gymnasium.vector API -------------------------------------------------
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        seeds = self._seeds(seed)
+        options = dict(options) if options else {}
+        mask = options.pop("reset_mask", None)
+        worlds = range(self.num_envs) if mask is None else np.flatnonzero(np.asarray(mask, dtype=bool))
+        if mask is not None and not self._was_reset:
+            raise gym.error.ResetNeeded("reset() with a reset_mask needs a full reset() first")
+        obs = self._obs_buffer() if mask is None else self._last_obs.copy()
+        infos: list[dict[str, Any]] = [{}] * self.num_envs
+        self._last_obs = obs
+        for i in worlds:
+            obs[i], infos[i] = self.reset_world(i, seed=seeds[i], options=options or None)
+        self._was_reset = True
+        return obs.copy(), self.batch_infos(infos)
+
+    def reset_world(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset world ``i`` alone (its episode count and autoreset flag too); its ``(obs, info)``."""
+        obs, info = self.envs[i].reset(seed=seed, options=options)
+        self._elapsed[i] = 0
+        self._autoreset[i] = False
+        self._last_obs[i] = obs
+        return obs, info
+
+    def step(self, actions):
+        obs, rewards, terminated, truncated, infos = self.step_worlds(actions)
+        return obs, rewards, terminated, truncated, self.batch_infos(infos)
+
+    # --- the batch step ----------------------------------------------------------
+    def step_worlds(self, actions):
+        """``step`` with ``info`` as a list of per-world dicts (what the SB3 adapter hands on)."""
+        if not self._was_reset:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        actions = self.check_actions(actions)
+        n = self.num_envs
+        obs = self._obs_buffer()
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        infos: list[dict[str, Any]] = [{}] * n
+        stepping = []
+        self._last_obs = obs
+        for i in range(n):
+            if self._autoreset[i]:    # NEXT_STEP: this step resets the world, its action is ignored
+                obs[i], infos[i] = self.reset_world(i)
+            else:
+                self.envs[i]._prepare_step(actions[i])
+                stepping.append(i)
+        results = self._results
+        envs = self.envs
+
+        def finish(k: int) -> None:
+            results[k] = envs[stepping[k]]._finish_step()
+
+        self.physics.step([(envs[i].model, envs[i].data) for i in stepping], envs[0].frame_skip, finish)
+        for k, i in enumerate(stepping):
+            obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
+            results[k] = None
+        if stepping:
+            self._elapsed[stepping] += 1
+            if self.max_episode_steps is not None:
+                truncated[stepping] |= self._elapsed[stepping] >= self.max_episode_steps
+            self._autoreset[stepping] = terminated[stepping] | truncated[stepping]
+        return obs.copy(), rewards, terminated, truncated, infos
+
+    def check_actions(self, actions) -> np.ndarray:
+        """``actions`` as float64 (N, A); ``ValueError`` for a wrong shape or NaN/inf, naming the worlds."""
+        actions = np.asarray(actions, dtype=np.float64)
+        expected = (self.num_envs, *self.single_action_space.shape)
+        if actions.shape != expected:
+            raise ValueError(f"actions must have shape {expected} (num_envs, action size), got {actions.shape}")
+        finite = np.isfinite(actions).reshape(self.num_envs, -1).all(axis=1)
+        if not finite.all():
+            bad = np.flatnonzero(~finite)
+            where = {int(i): np.flatnonzero(~np.isfinite(actions[i])).tolist() for i in bad[:8]}
+            raise ValueError(f"actions must be finite: NaN or inf in world(s) {bad.tolist()} "
+                             f"(world: action indices {where}); no world was stepped")
+        return actions
+
+    def batch_infos(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
+        """Per-world info dicts as one dict of arrays with ``_key`` masks (``SyncVectorEnv``'s layout)."""
+        fast = _stack_infos(infos)
+        if fast is not None:
+            return fast
+        batched: dict[str, Any] = {}
+        for i, info in enumerate(infos):
+            if info:
+                batched = self._add_info(batched, info, i)
+        return batched
+
+    # --- helpers -------------------------------------------------------------------
+    def _obs_buffer(self) -> np.ndarray:
+        space = self.single_observation_space
+        return np.zeros((self.num_envs, *space.shape), dtype=space.dtype)
+
+    def _seeds(self, seed) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, (int, np.integer)):
+            return [int(seed) + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"reset needs one seed per world ({self.num_envs}), got {len(seeds)}")
+        return seeds
+
+    def get_attr(self, name: str) -> tuple:
+        return tuple(getattr(env, name) for env in self.envs)
+
+    def set_attr(self, name: str, values) -> None:
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"set_attr needs one value per world ({self.num_envs}), got {len(values)}")
+        for env, value in zip(self.envs, values):
+            setattr(env, name, value)
+
+    def call(self, name: str, *args, **kwargs) -> tuple:
+        results = []
+        for env in self.envs:
+            attr = getattr(env, name)
+            results.append(attr(*args, **kwargs) if callable(attr) else attr)
+        return tuple(results)
+
+    def close_extras(self, **kwargs) -> None:
+        self.physics.close()
+        for env in self.envs:
+            env.close()
+
+
+def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """``VectorEnv._add_info`` over all worlds at once, the same arrays and dtypes, when every world has
+    the same keys (the usual case; None otherwise)."""
+    first = infos[0]
+    if not first or any(info.keys() != first.keys() for info in infos):
+        return None
+    batched: dict[str, Any] = {}
+    mask = np.ones(len(infos), dtype=bool)
+    for key, value in first.items():
+        values = [info[key] for info in infos]
+        if key == "final_obs":
+            return None
+        if isinstance(value, dict):
+            if not all(isinstance(v, dict) for v in values):
+                return None
+            array = _stack_infos(values)
+            if array is None:
+                return None
+        elif type(value) in (int, float, bool) or isinstance(value, np.number):
+            if any(type(v) is not type(value) for v in values):
+                return None
+            array = np.array(values, dtype=type(value))
+        elif isinstance(value, np.ndarray):
+            if any(not isinstance(v, np.ndarray) or v.shape != value.shape for v in values):
+                return None
+            array = np.stack(values).astype(value.dtype, copy=False)
+        else:
+            array = np.empty(len(infos), dtype=object)
+            for i, v in enumerate(values):
+                array[i] = v
+        batched[key], batched[f"_{key}"] = array, mask.copy()
+    return batched
+
+
+def _vector_class(env_class: type[HumanoidEnv]) -> type[HumanoidVectorEnv]:
+    name = env_class.__name__.removesuffix("Env") + "VectorEnv"
+    return type(name, (HumanoidVectorEnv,), {"env_class": env_class, "__module__": __name__,
+                                             "__doc__": f"``HumanoidVectorEnv`` of ``{env_class.__name__}``."})
+
+
+def _classes():
+    from stairenv.environments.interlevel import InterLevelEnv
+    from stairenv.environments.plamo import PlaMoEnv
+    from stairenv.environments.plamo_scene import PlaMoSceneEnv
+    from stairenv.environments.sims import SIMSEnv
+    return [_vector_class(c) for c in (InterLevelEnv, PlaMoEnv, PlaMoSceneEnv, SIMSEnv)]
+
+
+InterLevelVectorEnv, PlaMoVectorEnv, PlaMoSceneVectorEnv, SIMSVectorEnv = _classes()
+
+#: the single env's entry point -> the vector env's (``registration`` registers both)
+VECTOR_ENTRY_POINTS = {
+    f"{cls.env_class.__module__}:{cls.env_class.__name__}": f"{__name__}:{cls.__name__}"
+    for cls in (InterLevelVectorEnv, PlaMoVectorEnv, PlaMoSceneVectorEnv, SIMSVectorEnv)
+}

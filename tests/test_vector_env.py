@@ -1,0 +1,216 @@
+"""The natively batched env (``stairenv.environments.vector``) and its SB3 adapter (``stairenv.vec_sb3``).
+
+Equivalence is tested exactly: a batched world's observations, rewards, flags and info are bit-identical
+(``np.array_equal``, tolerance 0) to ``SyncVectorEnv`` over single envs with the same seeds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+from stable_baselines3 import PPO
+
+import stairenv  # noqa: F401
+from stairenv.environments.batch_physics import SerialPhysics, ThreadPoolPhysics
+from stairenv.environments.vector import HumanoidVectorEnv
+from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
+from stairenv.motion import MotionClip, MotionLibrary
+from stairenv.registration import load_presets
+from stairenv.style.discriminator import DiscriminatorConfig
+from stairenv.style.reference import ReferenceWindows
+from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.vec_sb3 import SB3BatchedVecEnv, make_sb3_vec_env
+
+IDS = sorted(load_presets())
+
+
+def assert_same(a, b, where=""):
+    """Exactly equal, recursively (dicts of arrays, object arrays of dicts / arrays / scalars)."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), (where, set(a) ^ set(b))
+        for key in a:
+            assert_same(a[key], b[key], f"{where}.{key}")
+    elif isinstance(a, np.ndarray) and a.dtype == object:
+        assert isinstance(b, np.ndarray) and a.shape == b.shape, where
+        for x, y in zip(a, b):
+            assert_same(x, y, where)
+    elif isinstance(a, (list, tuple)):
+        assert isinstance(b, (list, tuple)) and len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b)):
+            assert_same(x, y, f"{where}[{k}]")
+    elif isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and a.dtype == b.dtype and np.array_equal(a, b), where
+    else:
+        assert a == b or (a != a and b != b), (where, a, b)
+
+
+def batched(env_id, n, **kwargs):
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_batched_equals_single_envs(env_id):
+    """Every id: 2 worlds x 150 steps of saturating random actions, episodes of at most 40 steps (so
+    several resets, autoresets and falls inside), against SyncVectorEnv of single envs; exact."""
+    n, steps = 2, 150
+    vec = batched(env_id, n, max_episode_steps=40)
+    assert isinstance(vec, HumanoidVectorEnv) and vec.spec.id == env_id
+    ref = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", max_episode_steps=40)
+    assert_same(vec.reset(seed=7), ref.reset(seed=7), "reset")
+    rng = np.random.default_rng(1)
+    ends = 0
+    for t in range(steps):
+        action = rng.uniform(-1, 1, (n, 28)).astype(np.float32)
+        got, want = vec.step(action), ref.step(action)
+        assert_same(got, want, f"step {t}")
+        ends += int(np.sum(got[2] | got[3]))
+    assert ends >= n * 2
+    vec.close()
+    ref.close()
+
+
+def test_every_id_registers_a_vector_entry_point():
+    for env_id in IDS:
+        assert gym.spec(env_id).vector_entry_point.startswith("stairenv.environments.vector:")
+
+
+@pytest.mark.parametrize("physics", ["serial", ThreadPoolPhysics(3)])
+def test_physics_backends_give_the_same_worlds(physics):
+    """Each world keeps its own MjData (warm start included): the back-end changes nothing."""
+    runs = []
+    for backend in (SerialPhysics(), physics):
+        vec = batched("InterLevel-v0", 5, physics=backend)
+        vec.reset(seed=3)
+        rng = np.random.default_rng(0)
+        runs.append([vec.step(rng.uniform(-1, 1, (5, 28)))[:4] for _ in range(20)])
+    assert_same(runs[0], runs[1])
+
+
+def test_next_step_autoreset_semantics():
+    vec = batched("InterLevel-v0", 3, max_episode_steps=4)
+    assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
+    single = gym.make("InterLevel-v0")
+    obs, info = vec.reset(seed=[10, 11, 12])
+    np.testing.assert_array_equal(obs[1], single.reset(seed=11)[0])
+    assert set(info["_time"]) == {True}
+    zeros = np.zeros((3, 28))
+    for _ in range(3):
+        _, _, terminated, truncated, _ = vec.step(zeros)
+        assert not (terminated | truncated).any()
+    last_obs, _, terminated, truncated, info = vec.step(zeros)
+    assert truncated.all() and not terminated.any()                 # the episode limit, all worlds
+    # the next step resets every world: reset obs, reward 0, flags False, the reset's info
+    obs, reward, terminated, truncated, info = vec.step(np.full((3, 28), np.float32(0.5)))
+    assert not (terminated | truncated).any() and (reward == 0).all()
+    assert (info["time"] == 0).all() and not np.array_equal(obs, last_obs)
+    assert "reward_location" not in info                             # reset infos carry no reward terms
+    # a world that ends alone resets alone
+    vec.envs[2].data.qvel[:] = 1e3                                   # speeds no body reaches: unstable
+    _, _, _, truncated, info = vec.step(zeros)
+    assert truncated.tolist() == [False, False, True]
+    _, reward, _, truncated, info = vec.step(zeros)
+    assert reward[2] == 0 and info["time"].tolist() == pytest.approx([2 / 30, 2 / 30, 0.0])
+
+
+def test_physics_blow_up_truncates_that_world_only():
+    vec = batched("SIMS-Sit-v0", 3)
+    vec.reset(seed=0)
+    vec.step(np.zeros((3, 28)))
+    before = [env.data.time for env in vec.envs]
+    vec.envs[1].data.qvel[:] = 1e12                                   # MuJoCo's own divergence check fires
+    with pytest.warns(UserWarning, match="physics became unstable"):
+        obs, reward, terminated, truncated, info = vec.step(np.zeros((3, 28)))
+    assert truncated.tolist() == [False, True, False] and not terminated.any()
+    assert info["physics_unstable"].tolist() == [False, True, False] and info["_physics_unstable"].all()
+    assert reward[1] == 0 and np.isfinite(obs).all()
+    assert vec.envs[0].data.time > before[0] and vec.envs[2].data.time > before[2]
+
+
+def test_bad_actions_are_refused_naming_the_world():
+    vec = batched("InterLevel-v0", 4)
+    with pytest.raises(gym.error.ResetNeeded):
+        vec.step(np.zeros((4, 28)))
+    vec.reset(seed=0)
+    times = [env.data.time for env in vec.envs]
+    with pytest.raises(ValueError, match=r"shape \(4, 28\).*\(3, 28\)"):
+        vec.step(np.zeros((3, 28)))
+    with pytest.raises(ValueError, match=r"shape"):
+        vec.step(np.zeros(28))
+    action = np.zeros((4, 28))
+    action[2, 5] = np.nan
+    action[3, 0] = np.inf
+    with pytest.raises(ValueError, match=r"world\(s\) \[2, 3\].*2: \[5\], 3: \[0\]"):
+        vec.step(action)
+    assert [env.data.time for env in vec.envs] == times                # nothing was stepped
+    vec.step(np.zeros((4, 28)))                                         # and the env goes on
+    with pytest.raises(ValueError, match="num_envs"):
+        batched("InterLevel-v0", 0)
+
+
+def test_reset_mask_resets_only_those_worlds():
+    vec = batched("InterLevel-v0", 3)
+    vec.reset(seed=0)
+    obs, *_ = vec.step(np.zeros((3, 28)))
+    new, info = vec.reset(options={"reset_mask": np.array([False, True, False])})
+    np.testing.assert_array_equal(new[[0, 2]], obs[[0, 2]])
+    assert info["_time"].tolist() == [False, True, False]
+
+
+def test_sb3_vecenv_contract():
+    venv = make_sb3_vec_env("InterLevel-v0", 3, seed=4, max_episode_steps=5)
+    obs = venv.reset()
+    assert obs.shape == (3, venv.observation_space.shape[0])
+    np.testing.assert_array_equal(obs[2], gym.make("InterLevel-v0").reset(seed=6)[0])
+    assert venv.get_attr("frame_skip") == [8, 8, 8] and len(venv.env_method("_reference_pose", None, indices=[0]))
+    assert venv.env_is_wrapped(gym.Wrapper) == [False] * 3
+    for t in range(5):
+        obs, reward, dones, infos = venv.step(np.zeros((3, 28)))
+        assert reward.dtype == np.float32 and len(infos) == 3 and "amp_obs" in infos[0]
+    assert dones.all() and all(info["TimeLimit.truncated"] for info in infos)
+    for info, o in zip(infos, obs):                                   # reset in the same step
+        assert info["terminal_observation"].shape == o.shape and not np.array_equal(info["terminal_observation"], o)
+    obs, reward, dones, infos = venv.step(np.zeros((3, 28)))
+    assert not dones.any() and "terminal_observation" not in infos[0]
+    with pytest.raises(TypeError):
+        SB3BatchedVecEnv(gym.make_vec("InterLevel-v0", num_envs=2, vectorization_mode="sync"))
+    venv.close()
+
+
+def gait_reference() -> ReferenceWindows:
+    t = np.arange(90) / 30.0
+    phase = 2 * math.pi * t
+    q = np.zeros((len(t), 35))
+    q[:, 0], q[:, 2], q[:, 3] = t, STANDING_ROOT_HEIGHT - 0.03, 1.0
+    dof = {name: 7 + i for i, name in enumerate(DOF_NAMES)}
+    q[:, dof["right_hip_y"]], q[:, dof["left_hip_y"]] = -0.4 * np.sin(phase), 0.4 * np.sin(phase)
+    return ReferenceWindows(MotionLibrary([MotionClip(q, 30.0, "gait")]), num_frames=2, fps=30.0)
+
+
+@pytest.mark.slow
+def test_sb3_ppo_learns_through_the_adapter_and_amp():
+    style = AMPStyleReward(gait_reference(), w_task=0.5, w_style=0.5, update_interval=512, updates_per_round=2,
+                           config=DiscriminatorConfig(batch_size=128))
+    venv = AMPVecEnvWrapper(make_sb3_vec_env("InterLevel-v0", 4, seed=0), style)
+    model = PPO("MlpPolicy", venv, n_steps=256, batch_size=256, n_epochs=1, verbose=0, seed=0)
+    model.learn(2048)
+    assert model.num_timesteps >= 2048 and style.rounds >= 3 and "disc_loss" in style.last_stats
+    venv.close()
+
+
+def test_threads_release_the_gil_and_keep_worlds_apart():
+    """The pool steps worlds of different models at once; each ends where mj_step alone takes it."""
+    vec = batched("InterLevel-v0", 4)
+    vec.reset(seed=1)
+    copies = []
+    for env in vec.envs:
+        data = mujoco.MjData(env.model)
+        mujoco.mj_copyData(data, env.model, env.data)
+        copies.append(data)
+    ThreadPoolPhysics(2).step([(env.model, env.data) for env in vec.envs], 8)
+    for env, data in zip(vec.envs, copies):
+        mujoco.mj_step(env.model, data, 8)
+        np.testing.assert_array_equal(env.data.qpos, data.qpos)
