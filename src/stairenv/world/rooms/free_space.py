@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from scipy import ndimage
@@ -15,8 +15,18 @@ from stairenv.world.rooms.config import FRONT_ACCESS_FAMILIES
 from stairenv.world.rooms.doors import Door
 from stairenv.world.scenes import Box
 
-if TYPE_CHECKING:
-    from stairenv.world.rooms.model import Room
+
+class RoomShape(Protocol):
+    """What the free-space check reads of a room (``rooms.model.Room`` is one; this module sits below it)."""
+
+    name: str
+    bounds: tuple[float, float, float, float]
+    wall_thickness: float
+
+    @property
+    def center(self) -> np.ndarray: ...
+
+    def contains_xy(self, xy: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,8 +101,9 @@ def reach_points(placed: PlacedFurniture, body_radius: float, reach: float, c: f
     local3 = np.column_stack((local, np.zeros(len(local))))
     return placed.to_world(local3)[:, :2]
 
-def build_free_space(rooms: Sequence[Room], walls: Sequence[Box], doors: Sequence[Door],
-                furniture: Sequence[PlacedFurniture], c: float, body_radius: float) -> FreeSpace:
+
+def build_free_space(rooms: Sequence[RoomShape], walls: Sequence[Box], doors: Sequence[Door],
+                     furniture: Sequence[PlacedFurniture], c: float, body_radius: float) -> FreeSpace:
     t = max(r.wall_thickness for r in rooms)
     lo = np.min([r.bounds[:2] for r in rooms], axis=0) - t - 2 * c
     hi = np.max([r.bounds[2:] for r in rooms], axis=0) + t + 2 * c
@@ -112,8 +123,8 @@ def build_free_space(rooms: Sequence[Room], walls: Sequence[Box], doors: Sequenc
     return FreeSpace(label_free(blocked, c, body_radius), origin, c)
 
 
-def all_reachable(space: FreeSpace, rooms: Sequence[Room], doors: Sequence[Door],
-                     furniture: Sequence[PlacedFurniture], body_radius: float, reach: float, c: float) -> bool:
+def all_reachable(space: FreeSpace, rooms: Sequence[RoomShape], doors: Sequence[Door],
+                  furniture: Sequence[PlacedFurniture], body_radius: float, reach: float, c: float) -> bool:
     targets = []
     for d in doors:
         for r in rooms:
