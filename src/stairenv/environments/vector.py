@@ -161,14 +161,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     def batch_infos(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
         """Per-world info dicts as one dict of arrays with ``_key`` masks (``SyncVectorEnv``'s layout)."""
-        fast = _stack_infos(infos)
-        if fast is not None:
-            return fast
-        batched: dict[str, Any] = {}
-        for i, info in enumerate(infos):
-            if info:
-                batched = self._add_info(batched, info, i)
-        return batched
+        return _stack_infos(infos)
 
     # --- helpers -------------------------------------------------------------------
     def _obs_buffer(self) -> np.ndarray:
@@ -209,37 +202,33 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             env.close()
 
 
-def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any] | None:
-    """``VectorEnv._add_info`` over all worlds at once, the same arrays and dtypes, when every world has
-    the same keys (the usual case; None otherwise)."""
-    first = infos[0]
-    if not first or any(info.keys() != first.keys() for info in infos):
-        return None
+def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
+    """``VectorEnv._add_info`` over all worlds at once: the same keys, arrays, dtypes (the first world
+    with the key decides) and ``_key`` masks, a key at a time instead of a world at a time."""
+    n = len(infos)
     batched: dict[str, Any] = {}
-    mask = np.ones(len(infos), dtype=bool)
-    for key, value in first.items():
-        values = [info[key] for info in infos]
-        if key == "final_obs":
-            return None
-        if isinstance(value, dict):
-            if not all(isinstance(v, dict) for v in values):
-                return None
-            array = _stack_infos(values)
-            if array is None:
-                return None
-        elif type(value) in (int, float, bool) or isinstance(value, np.number):
-            if any(type(v) is not type(value) for v in values):
-                return None
-            array = np.array(values, dtype=type(value))
-        elif isinstance(value, np.ndarray):
-            if any(not isinstance(v, np.ndarray) or v.shape != value.shape for v in values):
-                return None
-            array = np.stack(values).astype(value.dtype, copy=False)
+    for key in dict.fromkeys(key for info in infos for key in info):
+        worlds = [i for i, info in enumerate(infos) if key in info]
+        values = [infos[i][key] for i in worlds]
+        first = values[0]
+        if key != "final_obs" and isinstance(first, dict):
+            inner: list[dict[str, Any]] = [{}] * n
+            for i, value in zip(worlds, values):
+                inner[i] = value
+            array = _stack_infos(inner)
+        elif key != "final_obs" and (type(first) in (int, float, bool) or isinstance(first, np.number)):
+            array = np.zeros(n, dtype=type(first))
+            array[worlds] = values
+        elif key != "final_obs" and isinstance(first, np.ndarray):
+            array = np.zeros((n, *first.shape), dtype=first.dtype)
+            array[worlds] = values
         else:
-            array = np.empty(len(infos), dtype=object)
-            for i, v in enumerate(values):
-                array[i] = v
-        batched[key], batched[f"_{key}"] = array, mask.copy()
+            array = np.full(n, None, dtype=object)
+            for i, value in zip(worlds, values):
+                array[i] = value
+        mask = np.zeros(n, dtype=bool)
+        mask[worlds] = True
+        batched[key], batched[f"_{key}"] = array, mask
     return batched
 
 
