@@ -1,5 +1,6 @@
-"""Policies as callables ``obs -> action``: the built-in "zero" and "random" ones and Stable-Baselines3
-models with the observation normalisation saved beside them (:func:`load_policy`)."""
+"""Policies as callables ``obs -> action``: the built-in "zero" and "random" ones, Stable-Baselines3
+models with the observation normalisation saved beside them, and exported numpy policies
+(:func:`load_policy`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
+from stairenv.pretrained import NumpyPolicy, load_file
 
 Policy = Callable[[np.ndarray], Any]
 
@@ -156,6 +159,7 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     | ``"zero"`` | all-zero actions |
     | ``"path/model.zip"`` | ``stable_baselines3.PPO.load(path)``, deterministic ``predict`` |
     | ``"SAC:path/model.zip"`` | the same with another algorithm (SB3, or sb3_contrib if installed) |
+    | ``"path/policy.npz"`` | an exported numpy policy (``stairenv.pretrained``; no pickle, no torch) |
 
     For a model, its VecNormalize statistics (``normalizer_beside``) normalise the
     observations before ``predict`` (statistics frozen).
@@ -172,6 +176,8 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     if not spec.strip():
         raise _policy_spec_error(spec, "empty string")
 
+    if spec.endswith(".npz"):
+        return _numpy_policy(spec, env)
     algo_name, path = "PPO", spec
     head, sep, tail = spec.partition(":")
     # "ALGO:path"; a one-letter head is a Windows drive ("C:\\...").
@@ -214,6 +220,15 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
         normalizer.training = False
         normalizer.norm_reward = False
     return SB3Policy(model, normalizer, str(model_path))
+
+
+def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
+    policy = load_file(path)
+    expected = (env.observation_space.shape, env.action_space.shape)
+    if ((policy.obs_size,), (policy.action_size,)) != expected:
+        raise ValueError(f"policy {path!r} maps ({policy.obs_size},) observations to ({policy.action_size},) "
+                         f"actions; the env has {expected[0]} and {expected[1]}")
+    return policy
 
 
 def policy_label(policy: Any) -> str:
