@@ -214,3 +214,13 @@ def test_threads_release_the_gil_and_keep_worlds_apart():
     for env, data in zip(vec.envs, copies):
         mujoco.mj_step(env.model, data, 8)
         np.testing.assert_array_equal(env.data.qpos, data.qpos)
+
+
+def test_gymnasium_amp_wrapper_runs_on_the_batched_env():
+    from stairenv.style.wrappers import AMPVectorWrapper
+    wrapped = AMPVectorWrapper(batched("InterLevel-v0", 2, max_episode_steps=6),
+                               AMPStyleReward(gait_reference(), w_task=1.0, w_style=1.0))
+    wrapped.reset(seed=0)
+    for _ in range(8):
+        _, reward, _, _, info = wrapped.step(np.zeros((2, 28)))
+        assert reward.shape == (2,) and "style_reward" in info
