@@ -224,3 +224,17 @@ def test_gymnasium_amp_wrapper_runs_on_the_batched_env():
     for _ in range(8):
         _, reward, _, _, info = wrapped.step(np.zeros((2, 28)))
         assert reward.shape == (2,) and "style_reward" in info
+
+
+def test_interlevel_batch_evaluation_equals_per_world_finish():
+    """InterLevel's batch-first finish (one compiled call for all worlds) against each world's own
+    ``_finish_step``, with resets and falls inside; exact."""
+    runs = []
+    for flag in (True, False):
+        vec = batched("InterSceneStairs-v0", 4, batch_evaluation=flag, max_episode_steps=15)
+        assert vec.batch_evaluation is flag
+        vec.reset(seed=2)
+        rng = np.random.default_rng(3)
+        runs.append([vec.step(rng.uniform(-1, 1, (4, 28))) for _ in range(40)])
+    assert_same(runs[0], runs[1])
+    assert batched("PlaMo-v0", 1).batch_evaluation is False

@@ -15,11 +15,11 @@ from gymnasium import spaces
 from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import read_state
+from stairenv.humanoid.state import read_state, read_states
 from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_reference_library
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
-from stairenv.style.features import FeatureHistory
+from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
@@ -244,6 +244,46 @@ class HumanoidEnv(gym.Env):
             self.render()
         return evaluation.obs, evaluation.reward, bool(evaluation.terminated), False, info
 
+    #: True where ``_evaluate_worlds`` evaluates a batch in one call: a batched env then finishes all its
+    #: worlds with ``_finish_worlds`` after the physics instead of ``_finish_step`` world by world.
+    BATCH_EVALUATION = False
+
+    @classmethod
+    def _finish_worlds(cls, envs: list[HumanoidEnv]) -> list[tuple]:
+        """``_finish_step`` of many worlds of this class, batch-first: each world's result equals its
+        ``_finish_step``. The divergence check per world (the speeds of all at once), the state of the
+        stable worlds read as one batch, ``_evaluate_worlds`` and the style features in one call each."""
+        results: list[tuple | None] = [None] * len(envs)
+        qvel = np.stack([env.data.qvel for env in envs])
+        idx = envs[0]._idx
+        root = qvel[:, idx.qvel_root]
+        plausible = ((np.abs(root[:, :3]).max(axis=1) <= MAX_ROOT_SPEED)
+                     & (np.abs(root[:, 3:]).max(axis=1) <= MAX_JOINT_SPEED)
+                     & (np.abs(qvel[:, idx.qvel_joints]).max(axis=1) <= MAX_JOINT_SPEED))
+        stable = []
+        for k, env in enumerate(envs):
+            env._steps += 1
+            if env._physics_sound(env._expected_time, bool(plausible[k])):
+                stable.append(k)
+            else:
+                results[k] = env._unstable_step()
+        if stable:
+            worlds = [envs[k] for k in stable]
+            state = read_states([env.data for env in worlds], idx)
+            evaluations = cls._evaluate_worlds(worlds, state)
+            features = amp_features(state)
+            for k, env, evaluation, frame in zip(stable, worlds, evaluations, features):
+                env._evaluation = evaluation
+                env._amp.push_features(frame)
+                results[k] = (evaluation.obs, evaluation.reward, bool(evaluation.terminated), False,
+                              env._full_info(evaluation, unstable=False, terms=True))
+        return results
+
+    @classmethod
+    def _evaluate_worlds(cls, envs: list[HumanoidEnv], state) -> list[Evaluation]:
+        """``_evaluate`` of each world of ``envs`` (row k of the batch ``state`` is world k's state)."""
+        return [env._evaluate(type(state)(*(field[k:k + 1] for field in state))) for k, env in enumerate(envs)]
+
     def _before_physics(self) -> None:
         """Called by ``step`` after the action is applied, before the physics."""
 
@@ -312,16 +352,17 @@ class HumanoidEnv(gym.Env):
         self._physics()
         return self._physics_sound(expected_time)
 
-    def _physics_sound(self, expected_time: float) -> bool:
-        """After the physics: False (and a reset needed) if it diverged or went faster than a body can;
-        otherwise body poses brought up to qpos."""
+    def _physics_sound(self, expected_time: float, plausible: bool | None = None) -> bool:
+        """After the physics: False (and a reset needed) if it diverged or went faster than a body can
+        (``plausible``: ``_speeds_plausible()`` if already known); otherwise body poses brought up to qpos."""
         data = self.data
         # MuJoCo resets the data when positions, velocities or accelerations blow up:
         # the time jumps back and the warning counts (zeroed at every episode reset by
         # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.
         warnings = data.warning
         if (data.time < expected_time - 1e-9 or warnings[_BADQACC].number or warnings[_BADQVEL].number
-                or warnings[_BADQPOS].number or not self._speeds_plausible()):
+                or warnings[_BADQPOS].number
+                or not (self._speeds_plausible() if plausible is None else plausible)):
             self._needs_reset = True
             gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
             return False

@@ -242,37 +242,58 @@ class InterLevelEnv(HumanoidEnv):
     def _start_tracking(self, state) -> None:
         self._prev_root = state.body_pos[:, PELVIS].copy()
 
+    BATCH_EVALUATION = True
+
     def _evaluate(self, state) -> Evaluation:
-        """One compiled call (``task.interlevel_evaluate``), then the reward: the task terms (zero on a
-        fall), the success bonus and the failure reward. Nothing has happened yet at the episode's start."""
-        obs, results = task.interlevel_evaluate(
-            state, self._prev_root, self._goal, self._reward_params, self.dt, self.termination_height,
-            self.success_radius, self._packed_goal,
-        )
-        started = self._steps > 0
-        fell, success = started and bool(results.fell[0]), started and bool(results.success[0])
-        if self.reward_name == "interlevel":
-            values = (float(results.reward_location[0]), float(results.reward_facing[0]),
-                      float(results.reward_velocity[0]))
+        """``_evaluate_worlds`` of this world alone."""
+        return self._evaluate_worlds([self], state)[0]
+
+    @classmethod
+    def _evaluate_worlds(cls, envs: list[InterLevelEnv], state) -> list[Evaluation]:
+        """One compiled call (``task.interlevel_evaluate``) for the batch ``state`` of ``envs`` (worlds of
+        one configuration; row k is world k), then the reward: the task terms (zero on a fall), the success
+        bonus and the failure reward. Nothing has happened yet at an episode's start."""
+        first = envs[0]
+        if len(envs) == 1:
+            prev_root, goal, packed = first._prev_root, first._goal, first._packed_goal
         else:
-            values = interscene.interscene_reward_terms(state, self._prev_root, self._goal.target, self.dt)[0].tolist()
+            prev_root = np.concatenate([env._prev_root for env in envs])
+            packed = np.concatenate([env._packed_goal for env in envs])
+            goal = task.StairsGoal.unpack(packed)
+        obs, results = task.interlevel_evaluate(
+            state, prev_root, goal, first._reward_params, first.dt, first.termination_height,
+            first.success_radius, packed,
+        )
+        started = np.array([env._steps > 0 for env in envs])
+        fell, success = started & results.fell.astype(bool), started & results.success.astype(bool)
+        if first.reward_name == "interlevel":
+            values = np.stack([results.reward_location, results.reward_facing, results.reward_velocity], axis=1)
+        else:
+            values = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt)
         # A fall replaces the task terms by the failure reward.
-        terms, reward = {}, 0.0
-        for key, value in zip(self._term_names, values):
-            value = 0.0 if fell else value
-            terms[key] = value
-            reward += value
-        terms["reward_success"] = self.success_reward if success else 0.0
-        terms["reward_failure"] = self.failure_reward if fell else 0.0
-        reward += terms["reward_success"] + terms["reward_failure"]
-        self._prev_root = state.body_pos[:, PELVIS].copy()
-        return Evaluation(obs[0], reward, terms, fell or (success and self.terminate_on_success), {
-            "progress": float(results.progress[0]),
-            "height_progress": float(results.height_progress[0]),
-            "success": success,
-            "fell": fell,
-            "distance_to_target": float(results.distance_to_target[0]),
-        })
+        values = np.where(fell[:, None], 0.0, values).tolist()
+        success_reward, failure_reward = first.success_reward, first.failure_reward
+        progress, height_progress = results.progress.tolist(), results.height_progress.tolist()
+        distance = results.distance_to_target.tolist()
+        evaluations = []
+        for k, env in enumerate(envs):
+            terms, reward = {}, 0.0
+            for key, value in zip(env._term_names, values[k]):
+                terms[key] = value
+                reward += value
+            fell_k, success_k = bool(fell[k]), bool(success[k])
+            terms["reward_success"] = success_reward if success_k else 0.0
+            terms["reward_failure"] = failure_reward if fell_k else 0.0
+            reward += terms["reward_success"] + terms["reward_failure"]
+            env._prev_root = state.body_pos[k:k + 1, PELVIS].copy()
+            evaluations.append(Evaluation(obs[k], reward, terms, fell_k or (success_k and env.terminate_on_success), {
+                "progress": progress[k],
+                "height_progress": height_progress[k],
+                "success": success_k,
+                "fell": fell_k,
+                "distance_to_target": distance[k],
+            }))
+        return evaluations
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "stairs": dict(self._stairs_info)}

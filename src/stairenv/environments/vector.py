@@ -10,13 +10,18 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a thread pool of
    ``os.cpu_count()`` threads calling ``mujoco.mj_step``, GIL released);
-4. per world, right after its physics (in the physics thread): ``_finish_step`` (the divergence and
-   speed check, ``_evaluate``, the style features, ``info``): the same code as the single env's
-   ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
+4. the finish (the divergence and speed check, ``_evaluate``, the style features, ``info``): for
+   InterLevel (``BATCH_EVALUATION``) over the batch, ``HumanoidEnv._finish_worlds``: the speeds of all
+   worlds checked at once, the stable worlds' state read as one batch (``read_states``), the task in
+   one compiled call (``InterLevelEnv._evaluate_worlds``, which the single env calls with one world)
+   and the style features in one; for the other envs ``_finish_step`` per world, right after its
+   physics, in the physics thread. Either way the code of the single env's ``step``, so a world's
+   trajectory is bit-identical to a single env's with the same seed.
 
-Per-world parts (Python, one world at a time, overlapping other worlds' physics): the action map,
-``_before_physics``, ``_finish_step`` (the task evaluation, a compiled call of a batch of one for
-InterLevel), ``reset``. Batched: the action checks, the physics, the assembly of obs / reward /
+Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
+PlaMo, PlaMoScene and SIMS the whole finish (overlapping other worlds' physics); for InterLevel the
+divergence check's time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``.
+Batched: the action checks, the physics, InterLevel's evaluation, the assembly of obs / reward /
 flags / info.
 
 Autoreset follows Gymnasium 1.x's default ``AutoresetMode.NEXT_STEP``: the step after a world's
@@ -45,14 +50,15 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     """N worlds of ``env_class(**kwargs)`` stepped as one batch (see the module docstring).
 
     ``physics``: "threads" (default), "serial" or a ``BatchPhysics``; ``nthread``: the pool's threads
-    (default ``os.cpu_count()``); ``max_episode_steps``: the truncation limit (None: none).
+    (default ``os.cpu_count()``); ``max_episode_steps``: the truncation limit (None: none);
+    ``batch_evaluation``: evaluate the task over the batch in one call (default: where the env class can).
     """
 
     env_class: type[HumanoidEnv] | None = None
 
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
                  max_episode_steps: int | None = None, physics: str | BatchPhysics = "threads",
-                 nthread: int | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 nthread: int | None = None, batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         env_class = env_class or self.env_class
         if env_class is None:
@@ -74,6 +80,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.metadata = {**first.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
         self.render_mode = first.render_mode
         self.physics = make_physics(physics, nthread)
+        #: the task evaluated over the batch (``HumanoidEnv._finish_worlds``) where the env class can
+        #: (``BATCH_EVALUATION``: InterLevel), else world by world
+        self.batch_evaluation = bool(env_class.BATCH_EVALUATION) if batch_evaluation is None else batch_evaluation
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._was_reset = False
@@ -130,11 +139,17 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                 stepping.append(i)
         results = self._results
         envs = self.envs
+        worlds = [(envs[i].model, envs[i].data) for i in stepping]
+        if self.batch_evaluation:    # physics of all, then the task over the batch in one call
+            self.physics.step(worlds, envs[0].frame_skip)
+            if stepping:
+                results[:len(stepping)] = type(envs[0])._finish_worlds([envs[i] for i in stepping])
+        else:                        # each world finished right after its physics, in the physics thread
 
-        def finish(k: int) -> None:
-            results[k] = envs[stepping[k]]._finish_step()
+            def finish(k: int) -> None:
+                results[k] = envs[stepping[k]]._finish_step()
 
-        self.physics.step([(envs[i].model, envs[i].data) for i in stepping], envs[0].frame_skip, finish)
+            self.physics.step(worlds, envs[0].frame_skip, finish)
         for k, i in enumerate(stepping):
             obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
             results[k] = None

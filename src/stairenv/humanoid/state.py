@@ -46,3 +46,22 @@ def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
         dof_pos=data.qpos[idx.qpos_joints][None],
         dof_vel=data.qvel[idx.qvel_joints][None],
     )
+
+
+def read_states(datas, idx: HumanoidIndices) -> HumanoidState:
+    """The humanoid's state in each of ``datas`` (worlds of one model structure, ``idx`` of any of
+    them) as one batch: the rows equal ``read_state`` of each world. Copies, not views."""
+    bodies = idx.body_ids if idx.body_slice is None else idx.body_slice
+    xpos = np.stack([data.xpos for data in datas])
+    xmat = np.stack([data.xmat for data in datas])
+    qpos = np.stack([data.qpos for data in datas])
+    qvel = np.stack([data.qvel for data in datas])
+    root_vel = qvel[:, idx.qvel_root]
+    return HumanoidState(
+        body_pos=np.ascontiguousarray(xpos[:, bodies]),
+        body_mat=np.ascontiguousarray(xmat[:, bodies]).reshape(len(datas), len(BODY_NAMES), 3, 3),
+        root_lin_vel=np.ascontiguousarray(root_vel[:, :3]),
+        root_ang_vel=np.ascontiguousarray(root_vel[:, 3:]),
+        dof_pos=np.ascontiguousarray(qpos[:, idx.qpos_joints]),
+        dof_vel=np.ascontiguousarray(qvel[:, idx.qvel_joints]),
+    )

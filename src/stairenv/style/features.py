@@ -132,5 +132,10 @@ class FeatureHistory:
         self.frames[:-1] = self.frames[1:]
         amp_features(state, self.frames[-1:])
 
+    def push_features(self, frame: np.ndarray) -> None:
+        """``push`` with the frame's features already computed (a row of ``amp_features`` of a batch)."""
+        self.frames[:-1] = self.frames[1:]
+        self.frames[-1] = frame
+
     def flat(self) -> np.ndarray:
         return self.frames.reshape(-1).copy()
