@@ -9,7 +9,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    nothing applied if one is bad;
 2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a thread pool of
-   ``os.cpu_count()`` threads calling ``mujoco.mj_step``, GIL released);
+   ``os.cpu_count()`` threads calling ``mujoco.mj_step``, GIL released); meanwhile, in the calling
+   thread, the worlds whose episode ended at the last step are reset (autoreset);
 4. the finish (the divergence and speed check, ``_evaluate``, the style features, ``info``): for
    InterLevel (``BATCH_EVALUATION``) over the batch, ``HumanoidEnv._finish_worlds``: the speeds of all
    worlds checked at once, the stable worlds' state read as one batch (``read_states``), the task in
@@ -129,19 +130,21 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
         infos: list[dict[str, Any]] = [{}] * n
-        stepping = []
         self._last_obs = obs
-        for i in range(n):
-            if self._autoreset[i]:    # NEXT_STEP: this step resets the world, its action is ignored
-                obs[i], infos[i] = self.reset_world(i)
-            else:
-                self.envs[i]._prepare_step(actions[i])
-                stepping.append(i)
-        results = self._results
+        resetting = np.flatnonzero(self._autoreset)
+        stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
+        for i in stepping:
+            envs[i]._prepare_step(actions[i])
+
+        def reset_ended() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
+            for i in resetting:
+                obs[i], infos[i] = self.reset_world(i)
+
+        results = self._results
         worlds = [(envs[i].model, envs[i].data) for i in stepping]
-        if self.batch_evaluation:    # physics of all, then the task over the batch in one call
-            self.physics.step(worlds, envs[0].frame_skip)
+        if self.batch_evaluation:    # physics of all (resets meanwhile), then the task over the batch in one call
+            self.physics.step(worlds, envs[0].frame_skip, meanwhile=reset_ended)
             if stepping:
                 results[:len(stepping)] = type(envs[0])._finish_worlds([envs[i] for i in stepping])
         else:                        # each world finished right after its physics, in the physics thread
@@ -149,7 +152,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             def finish(k: int) -> None:
                 results[k] = envs[stepping[k]]._finish_step()
 
-            self.physics.step(worlds, envs[0].frame_skip, finish)
+            self.physics.step(worlds, envs[0].frame_skip, finish, reset_ended)
         for k, i in enumerate(stepping):
             obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
             results[k] = None
