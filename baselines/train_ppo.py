@@ -70,6 +70,7 @@ from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.pipeline import PIPELINE_CHOICES
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
+from stairenv.vec_sb3 import make_sb3_vec_env
 
 PAPER_PPO = {
     "learning_rate": 2e-5,
@@ -118,10 +119,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
     p.add_argument("--n-envs", type=int, default=4)
-    p.add_argument("--vec-env", choices=("dummy", "subproc"), default="dummy",
+    p.add_argument("--vec-env", choices=("dummy", "subproc", "batched"), default="dummy",
                    help="dummy: the envs step in this process, their style windows scored on the second core while "
-                        "the next envs step (on 2 cores the faster: see docs/reproducing.md); subproc: a process "
-                        "per env")
+                        "the next envs step (see docs/reproducing.md); subproc: a process per env; batched: the "
+                        "natively batched env (stairenv.vec_sb3), one step call advancing every world's physics on "
+                        "every core")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
@@ -349,8 +351,11 @@ def main(argv: list[str] | None = None) -> Path:
         reference = ReferenceWindows(library, num_frames=args.amp_history, fps=1.0 / probe.dt, conditions=conditions)
         probe.close()
 
-    vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
-    venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
+    if args.vec_env == "batched":
+        venv = make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, **env_kwargs)
+    else:
+        vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
+        venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
     ppo_kwargs = {key: getattr(args, key) for key in PAPER_PPO}
     tensorboard = str(run_dir / "tb") if importlib.util.find_spec("tensorboard") else None
 

@@ -81,3 +81,15 @@ def test_bad_flags_are_rejected(tmp_path):
     done = subprocess.run([sys.executable, str(SCRIPT), "--config", str(config)],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and "bogus_key" in done.stderr
+
+
+@pytest.mark.slow
+def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path):
+    batched = [arg if arg != "dummy" else "batched" for arg in TINY]
+    run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "1", "--eval-max-episode-steps", "10",
+         *batched], tmp_path)
+    checkpoint = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints" / "ppo_512_steps.zip"
+    assert checkpoint.exists() and checkpoint.with_name("amp_512_steps.pt").exists()
+    out = run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
+               *batched], tmp_path)
+    assert "resumed from" in out and "(512 steps)" in out
