@@ -57,7 +57,7 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.sims import SIMSEnv, reference_captions
@@ -145,6 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--amp-history", type=int, default=2, help="frames per discriminator sample")
     p.add_argument("--disc-loss", choices=LOSSES, default="lsgan")
     p.add_argument("--disc-lr", type=float, default=1e-4)
+    p.add_argument("--policy-hidden", type=_layer_sizes, default=(1024, 512), metavar="N,N",
+                   help="policy and value network hidden layers (paper: 1024,512)")
     p.add_argument("--disc-hidden", type=_layer_sizes, default=(1024, 512), metavar="N,N",
                    help="discriminator hidden layers (paper: 1024,512)")
     p.add_argument("--disc-grad-penalty", type=float, default=5.0, help="gradient penalty weight")
@@ -352,7 +354,9 @@ def main(argv: list[str] | None = None) -> Path:
         probe.close()
 
     if args.vec_env == "batched":
-        venv = make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, **env_kwargs)
+        # VecMonitor: episode returns and lengths for SB3's rollout/ep_*_mean (make_vec_env's Monitor does it
+        # for the other vec envs)
+        venv = VecMonitor(make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, **env_kwargs))
     else:
         vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
         venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
@@ -395,7 +399,8 @@ def main(argv: list[str] | None = None) -> Path:
         model = PPO(
             "MlpPolicy",
             venv,
-            policy_kwargs={"net_arch": {"pi": [1024, 512], "vf": [1024, 512]}, "activation_fn": torch.nn.ReLU,
+            policy_kwargs={"net_arch": {"pi": list(args.policy_hidden), "vf": list(args.policy_hidden)},
+                           "activation_fn": torch.nn.ReLU,
                            "log_std_init": args.log_std_init},
             tensorboard_log=tensorboard,
             seed=args.seed,
