@@ -241,7 +241,7 @@ def test_getup_starts_on_the_furniture_and_holding_still_keeps_it_there():
 def test_success_flag_when_the_pelvis_is_on_the_seat():
     env = SIMSEnv(skill="sit", families=("stool",), **FAST)
     env.reset(seed=1)
-    env._place_on(env.furniture["stool"], "sit")
+    env.place_on(env.furniture["stool"], "sit")
     _obs, info = env.set_task("sit", "stool")
     assert info["success"] and info["contact_error"] < 0.2
     hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
@@ -311,7 +311,7 @@ def test_seated_start_rests_on_the_seat_even_at_a_table():
         env.reset(seed=0)
         for name in ("chair_0", "chair_1"):
             assert np.linalg.norm(env.furniture[name].position - env.furniture["table_0"].position) < 0.9
-            env._place_on(env.furniture[name], "sit")
+            env.place_on(env.furniture[name], "sit")
             _obs, info = env.set_task("sit", name)
             assert info["contact_error"] < task.SUCCESS_DISTANCE["sit"], (seed, name)
         assert env.skill == "getup"  # set_task leaves the episode skill alone

@@ -346,12 +346,6 @@ class HumanoidEnv(gym.Env):
         """PD targets ``offset + scale * action``."""
         self.data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
 
-    def _simulate(self) -> bool:
-        """``frame_skip`` physics steps; False (and a reset needed) if the physics diverged."""
-        expected_time = self.data.time + self.frame_skip * self.model.opt.timestep
-        self._physics()
-        return self._physics_sound(expected_time)
-
     def _physics_sound(self, expected_time: float, plausible: bool | None = None) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can
         (``plausible``: ``_speeds_plausible()`` if already known); otherwise body poses brought up to qpos."""

@@ -610,7 +610,6 @@ class SIMSEnv(HumanoidEnv):
         self._hold_pose_ctrl()
         mujoco.mj_forward(model, data)
 
-    _place_on = place_on  # the former private name
 
     def resting_pose(self, placed: PlacedFurniture, pose: str) -> np.ndarray:
         """The pose (as :meth:`pose` gives) that ``place_on(placed, pose)`` puts the character in,

@@ -33,7 +33,7 @@ Correctness does not depend on timing:
   discriminator's scoring plan between steps; if the plan changed since (training
   outside the wrapper's schedule), the step is scored in the calling thread and
   the copy reloaded;
-- both paths run the same one-window kernel (``_window_logit``), so the rewards are
+- both paths run the same one-window kernel (``window_logit``), so the rewards are
   the same bits either way, and equal ``AMPDiscriminator.window_logits``.
 
 A worker that does not answer within ``timeout`` seconds (it never should) makes the
@@ -60,7 +60,7 @@ from numba import njit
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from stairenv.style.discriminator import AMPDiscriminator
-from stairenv.style.scoring import window_logit as _window_logit
+from stairenv.style.scoring import window_logit
 
 PIPELINE_CHOICES = ("auto", "on", "off")
 
@@ -143,7 +143,7 @@ if _SEMAPHORES is not None:
                 if seq == scored[i]:
                     continue
                 _barrier(0)  # read the post's number before its window
-                logits[i] = _window_logit(windows[i: i + 1], mean, std, clip, weights, biases, a, b)
+                logits[i] = window_logit(windows[i: i + 1], mean, std, clip, weights, biases, a, b)
                 _barrier(0)  # store the logit before the number that says it is there
                 scored[i] = seq
                 busy = True

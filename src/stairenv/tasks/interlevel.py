@@ -512,12 +512,8 @@ def interlevel_evaluate(
     It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
     ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
     """
-    batch = state.body_pos.shape[0]
-    obs = np.empty((batch, OBSERVATION_SIZE))
-    results = np.empty((batch, len(STEP_RESULTS)))
-    _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
-                 goal.pack() if packed_goal is None else packed_goal, goal.rotation, dt, termination_height,
-                 success_radius, *cfg, obs, results)
+    obs, results = _evaluate_packed(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
+                                    goal.rotation, cfg, dt, termination_height, success_radius)
     return obs, StepResults.from_columns(results)
 
 
@@ -533,10 +529,15 @@ def interlevel_step(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``interlevel_evaluate`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
     the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
+    return _evaluate_packed(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
+                            termination_height, success_radius)
+
+
+def _evaluate_packed(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
+    """The step kernel's call: observation (B, 118) and results (B, 8) in ``STEP_RESULTS`` order."""
     batch = state.body_pos.shape[0]
     obs = np.empty((batch, OBSERVATION_SIZE))
     results = np.empty((batch, len(STEP_RESULTS)))
     _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
-                 packed_goal, rotation, dt, termination_height, success_radius, *RewardParams.from_array(reward),
-                 obs, results)
+                 packed_goal, rotation, dt, termination_height, success_radius, *cfg, obs, results)
     return obs, results
