@@ -111,6 +111,12 @@ class HumanoidEnv(gym.Env):
     #: the clips of the reference library that starts are drawn from (``init`` "reference" or "hybrid").
     start_clips = staticmethod(level_clips)
 
+    @property
+    def amp_history(self) -> int:
+        """Frames of style features in ``info["amp_obs"]`` (the ``amp_history`` keyword): the
+        ``num_frames`` of the reference windows a discriminator compares them with."""
+        return len(self._amp.frames)
+
     # --- construction ---------------------------------------------------------
     def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,
                width: int, height: int) -> None:
