@@ -60,3 +60,54 @@ def test_bad_arguments(tmp_path):
     assert result.returncode == 2 and "policy must be one of" in result.stderr
     result = _run("--seconds", "0", "--out", str(tmp_path / "v.mp4"))
     assert result.returncode == 2 and "seconds" in result.stderr
+
+
+@pytest.fixture
+def shipped(tmp_path, monkeypatch):
+    """Point the shipped-policy lookup at a tmp folder; returns that folder (empty: nothing ships)."""
+    from stairenv import pretrained
+
+    folder = tmp_path / "policies"
+    folder.mkdir()
+    monkeypatch.setattr(pretrained, "shipped_policy_path", lambda env_id: folder / f"{env_id}.npz")
+    return folder
+
+
+def test_default_falls_back_to_zero_without_a_shipped_policy(tmp_path, shipped, capsys):
+    from stairenv.__main__ import main
+
+    assert main(["--seconds", "0.2", "--width", "64", "--height", "48", "--out", str(tmp_path / "v.mp4"),
+                 "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    notes = [line for line in out.splitlines() if "no trained policy" in line]
+    assert len(notes) == 1 and "'zero'" in notes[0]
+    assert "zero on InterLevel-v0" in out
+    # asking for it explicitly is an error naming the env
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--policy", "pretrained", "--seconds", "0.2", "--out", str(tmp_path / "w.mp4"), "--no-progress"])
+    assert exit_info.value.code == 2
+    assert "no trained policy for 'InterLevel-v0'" in capsys.readouterr().err
+
+
+def test_default_uses_the_shipped_policy(tmp_path, shipped, capsys):
+    """A tiny fake policy (a single linear layer) in the monkeypatched lookup folder, never in src/."""
+    from stairenv.__main__ import main, record
+    from stairenv.pretrained import NumpyPolicy
+
+    rng = np.random.default_rng(0)
+    fake = NumpyPolicy([rng.normal(0.0, 0.01, (28, 118))], [np.full(28, 0.3)], np.zeros(118), np.ones(118),
+                       config={"env_id": "InterLevel-v0"})
+    fake.save(shipped / "InterLevel-v0.npz")
+    summary = record(seconds=0.2, out=tmp_path / "v.mp4", width=64, height=48, progress_bar=False)
+    assert summary["policy"] == str(shipped / "InterLevel-v0.npz") and "shipped" in summary["note"]
+    for argv in ([], ["--policy", "pretrained"]):
+        assert main([*argv, "--seconds", "0.2", "--width", "64", "--height", "48",
+                     "--out", str(tmp_path / "v.mp4"), "--no-progress"]) == 0
+        out = capsys.readouterr().out
+        assert "no trained policy" not in out and "pretrained on InterLevel-v0" in out
+        assert "policy shipped with stairenv (InterLevel-v0.npz)" in out
+    # an explicit policy wins over the shipped one
+    assert main(["--policy", "random", "--seconds", "0.2", "--width", "64", "--height", "48",
+                 "--out", str(tmp_path / "v.mp4"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "random on InterLevel-v0" in out and "shipped with stairenv" not in out

@@ -3,12 +3,18 @@
 Examples::
 
     python -m stairenv                                   # 6 s of InterLevel-v0 -> videos/interlevel.mp4
+    python -m stairenv --policy pretrained               # the trained policy shipped with the package
     python -m stairenv --policy random --seconds 3 --frames-png stills/
     python -m stairenv --policy runs/ppo/model.zip --env InterLevel2D-v0 --out videos/2d.mp4
     python -m stairenv --env-kwarg step_height_set="(0.15,)" --env-kwarg random_start_heading=False
 
 Episodes that end before ``--seconds`` are followed by new ones (seeds ``seed``,
 ``seed + 1``, ...) so that the video has the requested length.
+
+Without ``--policy`` the video shows the trained policy the package ships for the env
+(``stairenv/policies/<env id>.npz``, ``stairenv.pretrained.load``) and, where none ships, the
+zero policy, with a one-line note saying so. ``--policy pretrained`` asks for the shipped policy
+and is an error where none ships.
 """
 
 from __future__ import annotations
@@ -21,7 +27,10 @@ from typing import Any
 from stairenv.evaluation.cli import env_kwarg_argument
 
 DEFAULT_ENV = "InterLevel-v0"
-DEFAULT_POLICY = "zero"
+#: ``--policy`` for the trained policy shipped with the package (``stairenv.pretrained``).
+PRETRAINED = "pretrained"
+#: what ``--policy`` falls back to when the package ships no trained policy for the env
+FALLBACK_POLICY = "zero"
 DEFAULT_OUT = "videos/interlevel.mp4"
 
 
@@ -31,8 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Record a short MP4 video of a policy in a stairenv env (offscreen rendering).",
     )
     parser.add_argument("--env", default=DEFAULT_ENV, help="env id (default: %(default)s)")
-    parser.add_argument("--policy", default=DEFAULT_POLICY,
-                        help="'random', 'zero', a Stable-Baselines3 model .zip or ALGO:path (default: %(default)s)")
+    parser.add_argument("--policy", default=None,
+                        help="'pretrained' (the trained policy shipped for --env), 'random', 'zero', an exported "
+                             "policy .npz, a Stable-Baselines3 model .zip or ALGO:path (default: the shipped "
+                             f"policy, else {FALLBACK_POLICY!r})")
     parser.add_argument("--seconds", type=float, default=6.0, help="video length in seconds (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     parser.add_argument("--out", default=DEFAULT_OUT, help="output .mp4 path (default: %(default)s)")
@@ -45,9 +56,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def resolve_policy(policy: str | None, env_id: str) -> tuple[str, str | None]:
+    """The policy spec for ``load_policy`` and a one-line note to show (None for none).
+
+    None: the policy shipped for ``env_id`` if the package ships one, else :data:`FALLBACK_POLICY`
+    with a note saying that none ships yet. :data:`PRETRAINED`: the shipped policy, ``ValueError``
+    where none ships. Anything else is returned as it is.
+    """
+    from stairenv import pretrained
+
+    if policy is not None and policy != PRETRAINED:
+        return policy, None
+    path = pretrained.shipped_policy_path(env_id)
+    if path.is_file():
+        return str(path), f"policy: the trained {env_id} policy shipped with stairenv ({path.name})"
+    if policy == PRETRAINED:
+        raise ValueError(f"policy {PRETRAINED!r}: no trained policy for {env_id!r} ships with stairenv yet; "
+                         "train one with baselines/train_ppo.py and export it with baselines/export_policy.py")
+    return FALLBACK_POLICY, (f"note: no trained policy for {env_id} ships with stairenv yet; "
+                             f"showing the {FALLBACK_POLICY!r} policy (choose one with --policy)")
+
+
 def record(
     env_id: str = DEFAULT_ENV,
-    policy: str = DEFAULT_POLICY,
+    policy: str | None = None,
     seconds: float = 6.0,
     seed: int = 0,
     out: str | Path = DEFAULT_OUT,
@@ -60,7 +92,9 @@ def record(
     """Render ``seconds`` of ``policy`` in ``env_id`` to the MP4 ``out``; returns a summary dict
     (``path``, ``frames``, ``fps``, ``steps``, ``episodes``, ``best_progress`` (None unless the env
     reports InterLevel's ``progress``), ``successes``,
-    ``falls``, ``unstable``, ``pngs``). Raises ``ValueError`` for bad arguments."""
+    ``falls``, ``unstable``, ``pngs``, ``policy``: the spec loaded, ``note``: :func:`resolve_policy`'s).
+    ``policy`` None or "pretrained" is resolved by :func:`resolve_policy`.
+    Raises ``ValueError`` for bad arguments."""
     import gymnasium as gym
     import imageio.v2 as imageio
     import numpy as np
@@ -82,6 +116,7 @@ def record(
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"out must be an .mp4 path, got {str(out)!r}")
 
+    policy, note = resolve_policy(policy, env_id)
     env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}))
     try:
         act = load_policy(policy, env, seed=seed)
@@ -137,7 +172,7 @@ def record(
             writer.close()
     finally:
         env.close()
-    return {"path": str(out), "frames": n_frames, "fps": fps, "pngs": pngs, **stats}
+    return {"path": str(out), "frames": n_frames, "fps": fps, "pngs": pngs, "policy": policy, "note": note, **stats}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -145,9 +180,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        policy, note = resolve_policy(args.policy, args.env)
+        if note:
+            print(note, flush=True)
         summary = record(
             env_id=args.env,
-            policy=args.policy,
+            policy=policy,
             seconds=args.seconds,
             seed=args.seed,
             out=args.out,
@@ -162,9 +200,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {summary['path']} ({summary['frames']} frames, {summary['frames'] / summary['fps']:.1f} s at {summary['fps']} fps)")
     if summary["pngs"]:
         print(f"wrote {len(summary['pngs'])} PNG stills to {Path(summary['pngs'][0]).parent}")
+    label = args.policy or (FALLBACK_POLICY if policy == FALLBACK_POLICY else PRETRAINED)
     progress = "" if summary["best_progress"] is None else f"best progress {100 * summary['best_progress']:.1f}%, "
     print(
-        f"{args.policy} on {args.env}: {summary['steps']} steps, {summary['episodes']} episode(s), "
+        f"{label} on {args.env}: {summary['steps']} steps, {summary['episodes']} episode(s), "
         f"{progress}{summary['successes']} success(es), "
         f"{summary['falls']} fall(s)" + (f", {summary['unstable']} unstable" if summary["unstable"] else "")
     )
