@@ -7,10 +7,13 @@ Examples::
     python baselines/evaluate.py --policy zero --paper-heights --compare-paper
     python baselines/evaluate.py --policy runs/ppo/model.zip --env InterLevel-v0 --csv out.csv
     python baselines/evaluate.py --policy SAC:runs/sac/model.zip --env-kwarg pd_gains=stiff
+    python baselines/evaluate.py --policy policy.npz --paper-heights --gait   # + gait columns
 
 A model path is loaded with ``stable_baselines3.PPO.load`` (``ALGO:path`` for another
 algorithm); a ``vecnormalize.pkl`` beside it normalises the observations.
-Prints the results table; ``--csv`` / ``--json`` save them.
+Prints the results table; ``--csv`` / ``--json`` save them. ``--gait`` adds the gait columns
+(``stairenv.evaluation.gait``): Alt. (% of successful climbs with alternating feet), TD/tread
+(foot touchdowns per tread), Hop, Crawl (% of episodes) and Slide (% of stance frames).
 """
 
 from __future__ import annotations
@@ -45,6 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--label", help="Method name in the table (default: the --policy value)")
     parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable; values parsed as Python literals, else strings")
+    parser.add_argument("--gait", action="store_true",
+                        help="also record foot contacts and report alternating feet, touchdowns per tread, "
+                             "hops, crawling and sliding")
     parser.add_argument("--compare-paper", action="store_true", help="also print the published numbers")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -67,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
             progress_bar=not args.no_progress,
             max_episode_steps=args.max_episode_steps,
             label=args.label,
+            gait=args.gait,
         )
     except ValueError as error:
         parser.error(str(error))

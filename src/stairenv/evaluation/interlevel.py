@@ -31,12 +31,13 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from stairenv.evaluation.gait import GAIT_FIELDS, GaitRecorder, GaitSummary, gait_columns, summarize
 from stairenv.evaluation.policies import Policy, load_policy, policy_label
 from stairenv.evaluation.report import Column, Layout, Report
 from stairenv.world.stairs import PAPER_TEST_HEIGHTS
@@ -97,6 +98,7 @@ class EpisodeResult:
     truncated: bool          # ended by the time limit (or an unstable-physics truncation)
     steps: int               # policy steps taken
     episode_return: float    # sum of rewards
+    gait: GaitSummary | None = None  # the gait metrics (``evaluate(..., gait=True)``), else None
 
 
 @dataclass(frozen=True)
@@ -150,6 +152,14 @@ class EvaluationReport(Report):
     def overall(self) -> GroupStats:
         """The group over all episodes."""
         return self.group(OVERALL)
+
+    def to_dict(self) -> dict[str, Any]:
+        """:meth:`Report.to_dict`; episodes carry their ``gait`` only when it was measured."""
+        data = super().to_dict()
+        for episode in data[self.layout.details_key]:
+            if episode.get("gait", 0) is None:
+                del episode["gait"]
+        return data
 
     def group(self, name: str | float) -> GroupStats:
         """The group named ``name`` ("all", a fixed height such as 0.05, or a bin label)."""
@@ -224,6 +234,20 @@ LAYOUT = Layout(
     details_key="episodes",
 )
 
+#: :data:`LAYOUT` with the gait columns of ``evaluate(..., gait=True)`` (``stairenv.evaluation.gait``):
+#: alternating feet among the successful climbs, touchdowns per tread, hop / crawl episodes, sliding stance.
+GAIT_LAYOUT = replace(
+    LAYOUT,
+    fields=ROW_FIELDS + GAIT_FIELDS,
+    columns=LAYOUT.columns + (
+        Column("Alt. (%)", "alternating_pct", 1),
+        Column("TD/tread", "touchdowns_per_tread", 2),
+        Column("Hop (%)", "hop_pct", 1),
+        Column("Crawl (%)", "crawl_pct", 1),
+        Column("Slide (%)", "slide_pct", 1),
+    ),
+)
+
 
 # --- the evaluation loop --------------------------------------------------------
 def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
@@ -240,10 +264,15 @@ def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
     return bins
 
 
-def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_height: float | None) -> EpisodeResult:
+def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_height: float | None,
+                 recorder: GaitRecorder | None = None) -> EpisodeResult:
     if callable(getattr(policy, "reset", None)):
         policy.reset(seed)
     obs, info = env.reset(seed=seed)
+    if recorder is not None:  # the env's MuJoCo state, read after the reset and every stable step
+        data, num_steps = env.unwrapped.data, int(info["stairs"]["num_steps"])
+        recorder.reset()
+        recorder.record(data)
     step_height = float(info["stairs"]["step_height"])
     best = float(info["progress"])
     success, success_time = False, None
@@ -257,15 +286,21 @@ def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_heig
         unstable = bool(info.get("physics_unstable", False))
         if not unstable:  # an unstable step reports no valid progress
             best = max(best, float(info["progress"]))
+            if recorder is not None:
+                recorder.record(data)
         if info.get("success") and not success:
             success, success_time = True, float(info["time"])
         if terminated or truncated:
             fell = bool(info.get("fell", False))
             break
+    gait = None
+    if recorder is not None:
+        gait = summarize(recorder.trace(env.unwrapped.dt, num_steps))
     return EpisodeResult(
         index=index, seed=seed, step_height=step_height, fixed_height=fixed_height,
         progress=best, fell=fell, success=success, time=success_time,
         physics_unstable=unstable, truncated=bool(truncated), steps=steps, episode_return=episode_return,
+        gait=gait,
     )
 
 
@@ -280,6 +315,7 @@ def evaluate(
     max_episode_steps: int | None = None,
     label: str | None = None,
     height_bins: Sequence[float] | None = HEIGHT_BIN_EDGES,
+    gait: bool = False,
 ) -> EvaluationReport:
     """Run ``policy`` for ``episodes`` episodes (per step height) and compute the paper's metrics.
 
@@ -295,6 +331,7 @@ def evaluate(
     | max_episode_steps | None | ``gym.make``'s time limit; None keeps the preset's (600 steps = 20 s) |
     | label | None | the Method column; None = the policy spec string or the callable's name |
     | height_bins | (0.075, 0.125, 0.175) | interior bin edges (m) grouping random heights; None or () for no bins |
+    | gait | False | also record foot contacts and add the gait columns (:data:`GAIT_LAYOUT`) |
 
     If ``policy`` has a ``reset(seed)`` method it is called with each episode's seed
     before the episode (:class:`~stairenv.evaluation.policies.RandomPolicy` reseeds itself).
@@ -305,6 +342,12 @@ def evaluate(
     counted apart and never as early termination. Groups: ``"all"``, then one per
     fixed height (named by the height, a float) or, for random heights, one per
     non-empty bin (named like ``"0.075-0.125 m"``).
+
+    With ``gait`` every episode's contacts are recorded after the reset and after every stable
+    step (``stairenv.evaluation.gait``): each episode gets its :class:`~stairenv.evaluation.gait.GaitSummary`
+    (``EpisodeResult.gait``) and each row the columns of :func:`~stairenv.evaluation.gait.gait_columns`:
+    % of the successful climbs with alternating feet, touchdowns per tread, % of episodes with a hop,
+    with a crawl, and % of stance frames that slide.
     """
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -365,8 +408,9 @@ def evaluate(
             if k > 0:
                 env = make_env(fixed)
             try:
+                recorder = GaitRecorder(env.unwrapped.model) if gait else None
                 for i in range(episodes):
-                    results.append(_run_episode(env, policy, seed + i, i, fixed))
+                    results.append(_run_episode(env, policy, seed + i, i, fixed, recorder))
                     bar.update(1)
                     if len(results) % 10 == 0 or len(results) == bar.total:
                         bar.set_postfix(
@@ -379,19 +423,26 @@ def evaluate(
     finally:
         bar.close()
 
-    groups = [GroupStats.from_episodes(OVERALL, results)]
+    grouped = [(GroupStats.from_episodes(OVERALL, results), results)]
     if heights is not None:
         for h in heights:
-            groups.append(GroupStats.from_episodes(h, [e for e in results if e.fixed_height == h], h, h))
+            members = [e for e in results if e.fixed_height == h]
+            grouped.append((GroupStats.from_episodes(h, members, h, h), members))
     elif height_bins:
         edges = sorted(float(e) for e in height_bins)
         for name, lo, hi in _height_bins(edges):
             members = [e for e in results if lo <= e.step_height < hi]
             if members:
-                groups.append(GroupStats.from_episodes(name, members))
+                grouped.append((GroupStats.from_episodes(name, members), members))
+    groups = [g for g, _ in grouped]
+    rows = [group_row(label, env_id, g) for g in groups]
     meta = {"label": label, "env_id": env_id, "seed": int(seed), "episodes_per_group": int(episodes),
             "step_heights": heights, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps}
-    return EvaluationReport(label=label, rows=[group_row(label, env_id, g) for g in groups], layout=LAYOUT,
+    if gait:
+        for row, (_, members) in zip(rows, grouped):
+            row.update(gait_columns([e.gait for e in members], [e.success for e in members]))
+        meta["gait"] = True
+    return EvaluationReport(label=label, rows=rows, layout=GAIT_LAYOUT if gait else LAYOUT,
                             details=results, meta=meta, groups=groups)
 
 
@@ -402,6 +453,6 @@ def _stairenv_ids() -> tuple[str, ...]:
 
 
 __all__ = [
-    "HEIGHT_BIN_EDGES", "LAYOUT", "OVERALL", "PAPER_RESULTS", "PAPER_STEP_HEIGHTS", "PAPER_TRIALS", "ROW_FIELDS",
+    "GAIT_LAYOUT", "HEIGHT_BIN_EDGES", "LAYOUT", "OVERALL", "PAPER_RESULTS", "PAPER_STEP_HEIGHTS", "PAPER_TRIALS", "ROW_FIELDS",
     "EpisodeResult", "EvaluationReport", "GroupStats", "evaluate", "group_row", "paper_rows",
 ]
