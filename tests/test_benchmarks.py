@@ -13,6 +13,7 @@ BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 CASES = {
     "bench_amp": ["--steps", "20", "--rounds", "1", "--n-envs", "2", "--variants", "small,paper-bg,paper-par-bg"],
+    "bench_amp_batch": ["--dummy-n", "2", "--batched-n", "2", "--transitions", "8", "--rounds", "1", "--train", "off"],
     "bench_step": ["--steps", "40", "--rounds", "1", "--resets", "4"],
     "bench_sims": ["--steps", "40", "--rounds", "1", "--resets", "3"],
     "bench_planning": ["--rounds", "1", "--no-nx-full", "--crop", "60"],

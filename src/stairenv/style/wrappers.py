@@ -16,8 +16,19 @@ text embeddings of each clip's description as in SIMS), the discriminator judges
 ``[amp_obs, amp_condition]``: the env's ``info["amp_condition"]`` (a SIMS env's caption
 embedding) is appended to its window, so style can be conditioned on text.
 
-- ``AMPVecEnvWrapper``: Stable-Baselines3 ``VecEnv`` (``DummyVecEnv``, ``SubprocVecEnv``).
-- ``AMPVectorWrapper``: ``gymnasium.vector.VectorEnv`` (next-step autoreset).
+- ``AMPVecEnvWrapper``: Stable-Baselines3 ``VecEnv`` (``DummyVecEnv``, ``SubprocVecEnv``,
+  the batched ``stairenv.vec_sb3.make_sb3_vec_env``).
+- ``AMPVectorWrapper``: ``gymnasium.vector.VectorEnv`` (next-step autoreset; ``SyncVectorEnv``,
+  the batched ``gym.make_vec(id, n, vectorization_mode="vector_entry_point")``).
+
+Without a ``style`` both build the envs' own (:func:`default_style`): their reference clips
+(:func:`default_reference`: the env's ``reference_motion``, else its class's
+``DEFAULT_REFERENCE_MOTION``) in windows of their ``amp_history`` frames at ``1 / dt``, the
+default discriminator, training in the background::
+
+    venv = AMPVecEnvWrapper(make_sb3_vec_env("InterLevel-v0", n_envs=64))
+
+Each step's N windows are scored in one call (one batch through the discriminator's back-end).
 
 ``background_training=True`` runs each training round in a worker thread while
 the envs step (torch releases the GIL in its kernels; on a machine with a spare
@@ -55,6 +66,7 @@ import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from stairenv.environments.base import HumanoidEnv
+from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import (
     SCORERS,
     AMPDiscriminator,
@@ -283,6 +295,62 @@ class AMPStyleReward:
         return style
 
 
+#: What the wrappers read from the first env to build its default style (``default_reference``).
+_DEFAULT_STYLE_ATTRIBUTES = ("amp_history", "dt", "reference_motion", "DEFAULT_REFERENCE_MOTION")
+
+
+def _first_env_attribute(venv, name: str):
+    """Attribute ``name`` of the first env of an SB3 ``VecEnv`` or a ``gymnasium.vector.VectorEnv``
+    (through vector wrappers, which do not forward ``get_attr``); AttributeError if it has none."""
+    if isinstance(venv, VecEnv):
+        if not venv.has_attr(name):
+            raise AttributeError(name)
+        return venv.get_attr(name, indices=[0])[0]
+    while not hasattr(venv, "get_attr") and isinstance(getattr(venv, "env", None), gym.vector.VectorEnv):
+        venv = venv.env
+    if not hasattr(venv, "get_attr"):
+        raise AttributeError(name)
+    return venv.get_attr(name)[0]
+
+
+def default_reference(venv) -> ReferenceWindows:
+    """The reference windows the wrappers build when given no ``style``: the envs' own reference
+    clips, ``load_reference_library(env.reference_motion)`` (the env's ``reference_motion`` keyword,
+    else its class's ``DEFAULT_REFERENCE_MOTION``: InterLevel's synthesised stairs set, SIMS'
+    interactions), cut into windows of ``env.amp_history`` frames at the env's control rate
+    (``fps = 1 / env.dt``), unconditioned.
+
+    ``venv``: an SB3 ``VecEnv`` (``DummyVecEnv``, ``SubprocVecEnv``, ``stairenv.vec_sb3.SB3BatchedVecEnv``,
+    wrapped or not) or a ``gymnasium.vector.VectorEnv`` (``SyncVectorEnv``, the batched
+    ``HumanoidVectorEnv``) of stairenv envs; the first env's attributes are read. ``TypeError`` for
+    envs without AMP features (no ``amp_history``: not a stairenv env). A text-conditioned
+    discriminator (SIMS) needs its conditions: build ``ReferenceWindows(..., conditions=...)`` and
+    ``AMPStyleReward`` yourself."""
+    values = {}
+    for name in _DEFAULT_STYLE_ATTRIBUTES:
+        try:
+            values[name] = _first_env_attribute(venv, name)
+        except AttributeError:
+            raise TypeError(
+                f"the envs of {type(venv).__name__} have no AMP features ({name!r} missing; stairenv envs put "
+                "their style windows in info['amp_obs'] and have amp_history, dt and a reference motion): "
+                "pass style=AMPStyleReward(ReferenceWindows(...)) built for these envs"
+            ) from None
+    source = values["reference_motion"]
+    library = load_reference_library(values["DEFAULT_REFERENCE_MOTION"] if source is None else source)
+    return ReferenceWindows(library, num_frames=int(values["amp_history"]), fps=1.0 / float(values["dt"]))
+
+
+def default_style(venv, **kwargs) -> AMPStyleReward:
+    """``AMPStyleReward(default_reference(venv), **kwargs)``: the envs' own reference windows and
+    the default discriminator (the paper's [1024, 512], reward 0.5 task + 0.5 style, a training
+    round of 2 minibatches every 2048 transitions) trained in the background
+    (``background_training=True`` unless ``kwargs`` says otherwise: the rounds leave the step loop,
+    the rewards lag one round)."""
+    kwargs.setdefault("background_training", True)
+    return AMPStyleReward(default_reference(venv), **kwargs)
+
+
 def _attach_pipeline(mode: str, venv, style: AMPStyleReward, num_envs: int) -> PipelinedScorer | None:
     """A pipelined scorer with every env's sink set, or None; ``mode`` as the wrappers' ``pipeline``."""
     check_choice("pipeline", mode, PIPELINE_CHOICES)
@@ -324,11 +392,17 @@ def _style_step(style: AMPStyleReward, pipeline: PipelinedScorer | None, amp: np
 class AMPVecEnvWrapper(VecEnvWrapper):
     """Stable-Baselines3 VecEnv wrapper adding the AMP style reward.
 
+    ``style``: the discriminator and its schedule; None (the default) builds the envs' own,
+    :func:`default_style` (their reference clips in windows of their ``amp_history`` frames at
+    ``1 / dt``, the default discriminator, background training); ``TypeError`` if the envs have no
+    AMP features. Each step's N windows are scored in one call.
+
     ``pipeline``: "auto" | "on" | "off", see the module docstring; ``self.pipeline`` is the
     scorer in use (None: scoring after the vec env returned)."""
 
-    def __init__(self, venv: VecEnv, style: AMPStyleReward, pipeline: str = "auto") -> None:
+    def __init__(self, venv: VecEnv, style: AMPStyleReward | None = None, pipeline: str = "auto") -> None:
         super().__init__(venv)
+        style = default_style(venv) if style is None else style
         self.style = style
         self._amp = np.empty((self.num_envs, style.reference.dim), dtype=np.float32)
         self.pipeline = _attach_pipeline(pipeline, venv, style, self.num_envs)
@@ -362,11 +436,15 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
 
     With next-step autoreset, the step after an episode ends only resets that env
     (reward 0): those entries get no style reward and are not learned from.
+    ``style`` as for :class:`AMPVecEnvWrapper` (None: :func:`default_style` of ``env``, e.g. a
+    ``SyncVectorEnv`` or the batched ``gym.make_vec(id, n, vectorization_mode="vector_entry_point")``).
     ``pipeline`` as for :class:`AMPVecEnvWrapper` (in-process: ``SyncVectorEnv``).
     """
 
-    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward, pipeline: str = "auto") -> None:
+    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward | None = None,
+                 pipeline: str = "auto") -> None:
         super().__init__(env)
+        style = default_style(env) if style is None else style
         self.style = style
         self._resetting = np.zeros(self.num_envs, dtype=bool)
         self.pipeline = _attach_pipeline(pipeline, env, style, self.num_envs)

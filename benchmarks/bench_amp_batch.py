@@ -1,0 +1,147 @@
+"""AMP at batch: the style wrapper's cost relative to the bare vectorised env, per-env pipelined
+scoring on a ``DummyVecEnv`` against plain batched scoring on the natively batched env.
+
+    python benchmarks/bench_amp_batch.py [--dummy-n 4,8,16] [--batched-n 64] [--transitions 4096]
+                                         [--rounds 7] [--train off,background]
+
+Groups, each timed against its own bare vec env:
+
+- ``dummy-N``: SB3 ``DummyVecEnv`` of N InterLevel-v0 envs, the wrapper with ``pipeline="on"``
+  (each env's window scored on the second core while the next env steps) and ``"off"`` (the N
+  windows scored in one call after the vec env returned);
+- ``batched-N``: ``stairenv.vec_sb3.make_sb3_vec_env("InterLevel-v0", n_envs=N)``, the wrapper
+  scoring the N windows in one call (``scoring="auto"`` and the back-ends of ``--batched-scoring``).
+
+``--train``: ``off`` (the discriminator scores but never trains: the scoring's price alone),
+``background`` (training rounds in a worker thread, the paper's schedule: 2 minibatches of 256 +
+256 every 2048 transitions), ``sync`` (rounds in the calling thread).
+
+Every run steps ``--transitions`` env transitions (N x steps) with the same random actions after a
+seeded reset. Within a round every variant of every group runs once, in an order that rotates from
+round to round (A, B, A, B ...); a variant's ratio is the median over rounds of wrapped / bare of
+the same round, so a machine whose load changes between rounds skews it little. ``us/tr`` is the
+median wall time per env transition, comparable across groups (absolute, so it moves with the
+machine's load; the ratios much less).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+import torch
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+import stairenv  # noqa: F401  (registers the ids)
+from stairenv.motion.rsi import load_reference_library
+from stairenv.style.reference import ReferenceWindows
+from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.vec_sb3 import make_sb3_vec_env
+
+ENV_ID = "InterLevel-v0"
+TRAIN_MODES = {"off": {"train": False}, "background": {"background_training": True}, "sync": {}}
+
+
+def run(venv, actions: np.ndarray) -> float:
+    """Seconds for ``len(actions)`` vectorised steps after a seeded reset."""
+    venv.seed(0)
+    venv.reset()
+    start = time.perf_counter()
+    for action in actions:
+        venv.step(action)
+    return time.perf_counter() - start
+
+
+def wrapped(venv, reference: ReferenceWindows, style_kw: dict, **wrapper_kw) -> AMPVecEnvWrapper:
+    torch.manual_seed(0)
+    style = AMPStyleReward(reference, **style_kw)
+    # A long run's steady state: the replay buffer's pages already touched.
+    style.replay.data.fill(0.0)
+    return AMPVecEnvWrapper(venv, style, **wrapper_kw)
+
+
+def groups(args, reference: ReferenceWindows) -> dict[str, dict[str, object]]:
+    """group -> {variant: vec env}; every group has its ``bare`` variant."""
+    out: dict[str, dict[str, object]] = {}
+    for train in args.train:
+        style_kw = TRAIN_MODES[train]
+        for n in args.dummy_n:
+            def dummy(n=n):
+                return make_vec_env(ENV_ID, n_envs=n, seed=0, vec_env_cls=DummyVecEnv)
+            out[f"dummy-{n}/{train}"] = {
+                "bare": dummy(),
+                "pipeline": wrapped(dummy(), reference, style_kw, pipeline="on"),
+                "batched-scoring": wrapped(dummy(), reference, style_kw, pipeline="off"),
+            }
+        for n in args.batched_n:
+            variants = {"bare": make_sb3_vec_env(ENV_ID, n_envs=n, seed=0)}
+            for scoring in args.batched_scoring:
+                variants[f"scoring-{scoring}"] = wrapped(make_sb3_vec_env(ENV_ID, n_envs=n, seed=0), reference,
+                                                         {**style_kw, "scoring": scoring})
+            out[f"batched-{n}/{train}"] = variants
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--dummy-n", default="4,8,16", help="DummyVecEnv sizes (comma-separated; '' for none)")
+    parser.add_argument("--batched-n", default="64", help="batched env sizes (comma-separated; '' for none)")
+    parser.add_argument("--batched-scoring", default="auto", help="scoring back-ends on the batched env")
+    parser.add_argument("--transitions", type=int, default=4096, help="env transitions per run")
+    parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--train", default="off,background", help=f"of {', '.join(TRAIN_MODES)}")
+    parser.add_argument("--torch-threads", type=int, default=None, help="default: torch's")
+    args = parser.parse_args()
+
+    def ints(text: str) -> list[int]:
+        return [int(v) for v in text.split(",") if v.strip()]
+    args.dummy_n, args.batched_n = ints(args.dummy_n), ints(args.batched_n)
+    args.batched_scoring = [v.strip() for v in args.batched_scoring.split(",") if v.strip()]
+    args.train = [v.strip() for v in args.train.split(",") if v.strip()]
+    unknown = [v for v in args.train if v not in TRAIN_MODES]
+    if unknown:
+        raise SystemExit(f"unknown --train {unknown}; known: {list(TRAIN_MODES)}")
+    if args.torch_threads is not None:
+        torch.set_num_threads(args.torch_threads)
+
+    reference = ReferenceWindows(load_reference_library(None), num_frames=2, fps=30.0)
+    table = groups(args, reference)
+    rng = np.random.default_rng(0)
+    actions = {}
+    for name, variants in table.items():
+        n = variants["bare"].num_envs
+        steps = max(args.transitions // n, 1)
+        actions[name] = rng.uniform(-1, 1, (steps, n, 28)).astype(np.float32)
+        for venv in variants.values():  # warm-up: compile, caches, a training round
+            run(venv, actions[name][: max(steps // 4, 2)])
+
+    runs = [(name, variant) for name, variants in table.items() for variant in variants]
+    times: dict[tuple[str, str], list[float]] = {key: [] for key in runs}
+    for r in range(args.rounds):
+        for name, variant in runs[r % len(runs):] + runs[: r % len(runs)]:
+            times[name, variant].append(run(table[name][variant], actions[name]))
+
+    print(f"{ENV_ID}, {args.transitions} transitions per run, {args.rounds} rounds (interleaved), "
+          f"torch threads {torch.get_num_threads()}")
+    print(f"{'group':<20} {'variant':<22} {'ms/step':>8} {'us/tr':>7} {'ratio':>6} {'(min-max)':>11}")
+    for name, variants in table.items():
+        steps, n = actions[name].shape[:2]
+        bare = times[name, "bare"]
+        for variant in variants:
+            mine = times[name, variant]
+            ratios = [w / b for w, b in zip(mine, bare)]
+            per_step = statistics.median(mine) / steps
+            print(f"{name:<20} {variant:<22} {per_step * 1e3:8.3f} {per_step / n * 1e6:7.1f} "
+                  f"{statistics.median(ratios):6.3f} ({min(ratios):.2f}-{max(ratios):.2f})")
+    print("ratio: median over rounds of wrapped / bare in the same round (target <= 1.15); us/tr: wall time "
+          "per env transition (median), comparable across groups")
+    for variants in table.values():
+        for venv in variants.values():
+            venv.close()
+
+
+if __name__ == "__main__":
+    main()
