@@ -1,34 +1,49 @@
-"""Train PPO + AMP (Stable-Baselines3) on a stairenv env with the InterLevel paper's settings.
+"""Train PPO + AMP (Stable-Baselines3) on a stairenv env: CPU-tuned defaults, the InterLevel paper's settings as a preset.
 
-    python baselines/train_ppo.py                         # InterLevel-v0, PPO + AMP, paper settings
+    python baselines/train_ppo.py                         # InterLevel-v0, PPO + AMP, the CPU settings below
+    python baselines/train_ppo.py --preset paper          # the paper's settings
     python baselines/train_ppo.py --env InterLevel2D-v0   # the 2-D ablation
     python baselines/train_ppo.py --env InterSceneStairs-v0 --style none   # task reward only
     python baselines/train_ppo.py --env-kwarg target_speed=0.8 --timesteps 5e6
-    python baselines/train_ppo.py --config my_run.toml    # any of the flags below as keys
+    python baselines/train_ppo.py --config baselines/recipes/interlevel_climb.toml   # any flags below as keys
     python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
     python baselines/train_ppo.py --resume .../ppo_100000_steps.zip --fresh-discriminator   # AMP state lost
-    python baselines/train_ppo.py --preset style-short    # instance noise + stable PPO for short runs (below)
+    python baselines/train_ppo.py --init-from .../ppo_100000_steps.zip --learning-rate 3e-5  # new run, trained weights
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
+
+Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
+(``docs/reproducing.md``): the natively batched env (``--vec-env batched``, 64 worlds, physics on
+every core), MLP [256, 256] ReLU for policy and value, rollouts of 32 steps per world (2,048
+samples), minibatch 1024, 5 epochs, learning rate 1e-4 (``--target-kl`` adapts it to a KL target
+instead), initial action std 0.135 (``--log-std-init -2``), one torch thread, gradient-norm clip
+1.0, entropy 0, gamma 0.99, observation and return normalisation (VecNormalize). Style: the AMP
+discriminator wrapper (``stairenv.style.wrappers``; the paper's [1024, 512] discriminator with
+instance noise 1.0 on its training inputs, gradient penalty 10 and a 200k-window replay buffer)
+trained on reference clips (``--reference``; default: the env's built-in synthesised set, walks
+and stair ascents, or for SIMS envs walks plus sit / lie / reach / get-up clips), reward
+0.5 task + 0.5 style, episodes started half from reference states (``--init hybrid``).
+
+``--preset paper``: the InterLevel paper's settings: learning rate 2e-5 constant, MLP [1024, 512],
+minibatch 64, rollouts of 256 steps, 4 envs stepping in this process (``--vec-env dummy``), action
+std 1, the discriminator without instance noise (gradient penalty 5, 100k replay).
+``--preset style-short``: the settings of the earlier short CPU runs (policy learning rate 1e-5,
+style weighted 0.8), on the paper's sizes. ``PRESETS`` holds them; flags and ``--config`` keys win
+over a preset. The runs behind each setting are in ``docs/reproducing.md``.
+
+``--init-from CHECKPOINT`` starts a new run (steps counted from 0, this run's flags) from a
+checkpoint's policy and value weights, optimiser state, VecNormalize statistics and discriminator
+(task and style weights from this run's flags): a recipe change on a trained policy. ``--resume``
+continues a run exactly (the checkpoint's own settings and step count).
+
+Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
+InterLevel envs, ``episode/{progress,success,fell}`` at each episode's end, also for the episodes
+that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
+when ``stairs_start_fraction`` starts others on the staircase).
 
 ``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
 judges [motion window, text embedding]; each reference clip is embedded from its
 ``meta["text"]`` with the env's encoder, and the env's captions become the
 reference texts of its skill, so agent and reference conditions come from one set.
-
-Paper settings (InterLevel): learning rate 2e-5 constant, MLP
-[1024, 512] ReLU for policy and value, gradient-norm clip 1.0, entropy 0,
-gamma 0.99, minibatch 64, observation and return normalisation (VecNormalize).
-Style: the AMP discriminator wrapper (``stairenv.style.wrappers``) trained on
-reference clips (``--reference``; default: the env's built-in synthesised set,
-walks and stair ascents, or for SIMS envs walks plus sit / lie / reach / get-up
-clips), reward 0.5 task + 0.5 style, episodes started half from
-reference states (``--init hybrid``).
-
-``--preset style-short`` (``PRESETS``; flags and ``--config`` keys win over it) is
-for short runs on a CPU: instance noise 1.0 on the discriminator's training inputs,
-policy learning rate 1e-5 with log std -2, style weighted 0.8 (task 0.2), gradient
-penalty 10 and a 200k-window replay buffer. The runs behind each setting are in
-``docs/reproducing.md`` ("Why --preset style-short").
 
 Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
 checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
@@ -57,6 +72,7 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.utils import ConstantSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
@@ -72,10 +88,11 @@ from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
 from stairenv.vec_sb3 import make_sb3_vec_env
 
-PAPER_PPO = {
-    "learning_rate": 2e-5,
-    "n_steps": 256,
-    "batch_size": 64,
+# The defaults: the fastest settings measured to learn on a 2-core CPU (docs/reproducing.md).
+PPO_DEFAULTS = {
+    "learning_rate": 1e-4,
+    "n_steps": 32,
+    "batch_size": 1024,
     "n_epochs": 5,
     "gamma": 0.99,
     "gae_lambda": 0.95,
@@ -84,10 +101,18 @@ PAPER_PPO = {
     "max_grad_norm": 1.0,
 }
 
+# The InterLevel paper's settings (learning rate 2e-5, minibatch 64, [1024, 512] networks, std 1 at the
+# start, the paper's discriminator) on the sequential vec env.
+PAPER = {
+    "learning_rate": 2e-5, "n_steps": 256, "batch_size": 64, "n_epochs": 5,
+    "policy_hidden": (1024, 512), "log_std_init": 0.0, "n_envs": 4, "vec_env": "dummy", "torch_threads": None,
+    "disc_input_noise": 0.0, "disc_grad_penalty": 5.0, "disc_replay_size": 100_000,
+}
 
 # Named groups of flag values (see the module docstring); explicit flags and --config keys win.
 PRESETS: dict[str, dict] = {
-    "paper": {},
+    "cpu": {},
+    "paper": PAPER,
     "style-short": {
         "learning_rate": 1e-5,
         "log_std_init": -2.0,
@@ -96,6 +121,8 @@ PRESETS: dict[str, dict] = {
         "disc_grad_penalty": 10.0,
         "disc_replay_size": 200_000,
         "disc_input_noise": 1.0,
+        **{key: PAPER[key] for key in ("n_steps", "batch_size", "policy_hidden", "n_envs", "vec_env",
+                                       "torch_threads")},
     },
 }
 
@@ -113,13 +140,14 @@ def _layer_sizes(text: str) -> tuple[int, ...]:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", type=Path, help="TOML file whose keys set any flag below (flags win)")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="paper",
-                   help="named flag values (flags and --config win); style-short: see above")
+    p.add_argument("--preset", choices=sorted(PRESETS), default="cpu",
+                   help="named flag values (flags and --config win): cpu (the defaults), paper, style-short; "
+                        "see above")
     p.add_argument("--env", default="InterLevel-v0", help="registered env id")
     p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
-    p.add_argument("--n-envs", type=int, default=4)
-    p.add_argument("--vec-env", choices=("dummy", "subproc", "batched"), default="dummy",
+    p.add_argument("--n-envs", type=int, default=64, help="worlds (envs) stepped together")
+    p.add_argument("--vec-env", choices=("dummy", "subproc", "batched"), default="batched",
                    help="dummy: the envs step in this process, their style windows scored on the second core while "
                         "the next envs step (see docs/reproducing.md); subproc: a process per env; batched: the "
                         "natively batched env (stairenv.vec_sb3), one step call advancing every world's physics on "
@@ -127,7 +155,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
-    p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from")
+    p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from (its settings, its step count)")
+    p.add_argument("--init-from", type=Path,
+                   help="checkpoint .zip to start a new run from: its policy and value weights, optimiser, "
+                        "observation statistics and (with AMP) discriminator, with this run's settings "
+                        "(a recipe change on a trained policy); step count from 0")
     p.add_argument("--fresh-discriminator", action="store_true",
                    help="with --resume: train a new discriminator (--disc-* flags) instead of the AMP state "
                         "saved beside the checkpoint")
@@ -145,19 +177,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--amp-history", type=int, default=2, help="frames per discriminator sample")
     p.add_argument("--disc-loss", choices=LOSSES, default="lsgan")
     p.add_argument("--disc-lr", type=float, default=1e-4)
-    p.add_argument("--policy-hidden", type=_layer_sizes, default=(1024, 512), metavar="N,N",
+    p.add_argument("--policy-hidden", type=_layer_sizes, default=(256, 256), metavar="N,N",
                    help="policy and value network hidden layers (paper: 1024,512)")
     p.add_argument("--disc-hidden", type=_layer_sizes, default=(1024, 512), metavar="N,N",
                    help="discriminator hidden layers (paper: 1024,512)")
-    p.add_argument("--disc-grad-penalty", type=float, default=5.0, help="gradient penalty weight")
+    p.add_argument("--disc-grad-penalty", type=float, default=10.0, help="gradient penalty weight (paper: 5)")
     p.add_argument("--disc-grad-penalty-batch", type=int, default=None,
                    help="reference windows the gradient penalty is estimated on (default: the whole batch)")
     p.add_argument("--disc-weight-decay", type=float, default=1e-4, help="L2 penalty on every discriminator weight")
     p.add_argument("--disc-logit-reg", type=float, default=0.01, help="L2 penalty on the output layer's weights")
-    p.add_argument("--disc-input-noise", type=float, default=0.0,
-                   help="std of instance noise on the discriminator's normalised training inputs (0: none)")
+    p.add_argument("--disc-input-noise", type=float, default=1.0,
+                   help="std of instance noise on the discriminator's normalised training inputs (0: none, "
+                        "the paper)")
     p.add_argument("--disc-batch-size", type=int, default=256, help="reference and agent windows per minibatch")
-    p.add_argument("--disc-replay-size", type=int, default=100_000, help="agent windows kept for training")
+    p.add_argument("--disc-replay-size", type=int, default=200_000,
+                   help="agent windows kept for training (paper preset: 100000)")
     p.add_argument("--disc-update-interval", type=int, default=2048, help="transitions between training rounds")
     p.add_argument("--disc-updates", type=int, default=2, help="discriminator minibatches per training round")
     p.add_argument("--disc-background", action=argparse.BooleanOptionalAction, default=True,
@@ -168,12 +202,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--disc-pipeline", choices=PIPELINE_CHOICES, default="auto",
                    help="score each env's window on a second core while the next envs step (needs --vec-env dummy; "
                         "auto: where available)")
-    p.add_argument("--log-std-init", type=float, default=0.0,
-                   help="initial log std of the Gaussian policy (SB3 default 0: std 1 on actions in [-1, 1])")
-    p.add_argument("--torch-threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
+    p.add_argument("--log-std-init", type=float, default=-2.0,
+                   help="initial log std of the Gaussian policy (-2: std 0.135; the paper preset: 0, std 1)")
+    p.add_argument("--target-kl", type=float, default=None, dest="adaptive_kl",
+                   help="adapt the learning rate after each update to keep PPO's approx-KL near this value "
+                        "(x1.5 when below half of it, /1.5 when above twice it; bounds 1e-6..1e-3); "
+                        "default: a constant learning rate")
+    p.add_argument("--torch-threads", type=int, default=1,
+                   help="torch intra-op threads (1: the batched env's physics uses the other cores; "
+                        "paper preset: torch's default)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--no-progress-bar", action="store_true")
-    for key, value in PAPER_PPO.items():
+    for key, value in PPO_DEFAULTS.items():
         p.add_argument(f"--{key.replace('_', '-')}", type=type(value), default=value)
     return p
 
@@ -211,8 +251,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
     if args.n_envs < 1:
         raise SystemExit("--n-envs must be >= 1")
-    if args.fresh_discriminator and (args.resume is None or args.style != "amp"):
-        raise SystemExit("--fresh-discriminator only applies to --resume with --style amp")
+    if args.fresh_discriminator and ((args.resume is None and args.init_from is None) or args.style != "amp"):
+        raise SystemExit("--fresh-discriminator only applies to --resume or --init-from with --style amp")
+    if args.resume is not None and args.init_from is not None:
+        raise SystemExit("--resume continues a run, --init-from starts a new one from a checkpoint: give one")
     return args
 
 
@@ -232,6 +274,48 @@ class AMPCallback(BaseCallback):
             self.logger.record(f"amp/{key}", value)
         if self.n_calls % self.save_freq == 0:
             self.style.save(self.folder / f"amp_{self.num_timesteps}_steps.pt")
+        return True
+
+
+class EpisodeStatsCallback(BaseCallback):
+    """Logs the task's results at each episode's end (``episode/*``): InterLevel's progress, success and
+    falls, for all episodes and for those that started on the floor (``info["stairs_start"]`` false),
+    the ones comparable with the evaluation's."""
+
+    KEYS = ("progress", "success", "fell")
+
+    def _on_step(self) -> bool:
+        for done, info in zip(self.locals["dones"], self.locals["infos"]):
+            if not done or "progress" not in info:
+                continue
+            groups = ("episode", "episode_floor_start") if not info.get("stairs_start") else ("episode",)
+            for group in groups:
+                for key in self.KEYS:
+                    self.logger.record_mean(f"{group}/{key}", float(info[key]))
+        return True
+
+
+class AdaptiveLearningRate(BaseCallback):
+    """Keeps PPO's approx-KL near ``target``: after each update the learning rate is multiplied by 1.5
+    when the update's approx-KL was below target / 2 and divided by 1.5 when above 2 target (the rule of
+    legged-robot PPO trainers). The rate lives in the model's schedule, so checkpoints resume with it."""
+
+    def __init__(self, target: float, low: float = 1e-6, high: float = 1e-3) -> None:
+        super().__init__()
+        self.target, self.low, self.high = target, low, high
+
+    def _on_rollout_end(self) -> None:
+        kl = self.model.logger.name_to_value.get("train/approx_kl")
+        rate = float(self.model.lr_schedule(1.0))
+        if kl is not None and kl > 2.0 * self.target:
+            rate = max(self.low, rate / 1.5)
+        elif kl is not None and 0.0 < kl < 0.5 * self.target:
+            rate = min(self.high, rate * 1.5)
+        self.model.learning_rate = rate
+        self.model.lr_schedule = ConstantSchedule(rate)
+        self.logger.record("train/adaptive_learning_rate", rate)
+
+    def _on_step(self) -> bool:
         return True
 
 
@@ -330,8 +414,9 @@ def main(argv: list[str] | None = None) -> Path:
     if args.amp_text_condition and args.style != "amp":
         raise SystemExit("--amp-text-condition needs --style amp")
     checkpoint = stats = amp_state = None
-    if args.resume is not None:  # every file first, before minutes of env setup
-        checkpoint = _checkpoint_file(args.resume)
+    source = args.resume if args.resume is not None else args.init_from
+    if source is not None:  # every file first, before minutes of env setup
+        checkpoint = _checkpoint_file(source)
         stats = _statistics_beside(checkpoint)
         if args.style == "amp" and not args.fresh_discriminator:
             amp_state = _required_amp_state(checkpoint)
@@ -360,7 +445,7 @@ def main(argv: list[str] | None = None) -> Path:
     else:
         vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
         venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)
-    ppo_kwargs = {key: getattr(args, key) for key in PAPER_PPO}
+    ppo_kwargs = {key: getattr(args, key) for key in PPO_DEFAULTS}
     tensorboard = str(run_dir / "tb") if importlib.util.find_spec("tensorboard") else None
 
     normalizer = None
@@ -375,6 +460,8 @@ def main(argv: list[str] | None = None) -> Path:
     if reference is not None:
         if amp_state is not None:
             style = _resumed_style(amp_state, reference, args.seed)
+            if args.init_from is not None:  # a new run on the trained discriminator: this run's weights
+                style.w_task, style.w_style = args.w_task, args.w_style
         else:
             style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
@@ -382,7 +469,7 @@ def main(argv: list[str] | None = None) -> Path:
                                    scoring=args.disc_scoring)
         venv = AMPVecEnvWrapper(venv, style, pipeline=args.disc_pipeline)
 
-    if normalizer is not None:
+    if normalizer is not None and args.resume is not None:
         normalizer.set_venv(venv)
         venv = normalizer
         model = _load_checkpoint(checkpoint, venv, args.device, tensorboard)
@@ -408,6 +495,15 @@ def main(argv: list[str] | None = None) -> Path:
             verbose=0,
             **ppo_kwargs,
         )
+        if normalizer is not None:  # --init-from: the trained weights, optimiser and statistics
+            venv.obs_rms, venv.ret_rms = normalizer.obs_rms, normalizer.ret_rms
+            try:
+                model.set_parameters(str(checkpoint), exact_match=True, device=args.device)
+            except Exception as err:  # noqa: BLE001  (other network sizes, a truncated .zip: many types)
+                raise SystemExit(f"--init-from {checkpoint}: cannot take its weights into this run's networks "
+                                 f"({type(err).__name__}: {err}); pass the --policy-hidden it was trained "
+                                 "with") from None
+            print(f"initialised from {checkpoint} (weights, optimiser, statistics{', discriminator' if amp_state else ''})")
 
     save_freq = max(args.checkpoint_every // args.n_envs, 1)
     callbacks: list[BaseCallback] = [CheckpointCallback(
@@ -415,6 +511,9 @@ def main(argv: list[str] | None = None) -> Path:
     )]
     if style is not None:
         callbacks.append(AMPCallback(style, save_freq, run_dir / "checkpoints"))
+    callbacks.append(EpisodeStatsCallback())
+    if args.adaptive_kl is not None:
+        callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
     model.learn(
         total_timesteps=int(args.timesteps),
         callback=CallbackList(callbacks),
@@ -434,7 +533,9 @@ def main(argv: list[str] | None = None) -> Path:
         eval_env = gym.make(args.env, **env_kwargs)
         policy = load_policy(str(model_path), eval_env)
         eval_env.close()
-        eval_kwargs = {k: v for k, v in env_kwargs.items() if k not in ("init", "reference_motion")}
+        # the evaluation starts as the paper's protocol does: standing on the floor
+        eval_kwargs = {k: v for k, v in env_kwargs.items()
+                       if k not in ("init", "reference_motion", "stairs_start_fraction")}
         evaluate = evaluator_for(args.env)
         report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
                           env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,

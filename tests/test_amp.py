@@ -377,8 +377,10 @@ def test_instance_noise_is_training_only(reference):
 
 def test_train_ppo_discriminator_flags(baseline_script):
     train_ppo = baseline_script("train_ppo")
+    paper = train_ppo.discriminator_config(train_ppo.parse_args(["--preset", "paper"]))
+    assert paper == DiscriminatorConfig()  # the paper's discriminator with --preset paper
     default = train_ppo.discriminator_config(train_ppo.parse_args([]))
-    assert default == DiscriminatorConfig()  # the paper's discriminator unless asked otherwise
+    assert default == DiscriminatorConfig(grad_penalty=10.0, input_noise=1.0, replay_size=200_000)
     args = train_ppo.parse_args(["--disc-hidden", "512,256", "--disc-grad-penalty", "10", "--disc-lr", "1e-5",
                                  "--disc-replay-size", "200000", "--disc-grad-penalty-batch", "64",
                                  "--disc-updates", "1", "--disc-update-interval", "4096",
@@ -392,7 +394,7 @@ def test_train_ppo_discriminator_flags(baseline_script):
     assert args.disc_updates == 1 and args.disc_update_interval == 4096
     assert args.disc_background and args.disc_scoring == "bf16" and args.disc_pipeline == "off"
     defaults = train_ppo.parse_args([])
-    assert defaults.disc_pipeline == "auto" and defaults.disc_background and defaults.vec_env == "dummy"
+    assert defaults.disc_pipeline == "auto" and defaults.disc_background and defaults.vec_env == "batched"
     assert not train_ppo.parse_args(["--no-disc-background"]).disc_background
     with pytest.raises(SystemExit):
         train_ppo.parse_args(["--disc-hidden", "512,x"])
@@ -401,7 +403,7 @@ def test_train_ppo_discriminator_flags(baseline_script):
     assert preset.w_style == 0.7  # explicit flags win over the preset
     no_noise = train_ppo.parse_args(["--preset", "style-short", "--disc-input-noise", "0"])
     assert no_noise.disc_input_noise == 0.0  # even when the flag repeats the default
-    assert train_ppo.parse_args([]).disc_input_noise == 0.0  # the paper's settings by default
+    assert train_ppo.parse_args(["--preset", "paper"]).disc_input_noise == 0.0  # the paper's settings
 
 
 # --- wrappers --------------------------------------------------------------------

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
@@ -71,6 +72,48 @@ def test_train_sims_with_a_text_conditioned_discriminator(tmp_path):
     assert done.returncode != 0 and "needs a SIMS env" in done.stderr
 
 
+def test_defaults_are_the_cpu_settings_and_the_paper_preset_restores_the_paper(baseline_script):
+    train_ppo = baseline_script("train_ppo")
+    cpu = train_ppo.parse_args([])
+    assert (cpu.vec_env, cpu.n_envs, cpu.policy_hidden, cpu.batch_size, cpu.n_steps) == ("batched", 64, (256, 256),
+                                                                                         1024, 32)
+    assert cpu.learning_rate == 1e-4 and cpu.log_std_init == -2.0 and cpu.torch_threads == 1
+    paper = train_ppo.parse_args(["--preset", "paper"])
+    assert (paper.vec_env, paper.n_envs, paper.policy_hidden, paper.batch_size, paper.n_steps) == (
+        "dummy", 4, (1024, 512), 64, 256)
+    assert paper.learning_rate == 2e-5 and paper.log_std_init == 0.0 and paper.torch_threads is None
+    assert paper.w_task == paper.w_style == 0.5 and paper.disc_grad_penalty == 5.0
+    mixed = train_ppo.parse_args(["--preset", "paper", "--n-envs", "8", "--timesteps", "1e5"])
+    assert mixed.n_envs == 8 and mixed.timesteps == 1e5 and mixed.batch_size == 64  # flags win
+    with pytest.raises(SystemExit):
+        train_ppo.parse_args(["--resume", "a.zip", "--init-from", "b.zip"])
+
+
+def test_adaptive_learning_rate_follows_the_kl(baseline_script):
+    from types import SimpleNamespace
+
+    from stable_baselines3.common.utils import ConstantSchedule
+
+    train_ppo = baseline_script("train_ppo")
+    callback = train_ppo.AdaptiveLearningRate(target=0.01)
+    logged = {}
+    model = SimpleNamespace(lr_schedule=ConstantSchedule(1e-4), learning_rate=1e-4,
+                            logger=SimpleNamespace(name_to_value=logged, record=lambda *a: None))
+    callback.model = model
+    rates = []
+    for kl in (None, 0.001, 0.01, 0.05, 0.05, 0.019):
+        logged.clear()
+        if kl is not None:
+            logged["train/approx_kl"] = kl
+        callback.on_rollout_end()
+        rates.append(model.lr_schedule(1.0))
+    np.testing.assert_allclose(rates, [1e-4, 1.5e-4, 1.5e-4, 1e-4, 1e-4 / 1.5, 1e-4 / 1.5])
+    for _ in range(40):
+        logged["train/approx_kl"] = 1.0
+        callback.on_rollout_end()
+    assert model.lr_schedule(1.0) == 1e-6 and model.learning_rate == 1e-6  # bounded
+
+
 def test_bad_flags_are_rejected(tmp_path):
     env = {**os.environ, "MUJOCO_GL": "egl"}
     done = subprocess.run([sys.executable, str(SCRIPT), "--env", "NoSuchEnv-v0", "--timesteps", "10"],
@@ -93,3 +136,11 @@ def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path):
     out = run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
                *batched], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
+
+    # A new run from the checkpoint: its weights, statistics and discriminator, this run's settings.
+    out = run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
+               "--init-from", str(checkpoint), "--learning-rate", "3e-4", "--target-kl", "0.01",
+               "--env-kwarg", "stairs_start_fraction=0.5", *batched], tmp_path)
+    assert "initialised from" in out and "discriminator" in out
+    warm = tmp_path / "warm" / "InterLevel-v0" / "seed0"
+    assert (warm / "checkpoints" / "ppo_512_steps.zip").exists()  # counted from 0

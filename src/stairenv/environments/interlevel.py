@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -11,7 +12,9 @@ from gymnasium import spaces
 
 from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
+from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.humanoid.state import PELVIS
+from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
@@ -108,6 +111,7 @@ class InterLevelEnv(HumanoidEnv):
     | init | "default" | start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid" |
     | reference_motion | None | folder / .npz of reference clips; None = the built-in synthesised set |
     | hybrid_fraction | 0.5 | share of episodes that start from a reference frame with init="hybrid" |
+    | stairs_start_fraction | 0.0 | share of episodes that start from a frame of a climb synthesised for their staircase (training) |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -155,6 +159,7 @@ class InterLevelEnv(HumanoidEnv):
         init: str = "default",
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
+        stairs_start_fraction: float = 0.0,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -197,6 +202,11 @@ class InterLevelEnv(HumanoidEnv):
                 f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
             )
         self.reset_noise_scale = check_float("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
+        self.stairs_start_fraction = check_float("stairs_start_fraction", stairs_start_fraction, 0.0, 1.0)
+        self._stairs_start = False
+        if self.stairs_start_fraction > 0.0:
+            stair_starts.check_staircases(self.stairs_config.step_height_set or self.stairs_config.step_height,
+                                          self.stairs_config.step_depth)
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
         self._setup_starts(init, hybrid_fraction, reference_motion)
 
@@ -216,13 +226,30 @@ class InterLevelEnv(HumanoidEnv):
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         stairs = generate_stairs(self.stairs_config, rng)
+        # drawn only when asked for, so that the default episodes' random stream is unchanged
+        self._stairs_start = self.stairs_start_fraction > 0.0 and rng.uniform() < self.stairs_start_fraction
         if options and "stairs" in options:
             stairs = self._check_stairs_option(options["stairs"])
+            self._stairs_start = False
+        if self._stairs_start:
+            config = self.stairs_config
+            heights = config.step_height if config.step_height_set is None else (
+                min(config.step_height_set), max(config.step_height_set))
+            stairs = dataclasses.replace(
+                stairs, step_height=stair_starts.snap(stairs.step_height, *heights),
+                step_depth=stair_starts.snap(stairs.step_depth, *config.step_depth))
         self._set_stairs(stairs)
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """In a disc of ``start_radius`` around the centre; standing with joint noise or a reference state."""
         model, data = self.model, self.data
+        if self._stairs_start:
+            stairs = self.stairs
+            qpos, qvel = stair_starts.climb_state(stairs.step_height, stairs.step_depth, stairs.num_steps, rng)
+            place_state_in_frame(model, data, self._idx, qpos, qvel, stairs.yaw, stairs.origin)
+            self._hold_pose_ctrl()
+            mujoco.mj_forward(model, data)
+            return True
         radius = self.start_radius * math.sqrt(rng.uniform())
         angle = rng.uniform(0.0, 2.0 * math.pi)
         heading = rng.uniform(-math.pi, math.pi) if self.random_start_heading else self.stairs.yaw
@@ -296,7 +323,7 @@ class InterLevelEnv(HumanoidEnv):
         return evaluations
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
-        return {**results, "stairs": dict(self._stairs_info)}
+        return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
 
     def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
         return {"progress": last.results["progress"], "height_progress": 0.0, "success": False, "fell": False,

@@ -51,3 +51,27 @@ def place_reference_state(
     data.qvel[idx.qvel_joints] = qvel[6:]
     mujoco.mj_kinematics(model, data)
     rest_on_floor(model, data, idx, floor_height)
+
+
+def place_state_in_frame(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    idx: HumanoidIndices,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    yaw: float,
+    origin: np.ndarray,
+    lift: float = PLACEMENT_CLEARANCE,
+) -> None:
+    """Write a state given in a local frame (turned by ``yaw`` about z, its origin at world
+    ``origin``) into ``data``, raised by ``lift``: a frame of motion planned on terrain that stands
+    in the world at that pose (a staircase's climb on that staircase). Runs kinematics."""
+    turn = Rotation.from_euler("z", yaw)
+    root_rot = Rotation.from_quat(qpos[3:7], scalar_first=True)
+    position = turn.apply(qpos[:3]) + np.asarray(origin, dtype=np.float64)
+    position[2] += lift
+    data.qpos[idx.qpos_root] = (*position, *(turn * root_rot).as_quat(scalar_first=True))
+    data.qpos[idx.qpos_joints] = qpos[7:]
+    data.qvel[idx.qvel_root] = (*turn.apply(qvel[:3]), *qvel[3:6])  # angular velocity is in the root frame
+    data.qvel[idx.qvel_joints] = qvel[6:]
+    mujoco.mj_kinematics(model, data)

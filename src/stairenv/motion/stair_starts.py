@@ -1,0 +1,86 @@
+"""Reference states on a staircase: frames of a climb synthesised for that staircase.
+
+Reference-state initialisation from level-ground clips starts every episode on the
+floor, so a policy meets the treads only once it has learnt to walk to them. A start
+drawn from a climb of the episode's own staircase (``synthesis.climb_stairs`` with its
+step height, depth and count) puts the character anywhere from the approach to the
+landing, its feet on the treads the clip planned them on.
+
+Synthesis takes ~80 ms, so climbs are cached per staircase on a grid: height and depth
+are rounded to :data:`GRID` (1 cm); the env snaps the staircase of such an episode to the
+same grid (``snap``), so the treads and the clip agree exactly.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from stairenv.motion.clip import MotionClip
+from stairenv.motion.synthesis import climb_stairs
+
+#: Height and depth grid (m) of the cached climbs.
+GRID = 0.01
+#: Root positions along the ascent (m, from the first riser) a start may be drawn from:
+#: from a little before the first riser to just past the top riser (``landing_start``).
+BEFORE_FIRST_RISER = 0.6
+PAST_TOP_RISER = 0.3
+# Every grid staircase of the paper's ranges (16 heights x 16 depths x 8 counts x 2 lead feet) at
+# ~40 KB each (~140 frames of qpos + qvel in float32 on average): ~160 MB.
+CACHE_SIZE = 4096
+
+
+#: The staircases a climb can be synthesised for (``synthesis.climb_stairs``: one foot per tread).
+HEIGHT_RANGE = (0.01, 0.25)
+DEPTH_RANGE = (0.19, 0.50)
+
+
+def check_staircases(heights, depths) -> None:
+    """``ValueError`` naming the keyword when the step heights or depths an env draws leave the
+    range climbs are synthesised for (:data:`HEIGHT_RANGE`, :data:`DEPTH_RANGE`)."""
+    for name, values, (low, high) in (("step_height", heights, HEIGHT_RANGE),
+                                      ("step_depth", depths, DEPTH_RANGE)):
+        if min(values) < low or max(values) > high:
+            raise ValueError(f"stairs_start_fraction > 0 needs {name} within [{low}, {high}] m (a climb is "
+                             f"synthesised for each staircase), got {tuple(values)}")
+
+
+def snap(value: float, low: float, high: float) -> float:
+    """``value`` on the :data:`GRID`, kept within [low, high] (on grid points inside it)."""
+    snapped = round(value / GRID) * GRID
+    low_point, high_point = np.ceil(low / GRID - 1e-9) * GRID, np.floor(high / GRID + 1e-9) * GRID
+    return float(round(min(max(snapped, low_point), high_point), 6))
+
+
+@lru_cache(maxsize=CACHE_SIZE)
+def _climb(height_cm: int, depth_cm: int, num_steps: int, lead_foot: str) -> tuple[np.ndarray, np.ndarray]:
+    step_depth = depth_cm * GRID
+    clip = climb_stairs(height_cm * GRID, step_depth, num_steps, lead_foot=lead_foot)
+    x = clip.qpos[:, 0]
+    keep = (x >= -BEFORE_FIRST_RISER) & (x <= (num_steps - 1) * step_depth + PAST_TOP_RISER)
+    # only the frames starts are drawn from, in single precision: every grid staircase fits in the cache
+    return clip.qpos[keep].astype(np.float32), clip.qvel()[keep].astype(np.float32)
+
+
+def climb_frames(step_height: float, step_depth: float, num_steps: int, lead_foot: str = "right"
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """qpos (T, 35) and qvel (T, 34) (float32) of the cached climb of a staircase on the grid, in the
+    staircase's own frame (first riser at x = 0, ascent along +x), restricted to the frames
+    whose root is between :data:`BEFORE_FIRST_RISER` before the first riser and
+    :data:`PAST_TOP_RISER` past the top one."""
+    height_cm, depth_cm = round(step_height / GRID), round(step_depth / GRID)
+    if abs(height_cm * GRID - step_height) > 1e-6 or abs(depth_cm * GRID - step_depth) > 1e-6:
+        raise ValueError(f"step height {step_height} and depth {step_depth} must lie on the {GRID} m grid "
+                         "(snap the staircase first)")
+    return _climb(height_cm, depth_cm, int(num_steps), lead_foot)
+
+
+def climb_state(step_height: float, step_depth: float, num_steps: int, rng: np.random.Generator
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """One state (qpos (35,), qvel (34,)) drawn uniformly from the climb frames of
+    :func:`climb_frames`, either foot leading, in the staircase's frame."""
+    lead_foot = ("right", "left")[int(rng.integers(2))]
+    qpos, qvel = climb_frames(step_height, step_depth, num_steps, lead_foot)
+    k = int(rng.integers(len(qpos)))
+    return qpos[k].astype(np.float64), qvel[k].astype(np.float64)

@@ -1,0 +1,109 @@
+"""Staircase starts: InterLevel episodes that begin in a frame of a climb synthesised for their staircase."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import stairenv  # noqa: F401
+from stairenv.humanoid.model import FOOT_BODIES
+from stairenv.motion import stair_starts
+from stairenv.motion.synthesis import climb_stairs
+
+
+def test_snap_rounds_to_the_grid_inside_the_range():
+    assert stair_starts.snap(0.1349, 0.05, 0.20) == 0.13
+    assert stair_starts.snap(0.1351, 0.05, 0.20) == 0.14
+    assert stair_starts.snap(0.2049, 0.05, 0.20) == 0.20  # never past the range
+    assert stair_starts.snap(0.251, 0.255, 0.40) == 0.26  # the first grid point inside it
+    assert stair_starts.snap(0.253, 0.245, 0.255) == 0.25
+
+
+def test_climb_frames_are_the_synthesised_climb_on_the_stairs():
+    qpos, qvel = stair_starts.climb_frames(0.15, 0.30, 6)
+    clip = climb_stairs(0.15, 0.30, 6)
+    keep = (clip.qpos[:, 0] >= -0.6) & (clip.qpos[:, 0] <= 5 * 0.30 + 0.3)
+    np.testing.assert_array_equal(qpos, clip.qpos[keep].astype(np.float32))
+    np.testing.assert_array_equal(qvel, clip.qvel()[keep].astype(np.float32))
+    assert qpos[0, 2] < qpos[-1, 2] - 0.6  # it climbs
+    with pytest.raises(ValueError, match="grid"):
+        stair_starts.climb_frames(0.155, 0.30, 6)
+
+
+def _foot_clearances(env) -> list[float]:
+    """Height of each foot's lowest geom point over the tread (or floor) under its body."""
+    model, data, stairs = env.model, env.data, env.stairs
+    gaps = []
+    for body in FOOT_BODIES:
+        body_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        geoms = np.flatnonzero(model.geom_bodyid == body_id)
+        low = min(data.geom_xpos[g][2] - model.geom_size[g][0] if model.geom_type[g] != mujoco.mjtGeom.mjGEOM_BOX
+                  else data.geom_xpos[g][2] - np.abs(data.geom_xmat[g].reshape(3, 3)[2]) @ model.geom_size[g]
+                  for g in geoms)
+        gaps.append(low - float(stairs.surface_height(data.xpos[body_id][:2])))
+    return gaps
+
+
+def test_stairs_starts_put_the_feet_on_the_treads():
+    env = gym.make("InterLevel-v0", stairs_start_fraction=1.0).unwrapped
+    heights = []
+    for seed in range(8):
+        _, info = env.reset(seed=seed)
+        stairs = env.stairs
+        assert info["stairs_start"] and info["reference_start"]
+        for value in (stairs.step_height, stairs.step_depth):
+            assert abs(value / 0.01 - round(value / 0.01)) < 1e-6  # snapped to the 1 cm grid
+        assert min([c.dist for c in env.data.contact[:env.data.ncon]] or [0.0]) > -1e-3  # nothing sunk in
+        gaps = _foot_clearances(env)
+        assert min(gaps) > -0.01 and min(gaps) < 0.05, gaps  # at least one foot stands on its tread
+        heights.append(info["height_progress"])
+        for _ in range(5):  # holding the pose a moment neither blows up nor ends the episode at once
+            _, _, terminated, truncated, info = env.step(np.zeros(28))
+            assert not info["physics_unstable"]
+    assert max(heights) - min(heights) > 0.2  # starts spread over the climb
+    env.close()
+
+
+def test_stairs_starts_leave_other_episodes_alone():
+    plain = gym.make("InterLevel-v0").unwrapped
+    off = gym.make("InterLevel-v0", stairs_start_fraction=0.0).unwrapped
+    half = gym.make("InterLevel-v0", stairs_start_fraction=0.5).unwrapped
+    obs, info = plain.reset(seed=3)
+    obs_off, info_off = off.reset(seed=3)
+    np.testing.assert_array_equal(obs, obs_off)
+    assert not info["stairs_start"] and info["stairs"] == info_off["stairs"]
+    starts = []
+    for seed in range(40):
+        _, info = half.reset(seed=seed)
+        starts.append(info["stairs_start"])
+    assert 8 < sum(starts) < 32
+    for env in (plain, off, half):
+        env.close()
+
+
+def test_stairs_start_keywords_are_checked():
+    with pytest.raises(ValueError, match="stairs_start_fraction"):
+        gym.make("InterLevel-v0", stairs_start_fraction=1.5)
+    with pytest.raises(ValueError, match="step_height"):
+        gym.make("InterLevel-v0", stairs_start_fraction=0.5, step_height=(0.05, 0.30))
+    with pytest.raises(ValueError, match="step_depth"):
+        gym.make("InterLevel-v0", stairs_start_fraction=0.5, step_depth=(0.25, 0.60))
+
+
+def test_batched_stairs_starts_equal_single_envs():
+    kwargs = dict(stairs_start_fraction=0.5, max_episode_steps=30)
+    vec = gym.make_vec("InterLevel-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    ref = gym.make_vec("InterLevel-v0", num_envs=2, vectorization_mode="sync", **kwargs)
+    a, b = vec.reset(seed=5), ref.reset(seed=5)
+    np.testing.assert_array_equal(a[0], b[0])
+    rng = np.random.default_rng(0)
+    for _ in range(80):
+        action = rng.uniform(-1, 1, (2, 28)).astype(np.float32)
+        got, want = vec.step(action), ref.step(action)
+        for x, y in zip(got[:4], want[:4]):
+            np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(got[4]["stairs_start"], want[4]["stairs_start"])
+    vec.close()
+    ref.close()
