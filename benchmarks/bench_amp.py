@@ -3,7 +3,7 @@
     python benchmarks/bench_amp.py [--n-envs 8] [--steps 256] [--rounds 21] [--vec dummy|subproc]
                                    [--variants paper,paper-bg,...]
     python benchmarks/bench_amp.py --rounds 31   # more rounds on a busy machine
-    python benchmarks/bench_amp.py --env PlaMo-v0 --variants paper-bg,paper-nopipe-bg   # another env
+    python benchmarks/bench_amp.py --env PlaMo-v0 --variants paper-bg,paper   # another env
 
 Every run steps the same vec env (``--env``, default ``InterLevel-v0``, our fastest
 env and so the hardest case for the ratio) with the same random actions.
@@ -16,23 +16,21 @@ rotates from round to round), and each variant's ratio is the median over
 rounds of wrapped / bare of the same round, so a machine whose load changes
 between rounds skews the ratios little. The wrapped time per step is split
 into the inner vec env's step (``env``), the discriminator's forward pass
-(``scoring``: with pipelined scoring, what the calling thread still spends on it:
-waiting for the last window, or scoring windows itself), its training rounds
+(``scoring``), its training rounds
 (``training``, amortised; with background training, the calling thread's share)
 and the rest (``other``: the wrapper's bookkeeping).
 
 Figures on a 2-core AMD EPYC VM (a shared host: single rounds spread by +-0.2,
 medians by +-0.05 from run to run), 8 envs, ``DummyVecEnv``, bare ~1.7-1.9 ms per
-vectorised step, runs after the pipeline's last change:
+vectorised step, measured while pipelined per-env scoring (a worker thread scoring each env's
+window while the next env stepped) existed; it was removed since (``bench_amp_batch.py``: on a
+loaded machine it lost to scoring the step's windows in one call, and the batched env does not
+need it). Scoring after the step, as now:
 
-- ``paper-bg`` (pipelined scoring + background training): 1.11, 1.25, 1.22, 1.23x,
-  and 1.20x once the replay buffer's pages were touched before timing (as now);
-- ``paper-nopipe-bg`` (background training, scoring after the step): 1.22-1.43x over
-  the day's runs;
-- ``paper`` (pipelined scoring, synchronous training: the round's ~0.37 ms per
-  step stays on the calling thread): 1.31-1.41x; ``paper-nopipe`` 1.44x;
-- scoring alone (no training): ``paper-notrain`` 1.08-1.10x (1.18 in a noisy run),
-  ``paper-nopipe-notrain`` 1.21-1.30x.
+- ``paper-bg`` (background training): 1.22-1.43x over the day's runs (pipelined: 1.11-1.25x);
+- ``paper`` (synchronous training: the round's ~0.37 ms per step stays on the calling
+  thread): 1.44x (pipelined: 1.31-1.41x);
+- scoring alone (no training): ``paper-notrain`` 1.21-1.30x (pipelined: 1.08-1.10x).
 
 Before pipelining, the paper's discriminator cost ~0.3 ms per step to score in
 situ (12 MFLOP, near one core's float32 peak: no faster kernel on this core
@@ -42,16 +40,15 @@ setting (background training, scoring split over both cores) read 1.20-1.35x.
 Variants (``--variants``, comma-separated; see ``VARIANTS``):
 
 - ``paper``: the defaults: MLP [1024, 512], 2 updates per 2048 transitions,
-  gradient penalty on the whole reference batch, pipelined scoring where available.
+  gradient penalty on the whole reference batch, the step's windows scored in one call.
 - ``paper-bg``: the same, training rounds in a background thread (rewards lag one round).
-- ``paper-nopipe``, ``paper-nopipe-bg``: those two, scoring after the vec env returned.
-- ``paper-notrain``, ``paper-nopipe-notrain``: scoring only (the discriminator never trains).
-- ``paper-torch``: scoring with torch (oneDNN) after the step instead of the numba kernel.
+- ``paper-notrain``: scoring only (the discriminator never trains).
+- ``paper-torch``: scoring with torch (oneDNN) instead of the numba kernel.
 - ``paper-aten``: the same, scoring and training with plain torch kernels (MKL, no oneDNN).
 - ``paper-gp64``: gradient penalty estimated on 64 of the 256 reference windows.
 - ``paper-1update``: one minibatch per 2048 transitions.
-- ``paper-bf16``, ``paper-bf16-bg``: scoring in bfloat16 after the step (without, with background training).
-- ``paper-par``, ``paper-par-bg``: the numba kernel split over numba's threads after the step.
+- ``paper-bf16``, ``paper-bf16-bg``: scoring in bfloat16 (without, with background training).
+- ``paper-par``, ``paper-par-bg``: the numba kernel split over numba's threads.
 - ``fast``: MLP [512, 256], otherwise the paper's schedule.
 - ``fast-1update``: MLP [512, 256], one minibatch per 2048 transitions.
 - ``small``: MLP [256, 128], otherwise the paper's schedule.
@@ -74,25 +71,22 @@ from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 
-# name -> (DiscriminatorConfig keywords, AMPStyleReward keywords, AMPDiscriminator keywords, wrapper keywords)
-VARIANTS: dict[str, tuple[dict, dict, dict, dict]] = {
-    "paper": ({}, {}, {}, {}),
-    "paper-bg": ({}, {"background_training": True}, {}, {}),
-    "paper-nopipe": ({}, {}, {}, {"pipeline": "off"}),
-    "paper-nopipe-bg": ({}, {"background_training": True}, {}, {"pipeline": "off"}),
-    "paper-notrain": ({}, {"train": False}, {}, {}),
-    "paper-nopipe-notrain": ({}, {"train": False}, {}, {"pipeline": "off"}),
-    "paper-torch": ({}, {}, {"scoring": "torch"}, {}),
-    "paper-aten": ({}, {}, {"scoring": "torch", "backend": "aten"}, {}),
-    "paper-gp64": ({"grad_penalty_batch": 64}, {}, {}, {}),
-    "paper-1update": ({}, {"updates_per_round": 1}, {}, {}),
-    "paper-bf16": ({}, {}, {"scoring": "bf16"}, {}),
-    "paper-bf16-bg": ({}, {"background_training": True}, {"scoring": "bf16"}, {}),
-    "paper-par": ({}, {}, {"scoring": "numba-parallel"}, {}),
-    "paper-par-bg": ({}, {"background_training": True}, {"scoring": "numba-parallel"}, {}),
-    "fast": ({"hidden": (512, 256)}, {}, {}, {}),
-    "fast-1update": ({"hidden": (512, 256)}, {"updates_per_round": 1}, {}, {}),
-    "small": ({"hidden": (256, 128)}, {}, {}, {}),
+# name -> (DiscriminatorConfig keywords, AMPStyleReward keywords, AMPDiscriminator keywords)
+VARIANTS: dict[str, tuple[dict, dict, dict]] = {
+    "paper": ({}, {}, {}),
+    "paper-bg": ({}, {"background_training": True}, {}),
+    "paper-notrain": ({}, {"train": False}, {}),
+    "paper-torch": ({}, {}, {"scoring": "torch"}),
+    "paper-aten": ({}, {}, {"scoring": "torch", "backend": "aten"}),
+    "paper-gp64": ({"grad_penalty_batch": 64}, {}, {}),
+    "paper-1update": ({}, {"updates_per_round": 1}, {}),
+    "paper-bf16": ({}, {}, {"scoring": "bf16"}),
+    "paper-bf16-bg": ({}, {"background_training": True}, {"scoring": "bf16"}),
+    "paper-par": ({}, {}, {"scoring": "numba-parallel"}),
+    "paper-par-bg": ({}, {"background_training": True}, {"scoring": "numba-parallel"}),
+    "fast": ({"hidden": (512, 256)}, {}, {}),
+    "fast-1update": ({"hidden": (512, 256)}, {"updates_per_round": 1}, {}),
+    "small": ({"hidden": (256, 128)}, {}, {}),
 }
 
 
@@ -111,8 +105,7 @@ def reference_windows() -> ReferenceWindows:
 class Timed:
     """Accumulates the wall time of the wrapped vec env's own step and of the style's scoring and training.
 
-    Pipelined scoring (``wrapper.pipeline``) counts as scoring only what the calling thread
-    spends in it: waiting for the last window, or scoring a window itself."""
+    """
 
     def __init__(self, wrapper: AMPVecEnvWrapper) -> None:
         self.env = self.scoring = self.training = 0.0
@@ -128,8 +121,6 @@ class Timed:
 
         wrapper.venv.step_wait = timed(wrapper.venv.step_wait, "env")
         style.disc.reward = timed(style.disc.reward, "scoring")
-        if wrapper.pipeline is not None:
-            wrapper.pipeline.logits = timed(wrapper.pipeline.logits, "scoring")
         style.train_round = timed(style.train_round, "training")
         # background: the calling thread's share
         style._start_background_round = timed(style._start_background_round, "training")
@@ -158,7 +149,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=21)
     parser.add_argument("--vec", choices=("dummy", "subproc"), default="dummy")
     parser.add_argument("--torch-threads", type=int, default=1)
-    parser.add_argument("--variants", default="paper-bg,paper-nopipe-bg,paper",
+    parser.add_argument("--variants", default="paper-bg,paper",
                         help=f"comma-separated, of {', '.join(VARIANTS)}")
     args = parser.parse_args()
     names = [v.strip() for v in args.variants.split(",") if v.strip()]
@@ -175,11 +166,11 @@ def main() -> None:
 
     envs: dict[str, tuple] = {"bare": (vec_env(), None, None)}
     for name in names:
-        config_kw, style_kw, disc_kw, wrapper_kw = VARIANTS[name]
+        config_kw, style_kw, disc_kw = VARIANTS[name]
         torch.manual_seed(0)
         disc = AMPDiscriminator(reference.dim, DiscriminatorConfig(**config_kw), **disc_kw)
         style = AMPStyleReward(reference, discriminator=disc, **style_kw)
-        wrapper = AMPVecEnvWrapper(vec_env(), style, **wrapper_kw)
+        wrapper = AMPVecEnvWrapper(vec_env(), style)
         # A long run's steady state: the replay buffer's pages are already there (its first pass
         # through 100k windows otherwise takes a page fault every few steps, ~17 us per step).
         style.replay.data.fill(0.0)

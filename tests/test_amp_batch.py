@@ -17,7 +17,8 @@ from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper, AMPVectorW
 from stairenv.vec_sb3 import make_sb3_vec_env
 
 # Scoring N windows in one call groups the products differently from one window at a time (and
-# the numba kernels reassociate sums): float32 rounding only. Logits here are O(1)-O(10).
+# the numba kernels reassociate sums): float32 rounding only, measured <= 5e-6 on logits of
+# O(1)-O(10); allowed: |batched - one by one| <= 1e-5 + 1e-5 |one by one|.
 LOGIT_RTOL, LOGIT_ATOL = 1e-5, 1e-5
 
 
@@ -101,7 +102,8 @@ def test_scoring_n_windows_in_one_call_equals_one_by_one(scoring, n):
     one_by_one = np.array([disc.logits(x[i: i + 1])[0] for i in range(n)])
     assert n == 1 or np.abs(batched).max() > 1.0  # logits of a useful scale
     np.testing.assert_allclose(batched, one_by_one, rtol=LOGIT_RTOL, atol=LOGIT_ATOL)
-    np.testing.assert_allclose(batched, disc.window_logits(x), rtol=LOGIT_RTOL, atol=LOGIT_ATOL)
+    with torch.no_grad():
+        np.testing.assert_allclose(batched, disc(torch.from_numpy(x)).numpy(), rtol=LOGIT_RTOL, atol=LOGIT_ATOL)
 
 
 def test_batched_env_is_scored_in_one_call_per_step():
@@ -118,7 +120,8 @@ def test_batched_env_is_scored_in_one_call_per_step():
     style.disc.logits = recorded
     for (_, infos), (windows, batched) in zip(steps(wrapper, 6), calls, strict=True):
         np.testing.assert_array_equal(windows, np.stack([info["amp_obs"] for info in infos]).astype(np.float32))
-        np.testing.assert_allclose(batched, style.disc.window_logits(windows), rtol=LOGIT_RTOL, atol=LOGIT_ATOL)
+        one_by_one = [logits(windows[i: i + 1])[0] for i in range(len(windows))]
+        np.testing.assert_allclose(batched, one_by_one, rtol=LOGIT_RTOL, atol=LOGIT_ATOL)
         np.testing.assert_array_equal([info["style_reward"] for info in infos],
                                       style_reward(batched, style.config.loss))
     assert [len(windows) for windows, _ in calls] == [8] * 6  # one call of all 8 windows per step

@@ -118,9 +118,8 @@ def test_vec_wrapper_appends_the_envs_condition():
     seen: list[np.ndarray] = []
     original = style.disc.reward
     style.disc.reward = lambda x: (seen.append(np.array(x)), original(x))[1]
-    # Unpipelined, so that every window goes through disc.reward (test_amp_pipeline: the pipelined path).
     venv = AMPVecEnvWrapper(DummyVecEnv([lambda: gym.make("SIMS-Sit-v0", captions=captions, **FAST_SIMS)] * 2),
-                            style, pipeline="off")
+                            style)
     venv.seed(3)
     venv.reset()
     for _ in range(10):

@@ -13,7 +13,7 @@ layer's weights (``logit_reg * ||W_out||^2``) and weight decay on every weight
 (``weight_decay * sum ||W||^2``). Inputs are normalised by running statistics
 of everything the discriminator has been trained on (clipped to +-5).
 
-Scoring (``logits``, ``window_logits``, ``reward``) runs one of the back-ends of
+Scoring (``logits``, ``reward``) runs one of the back-ends of
 :mod:`stairenv.style.scoring` (``scoring=``: "auto", "numba", "numba-parallel", "torch",
 "bf16") on a cached plan (float32 normaliser constants, views of the weights), rebuilt only
 when a parameter or statistic changed. ``freeze_scoring()`` snapshots the plan (copies), so
@@ -35,7 +35,7 @@ import torch
 from torch import nn
 
 from stairenv.style.onednn import BACKENDS, linear, onednn_available, use_onednn
-from stairenv.style.scoring import SCORERS, fused_layers, plan_logits, window_logits
+from stairenv.style.scoring import SCORERS, plan_logits
 from stairenv.validation import check_choice, check_number
 
 __all__ = [
@@ -246,31 +246,6 @@ class AMPDiscriminator(nn.Module):
         """The plan scoring uses now: the snapshot while frozen, else the live one. A new
         dict whenever what it holds changed (callers may compare plans by identity)."""
         return self._frozen if self._frozen is not None else self._inference_plan()
-
-    @staticmethod
-    def fused_layers(plan: dict) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-        """A plan's layers as the tuples of weights and biases that
-        :func:`stairenv.style.scoring.window_logit` takes."""
-        return fused_layers(plan)
-
-    def window_scratch(self) -> tuple[np.ndarray, np.ndarray]:
-        """Two scratch rows (1, width) for :func:`stairenv.style.scoring.window_logit`: as wide as the
-        input or the widest layer."""
-        width = max(self.input_dim, *(layer.out_features for layer in self.linears))
-        return np.empty((1, width), dtype=np.float32), np.empty((1, width), dtype=np.float32)
-
-    def window_logits(self, features: np.ndarray, plan: dict | None = None) -> np.ndarray:
-        """Logits of raw feature windows (N, input_dim), one window at a time with the fused
-        kernel: bit for bit what :class:`stairenv.style.pipeline.PipelinedScorer` computes
-        (``logits`` groups windows, so its last bits may differ)."""
-        x = np.ascontiguousarray(features, dtype=np.float32)
-        if x.ndim != 2 or x.shape[1] != self.input_dim:
-            raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
-        plan = self.scoring_plan() if plan is None else plan
-        weights, biases = self.fused_layers(plan)
-        a, b = self.window_scratch()
-        mean, std, clip = plan["mean"].numpy(), plan["std"].numpy(), np.float32(self.norm.clip)
-        return window_logits(x, mean, std, clip, weights, biases, a, b, np.empty(len(x), dtype=np.float32))
 
     def logits(self, features: np.ndarray) -> np.ndarray:
         """Logits of raw feature windows (N, input_dim), without autograd: (N,).

@@ -16,9 +16,8 @@ plan, built when a parameter or statistic changed, starts afresh. Back-ends
 - ``"bf16"``: torch with bfloat16 weights and activations (normalisation in float32).
 - ``"numba-parallel"``: each layer's output units split over numba's threads.
 
-:func:`window_logit` scores one window in one call (normalisation and every layer); the
-pipelined scorer (:mod:`stairenv.style.pipeline`) and :func:`window_logits` use it, so they
-give the same bits. Timings: ``docs/amp-speed.md``.
+A vectorised step's N windows go through one call of a back-end (the wrappers score every
+step that way); grouping changes only float32 rounding. Timings: ``docs/amp-speed.md``.
 """
 
 from __future__ import annotations
@@ -38,12 +37,9 @@ __all__ = [
     "bf16_layers",
     "dense",
     "dense_parallel",
-    "fused_layers",
     "normalise",
     "plan_logits",
     "torch_layers",
-    "window_logit",
-    "window_logits",
 ]
 
 SCORERS = ("auto", "numba", "numba-parallel", "torch", "bf16")
@@ -127,45 +123,7 @@ def dense_parallel(x, w, b, out, relu, parts):
     return out
 
 
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def window_logit(x, mean, std, clip, weights, biases, a, b):
-    """The logit of one window ``x`` (1, input_dim) (normalised, then every layer: ReLU but the
-    last), in one call.
-
-    ``weights`` / ``biases``: tuples of the layers' float32 arrays; ``a``, ``b``: scratch rows
-    (1, width) from :meth:`AMPDiscriminator.window_scratch`. One window at a time, so the result
-    does not depend on how windows are grouped: the pipelined scorer (``style.pipeline``) and
-    :meth:`AMPDiscriminator.window_logits` give the same bits."""
-    normalise(x, mean, std, clip, a[:, : x.shape[1]])
-    last = len(weights) - 1
-    for layer in range(last + 1):
-        w, bias = weights[layer], biases[layer]
-        src, dst = (a, b) if layer % 2 == 0 else (b, a)
-        for j in range(w.shape[0]):
-            v = _dot(w, src, j, 0, w.shape[1]) + bias[j]
-            dst[0, j] = np.float32(0.0) if layer < last and v <= 0.0 else v  # NaN stays NaN, as in torch
-    return b[0, 0] if last % 2 == 0 else a[0, 0]
-
-
-@njit(cache=True, fastmath=_FASTMATH)
-def window_logits(x, mean, std, clip, weights, biases, a, b, out):
-    """:func:`window_logit` of each row of ``x`` into ``out``. Keeps the GIL: the calling thread
-    steps envs, and handing the GIL to a training thread for the length of a few windows would
-    cost it more than the windows (see ``style.pipeline``)."""
-    for i in range(x.shape[0]):
-        out[i] = window_logit(x[i: i + 1], mean, std, clip, weights, biases, a, b)
-    return out
-
-
 # --- plans ----------------------------------------------------------------------------------
-def fused_layers(plan: dict) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
-    """A plan's layers as the tuples of weights and biases that :func:`window_logit` takes."""
-    if plan.get("fused") is None:
-        plan["fused"] = (tuple(np.ascontiguousarray(w) for w, _, _ in plan["numba"]),
-                         tuple(np.ascontiguousarray(b) for _, b, _ in plan["numba"]))
-    return plan["fused"]
-
-
 def bf16_layers(plan: dict) -> list:
     """A plan's layers as (weight, bias, relu) in bfloat16."""
     if plan.get("bf16") is None:

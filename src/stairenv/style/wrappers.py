@@ -38,13 +38,6 @@ schedule by exactly one round (``update_interval`` transitions), deterministical
 the minibatches are drawn in the calling thread and a round is joined before the
 next starts. ``scoring="bf16"`` scores in bfloat16 (see ``AMPDiscriminator``).
 
-``pipeline="auto"`` (both wrappers): with an in-process vec env (SB3 ``DummyVecEnv``,
-gymnasium ``SyncVectorEnv``) of stairenv envs, each env's window is scored on a second core
-while the next envs step (``style.pipeline``), so the forward pass leaves the step loop;
-the rewards are the same bits as ``AMPDiscriminator.window_logits`` gives, whatever the
-timing. "auto" turns it on where it is available (Linux on x86-64, two cores, numba
-scoring) and the vec env allows; "on" insists, "off" scores after the vec env returned.
-
 ``save(path)`` / ``load(path)`` keep the discriminator, its optimiser and input
 normaliser, the weights and the schedule; the replay buffer's contents are not
 saved (its size is), it refills within one round. The file holds only tensors and
@@ -65,7 +58,6 @@ import numpy as np
 import torch
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from stairenv.environments.base import HumanoidEnv
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import (
     SCORERS,
@@ -73,14 +65,6 @@ from stairenv.style.discriminator import (
     DiscriminatorConfig,
     ReplayBuffer,
     plain_config,
-    style_reward,
-)
-from stairenv.style.pipeline import (
-    PIPELINE_CHOICES,
-    PipelinedScorer,
-    in_process_envs,
-    pipeline_recommended,
-    pipeline_unavailable_reason,
 )
 from stairenv.style.reference import ReferenceWindows
 from stairenv.validation import check_choice, check_number
@@ -160,22 +144,18 @@ class AMPStyleReward:
         self._worker: ThreadPoolExecutor | None = None
         self._job: Future | None = None
 
-    def __call__(self, amp_obs: np.ndarray, task_reward: np.ndarray,
-                 logits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Combined reward and style reward of a batch of transitions; also learns from them.
-        ``logits``: the discriminator's logits of ``amp_obs`` if already computed (a pipeline)."""
+    def __call__(self, amp_obs: np.ndarray, task_reward: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Combined reward and style reward of a batch of transitions (all of them scored in one
+        call); also learns from them."""
         if amp_obs.shape[1] != self.reference.dim:
             raise ValueError(
                 f"info['amp_obs'] has {amp_obs.shape[1] - self.reference.condition_dim} numbers per env but the "
                 f"reference windows have {self.reference.feature_dim}: make the env's amp_history equal the "
                 f"reference's num_frames"
             )
-        if logits is not None:
-            style = style_reward(logits, self.config.loss)
-        else:
-            if self._job is not None:  # a round trains in the background: leave its core to it
-                self.disc.scoring_threads = 1 if self.training_in_background() else None
-            style = self.disc.reward(amp_obs)
+        if self._job is not None:  # a round trains in the background: leave its core to it
+            self.disc.scoring_threads = 1 if self.training_in_background() else None
+        style = self.disc.reward(amp_obs)
         if self.train:
             self.replay.add(amp_obs)
             self.pending += len(amp_obs)
@@ -351,69 +331,24 @@ def default_style(venv, **kwargs) -> AMPStyleReward:
     return AMPStyleReward(default_reference(venv), **kwargs)
 
 
-def _attach_pipeline(mode: str, venv, style: AMPStyleReward, num_envs: int) -> PipelinedScorer | None:
-    """A pipelined scorer with every env's sink set, or None; ``mode`` as the wrappers' ``pipeline``."""
-    check_choice("pipeline", mode, PIPELINE_CHOICES)
-    if mode == "off":
-        return None
-    envs = in_process_envs(venv)
-    reasons = [pipeline_unavailable_reason()]
-    if envs is None:
-        reasons.append("pipelined scoring needs an in-process vec env (DummyVecEnv or SyncVectorEnv), "
-                       f"not {type(venv).__name__}")
-    elif not all(isinstance(env.unwrapped, HumanoidEnv) for env in envs):
-        reasons.append("pipelined scoring needs stairenv envs (set_amp_sink has them post their windows)")
-    if style.disc.scoring not in ("auto", "numba"):
-        reasons.append(f"pipelined scoring runs the numba kernel; scoring={style.disc.scoring!r} asks otherwise")
-    reasons = [r for r in reasons if r]
-    if reasons:
-        if mode == "on":
-            raise ValueError("pipeline='on': " + "; ".join(reasons))
-        return None
-    if mode == "auto" and not pipeline_recommended():
-        return None
-    scorer = PipelinedScorer(style.disc, num_envs, style.reference.feature_dim)
-    scorer.attach(envs)
-    return scorer
-
-
-def _style_step(style: AMPStyleReward, pipeline: PipelinedScorer | None, amp: np.ndarray,
-                task_reward: np.ndarray, slots: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``style(amp, task_reward)`` with the pipeline's logits (of the envs ``slots``) if there is one;
-    then the pipeline gets what training left and pauses while a background round runs."""
-    if pipeline is None:
-        return style(amp, task_reward)
-    result = style(amp, task_reward, pipeline.logits(amp, slots))
-    pipeline.refresh()
-    pipeline.paused = style.training_in_background()
-    return result
-
-
 class AMPVecEnvWrapper(VecEnvWrapper):
     """Stable-Baselines3 VecEnv wrapper adding the AMP style reward.
 
     ``style``: the discriminator and its schedule; None (the default) builds the envs' own,
     :func:`default_style` (their reference clips in windows of their ``amp_history`` frames at
     ``1 / dt``, the default discriminator, background training); ``TypeError`` if the envs have no
-    AMP features. Each step's N windows are scored in one call.
+    AMP features. Each step's N windows are scored in one call."""
 
-    ``pipeline``: "auto" | "on" | "off", see the module docstring; ``self.pipeline`` is the
-    scorer in use (None: scoring after the vec env returned)."""
-
-    def __init__(self, venv: VecEnv, style: AMPStyleReward | None = None, pipeline: str = "auto") -> None:
+    def __init__(self, venv: VecEnv, style: AMPStyleReward | None = None) -> None:
         super().__init__(venv)
         style = default_style(venv) if style is None else style
         self.style = style
         self._amp = np.empty((self.num_envs, style.reference.dim), dtype=np.float32)
-        self.pipeline = _attach_pipeline(pipeline, venv, style, self.num_envs)
 
     def reset(self):
         return self.venv.reset()
 
     def close(self) -> None:
-        if self.pipeline is not None:
-            self.pipeline.close()
-            self.pipeline = None
         self.style.close()
         super().close()
 
@@ -424,7 +359,7 @@ class AMPVecEnvWrapper(VecEnvWrapper):
         if conditions is not None and any(c is None for c in conditions):
             conditions = None  # agent_inputs explains
         amp = self.style.agent_inputs([info["amp_obs"] for info in infos], conditions, out=self._amp)
-        reward, style = _style_step(self.style, self.pipeline, amp, task_reward)
+        reward, style = self.style(amp, task_reward)
         for info, task, sty in zip(infos, task_reward.tolist(), style.tolist()):
             info["task_reward"] = task
             info["style_reward"] = sty
@@ -438,25 +373,19 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
     (reward 0): those entries get no style reward and are not learned from.
     ``style`` as for :class:`AMPVecEnvWrapper` (None: :func:`default_style` of ``env``, e.g. a
     ``SyncVectorEnv`` or the batched ``gym.make_vec(id, n, vectorization_mode="vector_entry_point")``).
-    ``pipeline`` as for :class:`AMPVecEnvWrapper` (in-process: ``SyncVectorEnv``).
     """
 
-    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward | None = None,
-                 pipeline: str = "auto") -> None:
+    def __init__(self, env: gym.vector.VectorEnv, style: AMPStyleReward | None = None) -> None:
         super().__init__(env)
         style = default_style(env) if style is None else style
         self.style = style
         self._resetting = np.zeros(self.num_envs, dtype=bool)
-        self.pipeline = _attach_pipeline(pipeline, env, style, self.num_envs)
 
     def reset(self, **kwargs):
         self._resetting[:] = False
         return self.env.reset(**kwargs)
 
     def close(self, **kwargs) -> None:
-        if self.pipeline is not None:
-            self.pipeline.close()
-            self.pipeline = None
         self.style.close()
         super().close(**kwargs)
 
@@ -472,8 +401,7 @@ class AMPVectorWrapper(gym.vector.VectorWrapper):
             conditions = info.get("amp_condition")
             amp = self.style.agent_inputs(np.asarray(info["amp_obs"])[live],
                                           None if conditions is None else np.asarray(conditions)[live])
-            reward[live], style[live] = _style_step(self.style, self.pipeline, amp, task_reward[live],
-                                                    np.flatnonzero(live))
+            reward[live], style[live] = self.style(amp, task_reward[live])
         info = dict(info)
         info["task_reward"] = task_reward
         info["style_reward"] = style
