@@ -42,6 +42,12 @@ step cost 213 us per transition (8 worlds) against the ``DummyVecEnv``'s 343 us 
 no pipeline can close (it can at best bring the wrapper to 1.0x of that slower bare env). So the
 pipeline was removed. Scoring alone meets the 1.15x target on the batched env; training rounds
 (~106 ms per 2048 transitions, on cores the physics pool already uses) do not.
+
+After the removal, same machine and load (7 rounds, single rounds 1.03-1.38x but for one 2.11):
+dummy-8 1.11x scoring alone, 1.29x with background training, 1.23x with synchronous training;
+batched-64 1.11x scoring alone (``scoring="torch"``: 1.10x), 1.23x background, 1.24x synchronous;
+with one torch thread 1.26x background, 1.27x synchronous. With no spare core, background
+training takes nothing off the step loop.
 """
 
 from __future__ import annotations

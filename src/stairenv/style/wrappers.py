@@ -325,8 +325,9 @@ def default_style(venv, **kwargs) -> AMPStyleReward:
     """``AMPStyleReward(default_reference(venv), **kwargs)``: the envs' own reference windows and
     the default discriminator (the paper's [1024, 512], reward 0.5 task + 0.5 style, a training
     round of 2 minibatches every 2048 transitions) trained in the background
-    (``background_training=True`` unless ``kwargs`` says otherwise: the rounds leave the step loop,
-    the rewards lag one round)."""
+    (``background_training=True`` unless ``kwargs`` says otherwise: the rounds leave the step loop
+    where a core is spare, the rewards lag one round; where none is, as under the batched env's
+    physics pool on two cores, a round costs the same either way)."""
     kwargs.setdefault("background_training", True)
     return AMPStyleReward(default_reference(venv), **kwargs)
 
