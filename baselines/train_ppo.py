@@ -64,6 +64,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import sys
+import time
 import tomllib
 from pathlib import Path
 
@@ -83,7 +84,6 @@ from stairenv.evaluation.policies import load_policy, normalizer_beside, read_no
 from stairenv.evaluation.report import write_reports
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
-from stairenv.style.pipeline import PIPELINE_CHOICES
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
 from stairenv.vec_sb3 import make_sb3_vec_env
@@ -148,10 +148,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timesteps", type=float, default=2e6)
     p.add_argument("--n-envs", type=int, default=64, help="worlds (envs) stepped together")
     p.add_argument("--vec-env", choices=("dummy", "subproc", "batched"), default="batched",
-                   help="dummy: the envs step in this process, their style windows scored on the second core while "
-                        "the next envs step (see docs/reproducing.md); subproc: a process per env; batched: the "
-                        "natively batched env (stairenv.vec_sb3), one step call advancing every world's physics on "
-                        "every core")
+                   help="dummy: the envs step one after another in this process; subproc: a process per env; "
+                        "batched: the natively batched env (stairenv.vec_sb3), one step call advancing every "
+                        "world's physics on every core")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
@@ -199,9 +198,6 @@ def build_parser() -> argparse.ArgumentParser:
                         "--no-disc-background: in the step that completes a round)")
     p.add_argument("--disc-scoring", choices=SCORERS, default="auto",
                    help="how the discriminator scores each step (numba-parallel: over all cores; bf16: bfloat16)")
-    p.add_argument("--disc-pipeline", choices=PIPELINE_CHOICES, default="auto",
-                   help="score each env's window on a second core while the next envs step (needs --vec-env dummy; "
-                        "auto: where available)")
     p.add_argument("--log-std-init", type=float, default=-2.0,
                    help="initial log std of the Gaussian policy (-2: std 0.135; the paper preset: 0, std 1)")
     p.add_argument("--target-kl", type=float, default=None, dest="adaptive_kl",
@@ -467,7 +463,7 @@ def main(argv: list[str] | None = None) -> Path:
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
                                    config=discriminator_config(args), background_training=args.disc_background,
                                    scoring=args.disc_scoring)
-        venv = AMPVecEnvWrapper(venv, style, pipeline=args.disc_pipeline)
+        venv = AMPVecEnvWrapper(venv, style)
 
     if normalizer is not None and args.resume is not None:
         normalizer.set_venv(venv)
@@ -514,6 +510,7 @@ def main(argv: list[str] | None = None) -> Path:
     callbacks.append(EpisodeStatsCallback())
     if args.adaptive_kl is not None:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
+    start_steps, start_time = model.num_timesteps, time.perf_counter()
     model.learn(
         total_timesteps=int(args.timesteps),
         callback=CallbackList(callbacks),
@@ -521,6 +518,8 @@ def main(argv: list[str] | None = None) -> Path:
         reset_num_timesteps=args.resume is None,
         tb_log_name="ppo",
     )
+    trained, seconds = model.num_timesteps - (0 if args.resume is None else start_steps), time.perf_counter() - start_time
+    print(f"trained {trained} env steps in {seconds:.1f} s ({trained / seconds:.0f} env steps/s)")
     model_path = run_dir / "final_model.zip"
     model.save(model_path)
     venv.save(str(run_dir / "vecnormalize.pkl"))

@@ -385,16 +385,15 @@ def test_train_ppo_discriminator_flags(baseline_script):
                                  "--disc-replay-size", "200000", "--disc-grad-penalty-batch", "64",
                                  "--disc-updates", "1", "--disc-update-interval", "4096",
                                  "--disc-weight-decay", "1e-3", "--disc-logit-reg", "0.05",
-                                 "--disc-input-noise", "0.5", "--disc-background", "--disc-scoring", "bf16",
-                                 "--disc-pipeline", "off"])
+                                 "--disc-input-noise", "0.5", "--disc-background", "--disc-scoring", "bf16"])
     config = train_ppo.discriminator_config(args)
     assert config.hidden == (512, 256) and config.grad_penalty == 10.0 and config.learning_rate == 1e-5
     assert config.weight_decay == 1e-3 and config.logit_reg == 0.05 and config.input_noise == 0.5
     assert config.replay_size == 200_000 and config.grad_penalty_batch == 64
     assert args.disc_updates == 1 and args.disc_update_interval == 4096
-    assert args.disc_background and args.disc_scoring == "bf16" and args.disc_pipeline == "off"
+    assert args.disc_background and args.disc_scoring == "bf16"
     defaults = train_ppo.parse_args([])
-    assert defaults.disc_pipeline == "auto" and defaults.disc_background and defaults.vec_env == "batched"
+    assert defaults.disc_background and defaults.vec_env == "batched"
     assert not train_ppo.parse_args(["--no-disc-background"]).disc_background
     with pytest.raises(SystemExit):
         train_ppo.parse_args(["--disc-hidden", "512,x"])

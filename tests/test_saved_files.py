@@ -173,7 +173,7 @@ def test_resume_from_a_broken_model_names_it(checkpoint, tmp_path, baseline_scri
 def test_resume_refuses_a_crafted_amp_state(checkpoint, crafted, tmp_path, baseline_script):
     path, marker = crafted
     path.rename(checkpoint.with_name("amp_512_steps.pt"))
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--disc-pipeline", "off")
+    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path)
     assert "amp_512_steps.pt: refused" in message and "--fresh-discriminator" in message
     assert not marker.exists()
 
