@@ -36,7 +36,7 @@ checkpoint's policy and value weights, optimiser state, VecNormalize statistics 
 continues a run exactly (the checkpoint's own settings and step count).
 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
-InterLevel envs, ``episode/{progress,success,fell}`` at each episode's end, also for the episodes
+InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
 when ``stairs_start_fraction`` starts others on the staircase).
 
@@ -278,7 +278,7 @@ class EpisodeStatsCallback(BaseCallback):
     falls, for all episodes and for those that started on the floor (``info["stairs_start"]`` false),
     the ones comparable with the evaluation's."""
 
-    KEYS = ("progress", "success", "fell")
+    KEYS = ("progress", "success", "fell", "stalled")
 
     def _on_step(self) -> bool:
         for done, info in zip(self.locals["dones"], self.locals["infos"]):
@@ -287,7 +287,8 @@ class EpisodeStatsCallback(BaseCallback):
             groups = ("episode", "episode_floor_start") if not info.get("stairs_start") else ("episode",)
             for group in groups:
                 for key in self.KEYS:
-                    self.logger.record_mean(f"{group}/{key}", float(info[key]))
+                    if key in info:
+                        self.logger.record_mean(f"{group}/{key}", float(info[key]))
         return True
 
 
@@ -534,7 +535,8 @@ def main(argv: list[str] | None = None) -> Path:
         eval_env.close()
         # the evaluation starts as the paper's protocol does: standing on the floor
         eval_kwargs = {k: v for k, v in env_kwargs.items()
-                       if k not in ("init", "reference_motion", "stairs_start_fraction")}
+                       if k not in ("init", "reference_motion", "stairs_start_fraction", "stall_seconds",
+                                    "stall_distance")}
         evaluate = evaluator_for(args.env)
         report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
                           env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,

@@ -144,3 +144,21 @@ def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path):
     assert "initialised from" in out and "discriminator" in out
     warm = tmp_path / "warm" / "InterLevel-v0" / "seed0"
     assert (warm / "checkpoints" / "ppo_512_steps.zip").exists()  # counted from 0
+
+
+def test_plot_training_averages_step_windows(baseline_script, tmp_path):
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(str(tmp_path / "run" / "tb" / "ppo_1"))
+    for step in range(0, 1000, 10):
+        writer.add_scalar("rollout/ep_len_mean", step / 10.0, step)
+        writer.add_scalar("episode/progress", 0.5, step)
+    writer.close()
+    plot = baseline_script("plot_training")
+    out = plot.main([f"a={tmp_path / 'run'}", "--out", str(tmp_path / "curves.png"), "--bins", "4"])
+    assert out.stat().st_size > 1000
+    rows = plot.read_scalars(tmp_path / "run")["rollout/ep_len_mean"]
+    curve = plot.binned(rows, 4)
+    assert len(curve) == 4 and curve[0, 1] == pytest.approx(np.mean(np.arange(0, 25)))  # steps 0-240
+    with pytest.raises(SystemExit, match="LABEL=FOLDER"):
+        plot.main([str(tmp_path / "run")])

@@ -1,4 +1,4 @@
-"""Staircase starts: InterLevel episodes that begin in a frame of a climb synthesised for their staircase."""
+"""Training aids of InterLevel: staircase starts (a frame of a climb synthesised for the episode's staircase) and stall termination."""
 
 from __future__ import annotations
 
@@ -107,3 +107,45 @@ def test_batched_stairs_starts_equal_single_envs():
         np.testing.assert_array_equal(got[4]["stairs_start"], want[4]["stairs_start"])
     vec.close()
     ref.close()
+
+
+# --- stall termination (the other training aid) ----------------------------------------------------
+def test_stall_clock_restarts_on_each_approach():
+    env = gym.make("InterLevel-v0", stall_seconds=1.0, stall_distance=0.2).unwrapped
+    env.reset(seed=0)
+    steps_per_second = round(1.0 / env.dt)
+    env._steps, env._approach_distance = 0, float("inf")  # as at an episode's start
+    assert not env._stalled(5.0)  # the first evaluation sets the reference distance
+    for step in range(1, steps_per_second + 1):  # 1 s closer by less than 0.2 m: not yet
+        env._steps = step
+        assert not env._stalled(5.0 - 0.19 * step / steps_per_second)
+    env._steps += 1
+    assert env._stalled(4.85)  # more than 1 s without a 0.2 m approach
+    env._steps += 1
+    assert not env._stalled(4.79)  # 0.21 m closer than the start: the clock restarts
+    env._steps += steps_per_second
+    assert not env._stalled(4.70)
+    env._steps += 1
+    assert env._stalled(4.70)
+    plain = gym.make("InterLevel-v0").unwrapped
+    plain.reset(seed=0)
+    plain._steps = 10_000
+    assert not plain._stalled(5.0)  # off by default
+    env.close()
+    plain.close()
+
+
+def test_a_stalled_episode_terminates_without_a_reward_of_its_own():
+    env = gym.make("InterLevel-v0", stall_seconds=0.2).unwrapped
+    env.reset(seed=1)
+    env._approach_distance = -1.0  # no approach can count from here on
+    for _ in range(20):
+        _, reward, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated:
+            break
+    assert terminated and info["stalled"] and not info["fell"] and not info["success"]
+    task_terms = ("reward_location", "reward_facing", "reward_velocity", "reward_success", "reward_failure")
+    assert reward == pytest.approx(sum(info[key] for key in task_terms)) and info["reward_failure"] == 0.0
+    with pytest.raises(ValueError, match="stall_seconds"):
+        gym.make("InterLevel-v0", stall_seconds=0.0)
+    env.close()

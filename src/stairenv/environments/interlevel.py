@@ -112,6 +112,8 @@ class InterLevelEnv(HumanoidEnv):
     | reference_motion | None | folder / .npz of reference clips; None = the built-in synthesised set |
     | hybrid_fraction | 0.5 | share of episodes that start from a reference frame with init="hybrid" |
     | stairs_start_fraction | 0.0 | share of episodes that start from a frame of a climb synthesised for their staircase (training) |
+    | stall_seconds | None | end an episode that has not come ``stall_distance`` closer to M_T for this long (training); None = never |
+    | stall_distance | 0.2 | least approach (m) that counts as progress for ``stall_seconds`` |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -123,6 +125,20 @@ class InterLevelEnv(HumanoidEnv):
     of up to ~4 m; s2 = 0.5 m penalises overshooting M_T more sharply; s3 = 0.5 m is
     about half a stair width. S_tar = 1 m/s is a relaxed climbing pace (the paper's
     climbs take 8-13 s).
+
+    Training aids (both off by default, the paper's protocol; evaluations leave them off):
+
+    - Staircase starts (``stairs_start_fraction``): in that share of the episodes the character
+      starts in a frame of a climb synthesised for the episode's own staircase
+      (``stairenv.motion.stair_starts``), anywhere from 0.6 m before the first riser to just onto
+      the landing, feet on the treads the climb planned. The staircase of such an episode has its
+      step height and depth rounded to 1 cm (the grid the climbs are cached on). The other
+      episodes start as ``init`` says; ``info["stairs_start"]`` tells which.
+    - Stall termination (``stall_seconds``): an episode whose distance to M_T has not come
+      ``stall_distance`` below the distance of its last such approach (the first: its start) for
+      ``stall_seconds`` is terminated (``info["stalled"] = True``, no reward of its own). Standing
+      still then ends the stream of style reward as a fall does, so it no longer pays more than
+      trying to climb.
     """
 
     def __init__(
@@ -160,6 +176,8 @@ class InterLevelEnv(HumanoidEnv):
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
         stairs_start_fraction: float = 0.0,
+        stall_seconds: float | None = None,
+        stall_distance: float = 0.2,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -204,6 +222,9 @@ class InterLevelEnv(HumanoidEnv):
         self.reset_noise_scale = check_float("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
         self.stairs_start_fraction = check_float("stairs_start_fraction", stairs_start_fraction, 0.0, 1.0)
         self._stairs_start = False
+        self.stall_seconds = None if stall_seconds is None else check_float(
+            "stall_seconds", stall_seconds, 0.0, 3600.0, low_open=True)
+        self.stall_distance = check_float("stall_distance", stall_distance, 0.0, 100.0)
         if self.stairs_start_fraction > 0.0:
             stair_starts.check_staircases(self.stairs_config.step_height_set or self.stairs_config.step_height,
                                           self.stairs_config.step_depth)
@@ -268,6 +289,7 @@ class InterLevelEnv(HumanoidEnv):
 
     def _start_tracking(self, state) -> None:
         self._prev_root = state.body_pos[:, PELVIS].copy()
+        self._approach_distance, self._approach_step = math.inf, 0
 
     BATCH_EVALUATION = True
 
@@ -304,6 +326,7 @@ class InterLevelEnv(HumanoidEnv):
         distance = results.distance_to_target.tolist()
         evaluations = []
         for k, env in enumerate(envs):
+            stalled = env._stalled(distance[k])
             terms, reward = {}, 0.0
             for key, value in zip(env._term_names, values[k]):
                 terms[key] = value
@@ -313,20 +336,31 @@ class InterLevelEnv(HumanoidEnv):
             terms["reward_failure"] = failure_reward if fell_k else 0.0
             reward += terms["reward_success"] + terms["reward_failure"]
             env._prev_root = state.body_pos[k:k + 1, PELVIS].copy()
-            evaluations.append(Evaluation(obs[k], reward, terms, fell_k or (success_k and env.terminate_on_success), {
+            stalled = stalled and not (fell_k or success_k)
+            ended = fell_k or (success_k and env.terminate_on_success) or stalled
+            evaluations.append(Evaluation(obs[k], reward, terms, ended, {
                 "progress": progress[k],
                 "height_progress": height_progress[k],
                 "success": success_k,
                 "fell": fell_k,
+                "stalled": stalled,
                 "distance_to_target": distance[k],
             }))
         return evaluations
+
+    def _stalled(self, distance: float) -> bool:
+        """Whether the episode has come no ``stall_distance`` closer to M_T than at its last such
+        approach (the first: its start) for more than ``stall_seconds``; False without ``stall_seconds``."""
+        if distance < self._approach_distance - self.stall_distance or self._approach_distance == math.inf:
+            self._approach_distance, self._approach_step = distance, self._steps
+        return self.stall_seconds is not None and (self._steps - self._approach_step) * self.dt > self.stall_seconds
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
 
     def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
         return {"progress": last.results["progress"], "height_progress": 0.0, "success": False, "fell": False,
+                "stalled": False,
                 "distance_to_target": float(np.linalg.norm(last.obs[task.OBSERVATION_STRUCTURE["target_offset"]]))}
 
     # --- pieces -------------------------------------------------------------
