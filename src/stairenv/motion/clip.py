@@ -41,6 +41,8 @@ for _, _, _axes in JOINTS:
     else:
         _HINGE_COLUMNS.append(_col)
     _col += len(_axes)
+# (J, 3) qpos columns of the 3-axis joints, for gathering all of them in one index.
+_BALL_INDEX = np.array([[cols.start, cols.start + 1, cols.start + 2] for cols in _BALL_COLUMNS])
 
 
 class MotionFileError(ValueError):
@@ -119,13 +121,17 @@ class MotionClip:
         frame = times * self.fps
         i0 = np.minimum(np.floor(frame).astype(int), self.num_frames - 2)
         alpha = (frame - i0)[:, None]
-        a, b = self.qpos[i0], self.qpos[i0 + 1]
-        out = (1.0 - alpha) * a + alpha * b
-        out[:, 3:7] = _slerp_wxyz(a[:, 3:7], b[:, 3:7], alpha[:, 0])
-        for cols in _BALL_COLUMNS:
-            ra = Rotation.from_euler("XYZ", a[:, cols])
-            rb = Rotation.from_euler("XYZ", b[:, cols])
-            out[:, cols] = euler_near(_slerp_rot(ra, rb, alpha[:, 0]), out[:, cols])
+        ends = self.qpos[np.stack((i0, i0 + 1))]  # (2, N, 35): the frames before and after
+        out = (1.0 - alpha) * ends[0] + alpha * ends[1]
+        # The root and every 3-axis joint at once, as (2, N, 1 + J) quaternion components.
+        x, y, z, w = _root_and_ball_quats(ends)
+        rx, ry, rz, rw = _slerp_xyzw(x, y, z, w, alpha)
+        root = np.stack((rw[:, 0], rx[:, 0], ry[:, 0], rz[:, 0]), axis=1)
+        # Keep the hemisphere of the first frame so sequences stay continuous.
+        root *= np.where(np.sum(root * ends[0, :, 3:7], axis=1) < 0, -1.0, 1.0)[:, None]
+        out[:, 3:7] = root
+        first = _quat_to_euler_xyz(rx[:, 1:], ry[:, 1:], rz[:, 1:], rw[:, 1:])
+        out[:, _BALL_INDEX] = _euler_near_angles(first, out[:, _BALL_INDEX])
         return out
 
     def resample(self, fps: float) -> "MotionClip":
@@ -196,29 +202,66 @@ def euler_near(rot: Rotation, reference: np.ndarray) -> np.ndarray:
     defined up to 2 pi per angle; hip and shoulder flexion beyond 90 degrees needs the
     second. Both are wrapped towards ``reference`` and the closer one is kept.
     """
-    first = rot.as_euler("XYZ")
+    return _euler_near_angles(rot.as_euler("XYZ"), np.asarray(reference, dtype=np.float64))
+
+
+def _euler_near_angles(first: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``euler_near`` for angles (..., 3) already in scipy's XYZ solution ``first``."""
     second = first + np.array([np.pi, 0.0, np.pi])
-    second[:, 1] = np.pi - first[:, 1]
-    best = []
-    for cand in (first, second):
-        cand = cand + 2.0 * np.pi * np.round((reference - cand) / (2.0 * np.pi))
-        best.append(cand)
-    closer = np.sum((best[0] - reference) ** 2, axis=1) <= np.sum((best[1] - reference) ** 2, axis=1)
-    return np.where(closer[:, None], best[0], best[1])
+    second[..., 1] = np.pi - first[..., 1]
+    cands = np.stack((first, second))
+    cands += 2.0 * np.pi * np.round((reference - cands) / (2.0 * np.pi))
+    dist = np.sum((cands - reference) ** 2, axis=-1)
+    return np.where((dist[0] <= dist[1])[..., None], cands[0], cands[1])
 
 
-def _slerp_rot(ra: Rotation, rb: Rotation, alpha: np.ndarray) -> Rotation:
-    """Element-wise slerp between two stacks of rotations."""
-    delta = (ra.inv() * rb).as_rotvec()
-    return ra * Rotation.from_rotvec(delta * alpha[:, None])
+# Quaternions below are scipy's (x, y, z, w), one array per component, so that a handful of
+# numpy calls covers the root and all 3-axis joints of every sample; the formulas are scipy's
+# (from_euler, slerp through as_rotvec/from_rotvec, as_euler), equal to it within rounding.
+def _root_and_ball_quats(ends: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(x, y, z, w), each (..., 1 + J): the root quaternion then the XYZ Euler joints of qpos rows."""
+    half = 0.5 * ends[..., _BALL_INDEX]
+    s, c = np.sin(half), np.cos(half)
+    sx, sy, sz = s[..., 0], s[..., 1], s[..., 2]
+    cx, cy, cz = c[..., 0], c[..., 1], c[..., 2]
+    root = ends[..., 3:7] / np.linalg.norm(ends[..., 3:7], axis=-1, keepdims=True)  # wxyz
+    cycz, sysz, cysz, sycz = cy * cz, sy * sz, cy * sz, sy * cz
+    return (np.concatenate((root[..., 1:2], sx * cycz + cx * sysz), axis=-1),
+            np.concatenate((root[..., 2:3], cx * sycz - sx * cysz), axis=-1),
+            np.concatenate((root[..., 3:4], cx * cysz + sx * sycz), axis=-1),
+            np.concatenate((root[..., 0:1], cx * cycz - sx * sysz), axis=-1))
 
 
-def _slerp_wxyz(qa: np.ndarray, qb: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    ra = Rotation.from_quat(qa, scalar_first=True)
-    rb = Rotation.from_quat(qb, scalar_first=True)
-    out = _slerp_rot(ra, rb, alpha).as_quat(scalar_first=True)
-    # Keep the hemisphere of the first frame so sequences stay continuous.
-    out *= np.where(np.sum(out * qa, axis=1) < 0, -1.0, 1.0)[:, None]
-    return out
+def _slerp_xyzw(x: np.ndarray, y: np.ndarray, z: np.ndarray, w: np.ndarray,
+                alpha: np.ndarray) -> tuple[np.ndarray, ...]:
+    """a * (a^-1 * b)^alpha for the pairs (x[0], ...) -> (x[1], ...); ``alpha`` (N, 1)."""
+    ax, ay, az, aw = x[0], y[0], z[0], w[0]
+    bx, by, bz, bw = x[1], y[1], z[1], w[1]
+    dx = aw * bx - bw * ax - (ay * bz - az * by)
+    dy = aw * by - bw * ay - (az * bx - ax * bz)
+    dz = aw * bz - bw * az - (ax * by - ay * bx)
+    dw = aw * bw + ax * bx + ay * by + az * bz
+    sign = np.where(dw < 0, -1.0, 1.0)  # the shorter way round, as as_rotvec's canonical form
+    norm = np.sqrt(dx * dx + dy * dy + dz * dz)
+    half = alpha * np.arctan2(norm, sign * dw)
+    scale = sign * np.sin(half) / np.where(norm > 0, norm, 1.0)
+    ex, ey, ez, ew = dx * scale, dy * scale, dz * scale, np.cos(half)
+    return (aw * ex + ew * ax + (ay * ez - az * ey),
+            aw * ey + ew * ay + (az * ex - ax * ez),
+            aw * ez + ew * az + (ax * ey - ay * ex),
+            aw * ew - ax * ex - ay * ey - az * ez)
 
 
+def _quat_to_euler_xyz(x: np.ndarray, y: np.ndarray, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(..., 3) intrinsic XYZ angles as ``Rotation.as_euler("XYZ")`` (third angle 0 at gimbal lock)."""
+    a, b, c, d = w - y, z - x, y + w, -x - z
+    half_sum, half_diff = np.arctan2(b, a), np.arctan2(d, c)
+    middle = 2.0 * np.arctan2(np.hypot(c, d), np.hypot(a, b))
+    at_zero, at_pi = np.abs(middle) <= 1e-7, np.abs(middle - np.pi) <= 1e-7
+    regular = ~(at_zero | at_pi)
+    angles = np.stack((
+        -np.where(regular, half_sum + half_diff, np.where(at_zero, 2.0 * half_sum, 2.0 * half_diff)),
+        middle - 0.5 * np.pi,
+        np.where(regular, half_sum - half_diff, 0.0),
+    ), axis=-1)
+    return (angles + np.pi) % (2.0 * np.pi) - np.pi
