@@ -18,7 +18,8 @@ from functools import lru_cache
 import numpy as np
 
 from stairenv.motion.clip import MotionClip
-from stairenv.motion.synthesis import climb_stairs
+from stairenv.motion.ik import leg_geometry
+from stairenv.motion.synthesis import MAX_STEP_DEPTH, MAX_STEP_HEIGHT, climb_stairs
 
 #: Height and depth grid (m) of the cached climbs.
 GRID = 0.01
@@ -31,9 +32,10 @@ PAST_TOP_RISER = 0.3
 CACHE_SIZE = 4096
 
 
-#: The staircases a climb can be synthesised for (``synthesis.climb_stairs``: one foot per tread).
-HEIGHT_RANGE = (0.01, 0.25)
-DEPTH_RANGE = (0.19, 0.50)
+#: The staircases a climb can be synthesised for (``synthesis.climb_stairs``: one foot per tread, a
+#: tread at least 1 cm longer than the foot).
+HEIGHT_RANGE = (0.01, MAX_STEP_HEIGHT)
+DEPTH_RANGE = (leg_geometry().foot_length + 0.01, MAX_STEP_DEPTH)
 
 
 def check_staircases(heights, depths) -> None:

@@ -337,8 +337,8 @@ _SWING_RELAX_SHARE = 0.25
 _SWING_FLATTEN = (0.5, 0.9)
 _SWING_PITCH_LIMIT = 1.0
 _POSTURE_PASSES = 3
-_MAX_STEP_HEIGHT = 0.25  # m; one foot per tread, the legs' reach and the ankles' range
-_MAX_STEP_DEPTH = 0.5    # m; deeper treads need more than one step each
+MAX_STEP_HEIGHT = 0.25  # m; one foot per tread, the legs' reach and the ankles' range
+MAX_STEP_DEPTH = 0.5    # m; deeper treads need more than one step each
 _ASCENT_SET_BACK = 0.02  # m; feet behind the tread centre on ascent ...
 _HEEL_ON_TREAD = 0.015   # m; ... keeping at least this much tread behind the heel
 _MAX_SWING_LIFT = 0.8  # m; a swing bump beyond this marks an infeasible timing
@@ -942,8 +942,8 @@ def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach
     if direction not in ("up", "down"):
         raise ValueError(f"direction must be 'up' or 'down', got {direction!r}")
     geo = leg_geometry()
-    step_height = _check_number("step_height", step_height, 0.0, _MAX_STEP_HEIGHT)
-    step_depth = _check_number("step_depth", step_depth, 0.0, _MAX_STEP_DEPTH)
+    step_height = _check_number("step_height", step_height, 0.0, MAX_STEP_HEIGHT)
+    step_depth = _check_number("step_depth", step_depth, 0.0, MAX_STEP_DEPTH)
     num_steps = _check_count("num_steps", num_steps, 1, 30)
     approach_steps = _check_count("approach_steps", approach_steps, 0, 100)
     landing_steps = _check_count("landing_steps", landing_steps, 0, 100)
