@@ -38,7 +38,10 @@ continues a run exactly (the checkpoint's own settings and step count).
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
-when ``stairs_start_fraction`` starts others on the staircase).
+when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
+(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels saved
+beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume``. The final
+evaluation leaves the training aids (``TRAINING_AIDS``) out.
 
 ``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
 judges [motion window, text embedding]; each reference clip is embedded from its
@@ -63,12 +66,14 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import sys
 import time
 import tomllib
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
@@ -316,6 +321,65 @@ class AdaptiveLearningRate(BaseCallback):
         return True
 
 
+class CurriculumCallback(BaseCallback):
+    """The step-height curriculum's state (``step_height_levels``): its worlds' levels logged as
+    ``curriculum/level`` (mean) after each rollout and saved as ``curriculum_<n>_steps.json`` beside
+    each checkpoint, which ``--resume`` reads back."""
+
+    def __init__(self, save_freq: int, folder: Path) -> None:
+        super().__init__()
+        self.save_freq, self.folder = save_freq, folder
+
+    def _levels(self) -> list[int | None]:
+        return list(self.training_env.get_attr("curriculum_level"))
+
+    def _on_rollout_end(self) -> None:
+        levels = [level for level in self._levels() if level is not None]
+        if levels:
+            self.logger.record("curriculum/level", float(np.mean(levels)))
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.save_freq == 0:
+            path = self.folder / f"curriculum_{self.num_timesteps}_steps.json"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps({"curriculum_level": self._levels()}))
+        return True
+
+
+def curriculum_state_beside(checkpoint: Path) -> Path | None:
+    """The curriculum levels saved with a checkpoint (ppo_<n>_steps.zip -> curriculum_<n>_steps.json)."""
+    path = checkpoint.with_name("curriculum_" + checkpoint.stem.removeprefix("ppo_") + ".json")
+    return path if checkpoint.stem.startswith("ppo_") and path.is_file() else None
+
+
+def restore_curriculum(venv, path: Path) -> list[int | None]:
+    """Give each world its saved level; ``SystemExit`` naming the file when it does not fit this run."""
+    try:
+        levels = json.loads(path.read_text())["curriculum_level"]
+        if not isinstance(levels, list) or not all(level is None or type(level) is int for level in levels):
+            raise ValueError("curriculum_level must be a list of integers")
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        raise SystemExit(f"--resume: cannot read the curriculum state {path} ({err})") from None
+    if len(levels) != venv.num_envs:
+        raise SystemExit(f"--resume: {path} holds {len(levels)} worlds' levels, this run has {venv.num_envs} "
+                         "(--n-envs)")
+    for i, level in enumerate(levels):
+        venv.set_attr("curriculum_level", level, indices=[i])
+    return levels
+
+
+#: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
+TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
+                 "step_height_levels")
+
+
+def evaluation_kwargs(env_kwargs: dict) -> dict:
+    """``env_kwargs`` without the training aids; with a step-height curriculum also without its
+    ``step_height`` range (the evaluation draws the env's own)."""
+    aids = TRAINING_AIDS + (("step_height",) if env_kwargs.get("step_height_levels") else ())
+    return {key: value for key, value in env_kwargs.items() if key not in aids}
+
+
 def _amp_state_candidates(checkpoint: Path) -> list[Path]:
     """Where the AMP state saved with a checkpoint lies (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
     own = [checkpoint.with_name("amp_" + checkpoint.stem.removeprefix("ppo_") + ".pt")]
@@ -511,6 +575,12 @@ def main(argv: list[str] | None = None) -> Path:
     callbacks.append(EpisodeStatsCallback())
     if args.adaptive_kl is not None:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
+    if env_kwargs.get("step_height_levels"):
+        callbacks.append(CurriculumCallback(save_freq, run_dir / "checkpoints"))
+        saved = curriculum_state_beside(checkpoint) if args.resume is not None else None
+        if saved is not None:
+            levels = restore_curriculum(venv, saved)
+            print(f"curriculum levels from {saved} (mean {np.mean([lv for lv in levels if lv is not None] or [0]):.2f})")
     start_steps, start_time = model.num_timesteps, time.perf_counter()
     model.learn(
         total_timesteps=int(args.timesteps),
@@ -534,9 +604,7 @@ def main(argv: list[str] | None = None) -> Path:
         policy = load_policy(str(model_path), eval_env)
         eval_env.close()
         # the evaluation starts as the paper's protocol does: standing on the floor
-        eval_kwargs = {k: v for k, v in env_kwargs.items()
-                       if k not in ("init", "reference_motion", "stairs_start_fraction", "stall_seconds",
-                                    "stall_distance")}
+        eval_kwargs = evaluation_kwargs(env_kwargs)
         evaluate = evaluator_for(args.env)
         report = evaluate(policy, env_id=args.env, episodes=args.eval_episodes, seed=10_000 + args.seed,
                           env_kwargs=eval_kwargs, max_episode_steps=args.eval_max_episode_steps,

@@ -162,3 +162,54 @@ def test_plot_training_averages_step_windows(baseline_script, tmp_path):
     assert len(curve) == 4 and curve[0, 1] == pytest.approx(np.mean(np.arange(0, 25)))  # steps 0-240
     with pytest.raises(SystemExit, match="LABEL=FOLDER"):
         plot.main([str(tmp_path / "run")])
+
+
+@pytest.mark.slow
+def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_path):
+    """The curriculum's levels are saved beside each checkpoint and given back world by world on
+    --resume; a file that does not fit the run stops it, naming the file; the final evaluation draws
+    the env's own step heights, without the curriculum."""
+    run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0", "--env-kwarg",
+         "step_height_levels=9", "--env-kwarg", "step_height=(0.02, 0.2)", *TINY], tmp_path)
+    folder = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints"
+    saved = folder / "curriculum_512_steps.json"
+    import json
+
+    levels = json.loads(saved.read_text())["curriculum_level"]
+    assert len(levels) == 2 and all(0 <= level < 9 for level in levels)
+    saved.write_text(json.dumps({"curriculum_level": [7, 1]}))
+    out = run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
+               str(folder / "ppo_512_steps.zip"), "--env-kwarg", "step_height_levels=9", "--env-kwarg",
+               "step_height=(0.02, 0.2)", *TINY], tmp_path)
+    assert f"curriculum levels from {saved} (mean 4.00)" in out
+
+
+def test_train_ppo_restores_levels_and_refuses_bad_files(baseline_script, tmp_path):
+    import json
+
+    train = baseline_script("train_ppo")
+
+    class Worlds:
+        num_envs = 2
+
+        def __init__(self):
+            self.levels = {}
+
+        def set_attr(self, name, value, indices):
+            self.levels[(name, indices[0])] = value
+
+    worlds, path = Worlds(), tmp_path / "curriculum_512_steps.json"
+    path.write_text(json.dumps({"curriculum_level": [3, None]}))
+    assert train.restore_curriculum(worlds, path) == [3, None]
+    assert worlds.levels == {("curriculum_level", 0): 3, ("curriculum_level", 1): None}
+    for text, message in (('{"curriculum_level": [1, 2, 3]}', "3 worlds"), ("{", "cannot read"),
+                          ('{"curriculum_level": ["1", 2]}', "cannot read"), ("{}", "cannot read")):
+        path.write_text(text)
+        with pytest.raises(SystemExit, match=message):
+            train.restore_curriculum(worlds, path)
+    assert train.curriculum_state_beside(tmp_path / "ppo_512_steps.zip") == path
+    assert train.curriculum_state_beside(tmp_path / "final_model.zip") is None
+    kwargs = {"init": "hybrid", "stairs_start_fraction": 0.5, "stall_seconds": 4.0, "step_height_levels": 9,
+              "step_height": (0.02, 0.2), "target_speed": 0.8}
+    assert train.evaluation_kwargs(kwargs) == {"target_speed": 0.8}
+    assert train.evaluation_kwargs({"step_height": (0.1, 0.2)}) == {"step_height": (0.1, 0.2)}

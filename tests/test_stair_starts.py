@@ -149,3 +149,85 @@ def test_a_stalled_episode_terminates_without_a_reward_of_its_own():
     with pytest.raises(ValueError, match="stall_seconds"):
         gym.make("InterLevel-v0", stall_seconds=0.0)
     env.close()
+
+
+# --- step-height curriculum (training aid) ----------------------------------------------------------
+def test_curriculum_bands_split_the_range_and_levels_move_on_outcomes():
+    from stairenv.tasks import curriculum
+
+    assert curriculum.level_band(0, 9, 0.02, 0.20) == pytest.approx((0.02, 0.04))
+    assert curriculum.level_band(8, 9, 0.02, 0.20) == pytest.approx((0.18, 0.20))
+    with pytest.raises(ValueError, match="level"):
+        curriculum.level_band(9, 9, 0.02, 0.20)
+    rng = np.random.default_rng(0)
+    assert curriculum.next_level(3, 9, success=True, progress=1.0, rng=rng) == 4
+    assert curriculum.next_level(3, 9, success=False, progress=0.49, rng=rng) == 2
+    assert curriculum.next_level(3, 9, success=False, progress=0.5, rng=rng) == 3  # half-way: stays
+    assert curriculum.next_level(0, 9, success=False, progress=0.0, rng=rng) == 0
+    # a success at the top level sends the world anywhere, so the population spreads over the range
+    tops = {curriculum.next_level(8, 9, success=True, progress=1.0, rng=rng) for _ in range(200)}
+    assert tops == set(range(9))
+    assert {curriculum.initial_level(9, rng) for _ in range(200)} == set(range(5))
+
+
+def _finish_episode(env, progress: float, success: bool) -> None:
+    env._outcome = (progress, success)
+
+
+def test_curriculum_draws_the_level_band_and_moves_on_floor_start_episodes():
+    env = gym.make("InterLevel-v0", step_height=(0.02, 0.20), step_height_levels=9).unwrapped
+    env.reset(seed=0)
+    level = env.curriculum_level
+    assert 0 <= level <= 4
+    low, high = 0.02 + 0.02 * level, 0.04 + 0.02 * level
+    assert low - 1e-9 <= env.stairs.step_height <= high + 1e-9
+    _finish_episode(env, 1.0, True)
+    env.reset()
+    assert env.curriculum_level == level + 1
+    assert 0.04 + 0.02 * level - 1e-9 <= env.stairs.step_height <= 0.06 + 0.02 * level + 1e-9
+    _finish_episode(env, 0.2, False)
+    env.reset(seed=3)  # the level is training state: a seeded reset keeps it
+    assert env.curriculum_level == level
+    env.curriculum_level = 8  # as a resumed trainer sets it
+    env.reset()
+    assert 0.18 - 1e-9 <= env.stairs.step_height <= 0.20 + 1e-9
+    env.close()
+
+
+def test_curriculum_ignores_staircase_start_episodes_and_bad_keywords():
+    env = gym.make("InterLevel-v0", step_height=(0.02, 0.20), step_height_levels=9,
+                   stairs_start_fraction=1.0).unwrapped
+    env.reset(seed=0)
+    level = env.curriculum_level
+    for _ in range(3):  # started on the stairs: a success there says little about the floor start
+        _finish_episode(env, 1.0, True)
+        env.reset()
+        assert env.curriculum_level == level and env._stairs_start
+        assert 0.02 + 0.02 * level - 1e-9 <= env.stairs.step_height <= 0.04 + 0.02 * level + 1e-9
+    env.close()
+    plain = gym.make("InterLevel-v0").unwrapped
+    plain.reset(seed=0)
+    assert plain.curriculum_level is None  # off by default
+    plain.close()
+    with pytest.raises(ValueError, match="step_height_levels"):
+        gym.make("InterLevel-v0", step_height_levels=-1)
+    with pytest.raises(TypeError, match="step_height_levels"):
+        gym.make("InterLevel-v0", step_height_levels="9")
+    with pytest.raises(ValueError, match="step_height_levels"):
+        gym.make("InterLevel-v0", step_height_levels=4, step_height_set=(0.05, 0.1))
+
+
+def test_curriculum_moves_with_real_episode_ends():
+    """An episode played out (a fall of the zero policy) moves a floor-start world down a level."""
+    env = gym.make("InterLevel-v0", step_height=(0.02, 0.20), step_height_levels=9, max_episode_steps=120)
+    inner = env.unwrapped
+    env.reset(seed=1)
+    inner.curriculum_level = 3
+    for _ in range(120):
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated or truncated:
+            break
+    assert not info["success"] and info["progress"] < 0.5
+    env.reset()
+    assert inner.curriculum_level == 2
+    env.close()

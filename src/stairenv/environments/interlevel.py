@@ -16,9 +16,10 @@ from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
+from stairenv.tasks import curriculum
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
-from stairenv.validation import check_bool, check_choice, check_float, check_numbers, check_pair
+from stairenv.validation import check_bool, check_choice, check_float, check_int, check_numbers, check_pair
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
@@ -114,6 +115,7 @@ class InterLevelEnv(HumanoidEnv):
     | stairs_start_fraction | 0.0 | share of episodes that start from a frame of a climb synthesised for their staircase (training) |
     | stall_seconds | None | end an episode that has not come ``stall_distance`` closer to M_T for this long (training); None = never |
     | stall_distance | 0.2 | least approach (m) that counts as progress for ``stall_seconds`` |
+    | step_height_levels | 0 | split ``step_height`` into this many levels of a success-driven curriculum (training); 0 = off |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -139,6 +141,13 @@ class InterLevelEnv(HumanoidEnv):
       ``stall_seconds`` is terminated (``info["stalled"] = True``, no reward of its own). Standing
       still then ends the stream of style reward as a fall does, so it no longer pays more than
       trying to climb.
+    - Step-height curriculum (``step_height_levels``, ``stairenv.tasks.curriculum``): the
+      ``step_height`` range is split into that many equal bands; the env holds a level
+      (``curriculum_level``, first drawn from the easier half at the first reset) and draws its
+      staircases' heights from that level's band. An episode that started on the floor moves the
+      level up on success (from the top level: to a random level) and down when it ended below half
+      of the stairs. The level carries over resets, seeded ones too: training state, like a
+      normaliser's, that a trainer saves with its checkpoints (``baselines/train_ppo.py`` does).
     """
 
     def __init__(
@@ -178,6 +187,7 @@ class InterLevelEnv(HumanoidEnv):
         stairs_start_fraction: float = 0.0,
         stall_seconds: float | None = None,
         stall_distance: float = 0.2,
+        step_height_levels: int = 0,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -225,6 +235,12 @@ class InterLevelEnv(HumanoidEnv):
         self.stall_seconds = None if stall_seconds is None else check_float(
             "stall_seconds", stall_seconds, 0.0, 3600.0, low_open=True)
         self.stall_distance = check_float("stall_distance", stall_distance, 0.0, 100.0)
+        self.step_height_levels = check_int("step_height_levels", step_height_levels, 0, 100)
+        if self.step_height_levels and self.stairs_config.step_height_set is not None:
+            raise ValueError("step_height_levels needs a step_height range; it cannot split step_height_set")
+        #: this world's level of the step-height curriculum (None until the first reset draws it)
+        self.curriculum_level: int | None = None
+        self._outcome: tuple[float, bool] | None = None   # (progress, success) after the latest step
         if self.stairs_start_fraction > 0.0:
             stair_starts.check_staircases(self.stairs_config.step_height_set or self.stairs_config.step_height,
                                           self.stairs_config.step_depth)
@@ -246,20 +262,36 @@ class InterLevelEnv(HumanoidEnv):
         return super().reset(seed=seed, options=options)
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
-        stairs = generate_stairs(self.stairs_config, rng)
+        config = self._episode_stairs_config(rng)
+        stairs = generate_stairs(config, rng)
         # drawn only when asked for, so that the default episodes' random stream is unchanged
         self._stairs_start = self.stairs_start_fraction > 0.0 and rng.uniform() < self.stairs_start_fraction
         if options and "stairs" in options:
             stairs = self._check_stairs_option(options["stairs"])
             self._stairs_start = False
         if self._stairs_start:
-            config = self.stairs_config
             heights = config.step_height if config.step_height_set is None else (
                 min(config.step_height_set), max(config.step_height_set))
             stairs = dataclasses.replace(
                 stairs, step_height=stair_starts.snap(stairs.step_height, *heights),
                 step_depth=stair_starts.snap(stairs.step_depth, *config.step_depth))
         self._set_stairs(stairs)
+
+    def _episode_stairs_config(self, rng: np.random.Generator) -> StairsConfig:
+        """``stairs_config``, its step heights narrowed to the curriculum level's band when there is a
+        curriculum; the level first moved by the outcome of the episode that just ended (if it started on
+        the floor)."""
+        levels = self.step_height_levels
+        if not levels:
+            return self.stairs_config
+        if self.curriculum_level is None:
+            self.curriculum_level = curriculum.initial_level(levels, rng)
+        elif self._outcome is not None and not self._stairs_start:
+            progress, success = self._outcome
+            self.curriculum_level = curriculum.next_level(self.curriculum_level, levels, success, progress, rng)
+        self._outcome = None
+        band = curriculum.level_band(self.curriculum_level, levels, *self.stairs_config.step_height)
+        return dataclasses.replace(self.stairs_config, step_height=band)
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """In a disc of ``start_radius`` around the centre; standing with joint noise or a reference state."""
@@ -336,6 +368,8 @@ class InterLevelEnv(HumanoidEnv):
             terms["reward_failure"] = failure_reward if fell_k else 0.0
             reward += terms["reward_success"] + terms["reward_failure"]
             env._prev_root = state.body_pos[k:k + 1, PELVIS].copy()
+            if started[k]:
+                env._outcome = (progress[k], success_k)
             stalled = stalled and not (fell_k or success_k)
             ended = fell_k or (success_k and env.terminate_on_success) or stalled
             evaluations.append(Evaluation(obs[k], reward, terms, ended, {

@@ -1,0 +1,40 @@
+"""A success-driven curriculum over one terrain parameter (training aid).
+
+The range of the parameter (InterLevel: the step height) is split into ``levels`` equal bands; each
+world holds a level and draws its episodes from that band. After an episode that counts, the world
+moves up a level on success and down one when the episode ended below ``demote_below`` of the way,
+as the terrain curricula of legged-robot training do (Rudin et al. 2021). A success at the top level
+sends the world to a random level, so that a trained population spreads over the whole range and
+training ends on the full distribution rather than on its hardest band.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: An episode that ends below this progress (0 = floor, 1 = landing) without success moves down.
+DEMOTE_BELOW = 0.5
+
+
+def level_band(level: int, levels: int, low: float, high: float) -> tuple[float, float]:
+    """The sub-range of [low, high] that ``level`` (0 = easiest) of ``levels`` draws from."""
+    if not 0 <= level < levels:
+        raise ValueError(f"level must be in [0, {levels - 1}], got {level}")
+    width = (high - low) / levels
+    return (low + level * width, low + (level + 1) * width)
+
+
+def next_level(level: int, levels: int, success: bool, progress: float, rng: np.random.Generator,
+               demote_below: float = DEMOTE_BELOW) -> int:
+    """The level after an episode with this outcome: up on success (at the top: a random level), down
+    when it ended below ``demote_below`` progress without success, else the same."""
+    if success:
+        return int(rng.integers(levels)) if level == levels - 1 else level + 1
+    if progress < demote_below:
+        return max(level - 1, 0)
+    return level
+
+
+def initial_level(levels: int, rng: np.random.Generator) -> int:
+    """A world's first level: uniform over the easier half (the levels below ``levels // 2`` and that one)."""
+    return int(rng.integers(levels // 2 + 1))
