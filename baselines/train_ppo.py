@@ -32,7 +32,8 @@ over a preset. The runs behind each setting are in ``docs/reproducing.md``.
 
 ``--init-from CHECKPOINT`` starts a new run (steps counted from 0, this run's flags) from a
 checkpoint's policy and value weights, optimiser state, VecNormalize statistics and discriminator
-(task and style weights from this run's flags): a recipe change on a trained policy. ``--resume``
+(task and style weights, the discriminator's instance noise and gradient penalty from this run's
+flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained policy. ``--resume``
 continues a run exactly (the checkpoint's own settings and step count).
 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
@@ -40,7 +41,7 @@ InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's e
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
 when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
 (``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels saved
-beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume``. The final
+beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and ``--init-from``. The final
 evaluation leaves the training aids (``TRAINING_AIDS``) out.
 
 ``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
@@ -65,6 +66,7 @@ you trust. The AMP state is read without running code from it.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib.util
 import json
 import sys
@@ -523,6 +525,9 @@ def main(argv: list[str] | None = None) -> Path:
             style = _resumed_style(amp_state, reference, args.seed)
             if args.init_from is not None:  # a new run on the trained discriminator: this run's weights
                 style.w_task, style.w_style = args.w_task, args.w_style
+                # and this run's settings of the discriminator's training that can change on a trained one
+                style.config = style.disc.config = dataclasses.replace(
+                    style.disc.config, input_noise=args.disc_input_noise, grad_penalty=args.disc_grad_penalty)
         else:
             style = AMPStyleReward(reference, w_task=args.w_task, w_style=args.w_style, seed=args.seed,
                                    update_interval=args.disc_update_interval, updates_per_round=args.disc_updates,
@@ -577,7 +582,7 @@ def main(argv: list[str] | None = None) -> Path:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
     if env_kwargs.get("step_height_levels"):
         callbacks.append(CurriculumCallback(save_freq, run_dir / "checkpoints"))
-        saved = curriculum_state_beside(checkpoint) if args.resume is not None else None
+        saved = curriculum_state_beside(checkpoint) if checkpoint is not None else None
         if saved is not None:
             levels = restore_curriculum(venv, saved)
             print(f"curriculum levels from {saved} (mean {np.mean([lv for lv in levels if lv is not None] or [0]):.2f})")

@@ -140,10 +140,14 @@ def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path):
     # A new run from the checkpoint: its weights, statistics and discriminator, this run's settings.
     out = run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
                "--init-from", str(checkpoint), "--learning-rate", "3e-4", "--target-kl", "0.01",
-               "--env-kwarg", "stairs_start_fraction=0.5", *batched], tmp_path)
+               "--env-kwarg", "stairs_start_fraction=0.5", "--disc-input-noise", "0.3", *batched], tmp_path)
     assert "initialised from" in out and "discriminator" in out
     warm = tmp_path / "warm" / "InterLevel-v0" / "seed0"
     assert (warm / "checkpoints" / "ppo_512_steps.zip").exists()  # counted from 0
+    from stairenv.style.wrappers import read_amp_state
+
+    config = read_amp_state(warm / "checkpoints" / "amp_512_steps.pt")["config"]
+    assert config["input_noise"] == 0.3  # this run's flag on the trained discriminator (the default is 1.0)
 
 
 def test_plot_training_averages_step_windows(baseline_script, tmp_path):
