@@ -372,7 +372,7 @@ def restore_curriculum(venv, path: Path) -> list[int | None]:
 
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
-                 "step_height_levels")
+                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below")
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:

@@ -231,3 +231,25 @@ def test_curriculum_moves_with_real_episode_ends():
     env.reset()
     assert inner.curriculum_level == 2
     env.close()
+
+
+def test_curriculum_thresholds_move_levels_on_progress():
+    from stairenv.tasks import curriculum
+
+    rng = np.random.default_rng(0)
+    # legged-gym style: up past half of the stairs, down below a quarter
+    assert curriculum.next_level(3, 9, False, 0.5, rng, demote_below=0.25, promote_at=0.5) == 4
+    assert curriculum.next_level(3, 9, False, 0.3, rng, demote_below=0.25, promote_at=0.5) == 3
+    assert curriculum.next_level(3, 9, False, 0.2, rng, demote_below=0.25, promote_at=0.5) == 2
+    env = gym.make("InterLevel-v0", step_height=(0.02, 0.20), step_height_levels=9, curriculum_promote_at=0.5,
+                   curriculum_demote_below=0.25).unwrapped
+    env.reset(seed=0)
+    level = env.curriculum_level
+    _finish_episode(env, 0.6, False)
+    env.reset()
+    assert env.curriculum_level == level + 1
+    env.close()
+    with pytest.raises(ValueError, match="curriculum_promote_at"):
+        gym.make("InterLevel-v0", step_height_levels=9, curriculum_promote_at=0.2)  # below the demotion bar
+    with pytest.raises(ValueError, match="curriculum_demote_below"):
+        gym.make("InterLevel-v0", step_height_levels=9, curriculum_demote_below=1.5)

@@ -116,6 +116,8 @@ class InterLevelEnv(HumanoidEnv):
     | stall_seconds | None | end an episode that has not come ``stall_distance`` closer to M_T for this long (training); None = never |
     | stall_distance | 0.2 | least approach (m) that counts as progress for ``stall_seconds`` |
     | step_height_levels | 0 | split ``step_height`` into this many levels of a success-driven curriculum (training); 0 = off |
+    | curriculum_promote_at | None | also move a level up when a floor-start episode ends at this progress; None = success only |
+    | curriculum_demote_below | 0.5 | move a level down when a floor-start episode ends below this progress without success |
     | render_mode | None | "rgb_array" or "human" |
     | width, height | 640, 480 | rgb_array frame size |
 
@@ -145,8 +147,8 @@ class InterLevelEnv(HumanoidEnv):
       ``step_height`` range is split into that many equal bands; the env holds a level
       (``curriculum_level``, first drawn from the easier half at the first reset) and draws its
       staircases' heights from that level's band. An episode that started on the floor moves the
-      level up on success (from the top level: to a random level) and down when it ended below half
-      of the stairs. The level carries over resets, seeded ones too: training state, like a
+      level up on success or at ``curriculum_promote_at`` progress (from the top level: to a random
+      level) and down when it ended below ``curriculum_demote_below`` progress. The level carries over resets, seeded ones too: training state, like a
       normaliser's, that a trainer saves with its checkpoints (``baselines/train_ppo.py`` does).
     """
 
@@ -188,6 +190,8 @@ class InterLevelEnv(HumanoidEnv):
         stall_seconds: float | None = None,
         stall_distance: float = 0.2,
         step_height_levels: int = 0,
+        curriculum_promote_at: float | None = None,
+        curriculum_demote_below: float = curriculum.DEMOTE_BELOW,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
@@ -238,6 +242,9 @@ class InterLevelEnv(HumanoidEnv):
         self.step_height_levels = check_int("step_height_levels", step_height_levels, 0, 100)
         if self.step_height_levels and self.stairs_config.step_height_set is not None:
             raise ValueError("step_height_levels needs a step_height range; it cannot split step_height_set")
+        self.curriculum_demote_below = check_float("curriculum_demote_below", curriculum_demote_below, 0.0, 1.0)
+        self.curriculum_promote_at = None if curriculum_promote_at is None else check_float(
+            "curriculum_promote_at", curriculum_promote_at, self.curriculum_demote_below, 1.0)
         #: this world's level of the step-height curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         self._outcome: tuple[float, bool] | None = None   # (progress, success) after the latest step
@@ -288,7 +295,9 @@ class InterLevelEnv(HumanoidEnv):
             self.curriculum_level = curriculum.initial_level(levels, rng)
         elif self._outcome is not None and not self._stairs_start:
             progress, success = self._outcome
-            self.curriculum_level = curriculum.next_level(self.curriculum_level, levels, success, progress, rng)
+            self.curriculum_level = curriculum.next_level(
+                self.curriculum_level, levels, success, progress, rng,
+                demote_below=self.curriculum_demote_below, promote_at=self.curriculum_promote_at)
         self._outcome = None
         band = curriculum.level_band(self.curriculum_level, levels, *self.stairs_config.step_height)
         return dataclasses.replace(self.stairs_config, step_height=band)

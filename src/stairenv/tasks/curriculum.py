@@ -2,8 +2,9 @@
 
 The range of the parameter (InterLevel: the step height) is split into ``levels`` equal bands; each
 world holds a level and draws its episodes from that band. After an episode that counts, the world
-moves up a level on success and down one when the episode ended below ``demote_below`` of the way,
-as the terrain curricula of legged-robot training do (Rudin et al. 2021). A success at the top level
+moves up a level on success (or past ``promote_at`` of the way) and down one when the episode ended
+below ``demote_below`` of the way, as the terrain curricula of legged-robot training do (Rudin et al.
+2021, which promote past half of the terrain and demote below half of the commanded distance). A success at the top level
 sends the world to a random level, so that a trained population spreads over the whole range and
 training ends on the full distribution rather than on its hardest band.
 """
@@ -25,10 +26,11 @@ def level_band(level: int, levels: int, low: float, high: float) -> tuple[float,
 
 
 def next_level(level: int, levels: int, success: bool, progress: float, rng: np.random.Generator,
-               demote_below: float = DEMOTE_BELOW) -> int:
-    """The level after an episode with this outcome: up on success (at the top: a random level), down
-    when it ended below ``demote_below`` progress without success, else the same."""
-    if success:
+               demote_below: float = DEMOTE_BELOW, promote_at: float | None = None) -> int:
+    """The level after an episode with this outcome: up on success or, with ``promote_at``, at that
+    progress (at the top: a random level); down when it ended below ``demote_below`` progress without
+    either; else the same."""
+    if success or (promote_at is not None and progress >= promote_at):
         return int(rng.integers(levels)) if level == levels - 1 else level + 1
     if progress < demote_below:
         return max(level - 1, 0)
