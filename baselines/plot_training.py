@@ -6,9 +6,10 @@
 Each run is ``LABEL=FOLDER`` (every ``events.out.tfevents*`` below the folder, a resumed run's too).
 Panels: episode length, progress / success / falls of the episodes that started on the floor
 (``episode_floor_start/*``, comparable with the evaluation; ``episode/*`` for runs without them),
-and the style reward. Values are averaged over ``--bins`` equal step windows (the per-episode
-scalars are noisy: a rollout ends only a few episodes). The top row is against env steps, the
-bottom row against hours of training (wall time from the first logged value of each run).
+the style reward and, for runs with a step-height curriculum, its mean level. Values are averaged
+over ``--bins`` equal step windows (the per-episode scalars are noisy: a rollout ends only a few
+episodes). The top row is against env steps, the bottom row against hours of training (wall time
+from the first logged value of each run).
 A table of the same windows is printed.
 """
 
@@ -25,6 +26,7 @@ PANELS = (
     ("episode_floor_start/success", "episode/success", "success, floor starts"),
     ("episode_floor_start/fell", "episode/fell", "falls, floor starts"),
     ("amp/style_reward", None, "style reward (training discriminator)"),
+    ("curriculum/level", None, "step-height curriculum level (mean)"),
 )
 
 
@@ -74,20 +76,20 @@ def main(argv: list[str] | None = None) -> Path:
         runs.append((label, read_scalars(Path(folder))))
     fig, axes = plt.subplots(2, len(PANELS), figsize=(4 * len(PANELS), 6.5), squeeze=False)
     for column, (tag, fallback, title) in enumerate(PANELS):
-        for label, scalars in runs:
+        for index, (label, scalars) in enumerate(runs):  # one colour per run in every panel, tag or not
             rows = scalars.get(tag, scalars.get(fallback)) if fallback else scalars.get(tag)
             if rows is None or len(rows) == 0:
                 continue
             start = min(series[0, 2] for series in scalars.values())
             curve = binned(rows, args.bins)
-            axes[0, column].plot(curve[:, 0] / 1e6, curve[:, 1], label=label)
-            axes[1, column].plot((curve[:, 2] - start) / 3600.0, curve[:, 1], label=label)
+            axes[0, column].plot(curve[:, 0] / 1e6, curve[:, 1], label=label, color=f"C{index % 10}")
+            axes[1, column].plot((curve[:, 2] - start) / 3600.0, curve[:, 1], label=label, color=f"C{index % 10}")
             print(f"{label:12s} {tag:30s} " + " ".join(f"{s / 1e6:.1f}M:{v:.3f}" for s, v, _ in curve))
         axes[0, column].set_title(title, fontsize=9)
         axes[0, column].set_xlabel("env steps (M)")
         axes[1, column].set_xlabel("hours of training")
-    axes[0, 0].legend(fontsize=8)
-    fig.tight_layout()
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="lower center", ncol=len(runs), fontsize=8)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, dpi=80)
     print(f"wrote {args.out}")
