@@ -137,3 +137,34 @@ def test_a_policy_file_that_unpacks_to_too_much_is_refused_before_reading(tmp_pa
     assert path.stat().st_size < 2 * 2**20  # a small file ...
     with pytest.raises(PolicyFileError, match="unpacks to"):  # ... that would unpack to over 512 MiB
         load_file(path)
+
+
+def _top_progress(policy, env, seed: int, steps: int) -> float:
+    obs, _ = env.reset(seed=seed)
+    top = 0.0
+    for _ in range(steps):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        top = max(top, info["progress"])
+        if terminated or truncated:
+            break
+    return top
+
+
+def test_the_shipped_interlevel_policy_climbs_where_the_zero_policy_does_not():
+    """The policy in the package (``stairenv/policies/InterLevel-v0.npz``): numpy only, deterministic, its
+    evaluation stored beside it, and it gets up staircases of 5 cm steps from a standing start, where
+    the zero policy never leaves the floor."""
+    policy = load("InterLevel-v0")
+    assert policy.config["env_id"] == "InterLevel-v0"
+    assert policy.config["evaluation"]["groups"]  # the table it was shipped with
+    env = gym.make("InterLevel-v0", step_height_set=(0.05,), max_episode_steps=300)
+    obs, _ = env.reset(seed=0)
+    action = policy(obs)
+    assert action.shape == (28,) and np.all(np.abs(action) <= 1.0)
+    np.testing.assert_array_equal(action, policy(obs.copy()))
+    seeds = range(500_000, 500_006)
+    zero = [_top_progress(lambda o: np.zeros(28), env, seed, 300) for seed in seeds]
+    shipped = [_top_progress(policy, env, seed, 300) for seed in seeds]
+    env.close()
+    assert max(zero) == 0.0
+    assert np.mean(shipped) >= 0.25, shipped

@@ -28,6 +28,7 @@ def test_wheel_installs_and_makes_env(tmp_path):
     assert "stairenv/scripts/data/happy.json" in names  # SIMS script database
     presets = {n for n in names if n.startswith("stairenv/envs/") and n.endswith(".toml")}
     assert {"stairenv/envs/InterLevel-v0.toml", "stairenv/envs/InterLevel2D-v0.toml"} <= presets
+    assert "stairenv/policies/InterLevel-v0.npz" in names  # the shipped climbing policy
 
     # A fresh venv that borrows the dependencies from this one (a .pth path line, which
     # does not run this venv's own .pth files, so the editable stairenv stays out)
@@ -50,6 +51,8 @@ def test_wheel_installs_and_makes_env(tmp_path):
         "env = gym.make('InterLevel-v0')\n"
         "print(env.reset(seed=0)[0].shape)\n"
         "print(sorted(stairenv.ENV_IDS))\n"
+        "from stairenv.pretrained import load\n"
+        "print(load('InterLevel-v0').action_size)\n"
     )
     clean_env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     out = subprocess.run(
@@ -60,3 +63,4 @@ def test_wheel_installs_and_makes_env(tmp_path):
     assert out[1].startswith(site)
     assert out[2] == "(118,)"
     assert "InterLevel-v0" in out[3] and "InterSceneStairs-v0" in out[3]
+    assert out[4] == "28"  # the shipped policy loads from the installed wheel
