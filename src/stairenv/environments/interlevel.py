@@ -148,8 +148,9 @@ class InterLevelEnv(HumanoidEnv):
       (``curriculum_level``, first drawn from the easier half at the first reset) and draws its
       staircases' heights from that level's band. An episode that started on the floor moves the
       level up on success or at ``curriculum_promote_at`` progress (from the top level: to a random
-      level) and down when it ended below ``curriculum_demote_below`` progress. The level carries over resets, seeded ones too: training state, like a
-      normaliser's, that a trainer saves with its checkpoints (``baselines/train_ppo.py`` does).
+      level) and down when it ended below ``curriculum_demote_below`` progress. The level carries
+      over resets, seeded ones too: training state, like a normaliser's, that a trainer saves with
+      its checkpoints (``baselines/train_ppo.py`` does).
     """
 
     def __init__(
