@@ -585,7 +585,8 @@ def main(argv: list[str] | None = None) -> Path:
         saved = curriculum_state_beside(checkpoint) if checkpoint is not None else None
         if saved is not None:
             levels = restore_curriculum(venv, saved)
-            print(f"curriculum levels from {saved} (mean {np.mean([lv for lv in levels if lv is not None] or [0]):.2f})")
+            known = [level for level in levels if level is not None] or [0]
+            print(f"curriculum levels from {saved} (mean {np.mean(known):.2f})")
     start_steps, start_time = model.num_timesteps, time.perf_counter()
     model.learn(
         total_timesteps=int(args.timesteps),

@@ -4,9 +4,9 @@ The range of the parameter (InterLevel: the step height) is split into ``levels`
 world holds a level and draws its episodes from that band. After an episode that counts, the world
 moves up a level on success (or past ``promote_at`` of the way) and down one when the episode ended
 below ``demote_below`` of the way, as the terrain curricula of legged-robot training do (Rudin et al.
-2021, which promote past half of the terrain and demote below half of the commanded distance). A success at the top level
-sends the world to a random level, so that a trained population spreads over the whole range and
-training ends on the full distribution rather than on its hardest band.
+2021, which promote past half of the terrain and demote below half of the commanded distance). A
+success at the top level sends the world to a random level, so that a trained population spreads
+over the whole range and training ends on the full distribution rather than on its hardest band.
 """
 
 from __future__ import annotations
