@@ -248,7 +248,6 @@ class InterLevelEnv(HumanoidEnv):
             "curriculum_promote_at", curriculum_promote_at, self.curriculum_demote_below, 1.0)
         #: this world's level of the step-height curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
-        self._outcome: tuple[float, bool] | None = None   # (progress, success) after the latest step
         if self.stairs_start_fraction > 0.0:
             stair_starts.check_staircases(self.stairs_config.step_height_set or self.stairs_config.step_height,
                                           self.stairs_config.step_depth)
@@ -292,14 +291,14 @@ class InterLevelEnv(HumanoidEnv):
         levels = self.step_height_levels
         if not levels:
             return self.stairs_config
+        # the episode that just ended: its last evaluation, if it took a step (reset has not yet cleared them)
+        last = getattr(self, "_evaluation", None) if getattr(self, "_steps", 0) > 0 else None
         if self.curriculum_level is None:
             self.curriculum_level = curriculum.initial_level(levels, rng)
-        elif self._outcome is not None and not self._stairs_start:
-            progress, success = self._outcome
+        elif last is not None and not self._stairs_start:
             self.curriculum_level = curriculum.next_level(
-                self.curriculum_level, levels, success, progress, rng,
+                self.curriculum_level, levels, bool(last.results["success"]), last.results["progress"], rng,
                 demote_below=self.curriculum_demote_below, promote_at=self.curriculum_promote_at)
-        self._outcome = None
         band = curriculum.level_band(self.curriculum_level, levels, *self.stairs_config.step_height)
         return dataclasses.replace(self.stairs_config, step_height=band)
 
@@ -378,8 +377,6 @@ class InterLevelEnv(HumanoidEnv):
             terms["reward_failure"] = failure_reward if fell_k else 0.0
             reward += terms["reward_success"] + terms["reward_failure"]
             env._prev_root = state.body_pos[k:k + 1, PELVIS].copy()
-            if started[k]:
-                env._outcome = (progress[k], success_k)
             stalled = stalled and not (fell_k or success_k)
             ended = fell_k or (success_k and env.terminate_on_success) or stalled
             evaluations.append(Evaluation(obs[k], reward, terms, ended, {
