@@ -33,16 +33,16 @@ over a preset. The runs behind each setting are in ``docs/reproducing.md``.
 ``--init-from CHECKPOINT`` starts a new run (steps counted from 0, this run's flags) from a
 checkpoint's policy and value weights, optimiser state, VecNormalize statistics and discriminator
 (task and style weights, the discriminator's instance noise and gradient penalty from this run's
-flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained policy. ``--resume``
-continues a run exactly (the checkpoint's own settings and step count).
+flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained
+policy. ``--resume`` continues a run exactly (the checkpoint's own settings and step count).
 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
 when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
-(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels saved
-beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and ``--init-from``. The final
-evaluation leaves the training aids (``TRAINING_AIDS``) out.
+(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels
+saved beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and
+``--init-from``. The final evaluation leaves the training aids (``TRAINING_AIDS``) out.
 
 ``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
 judges [motion window, text embedding]; each reference clip is embedded from its
@@ -326,7 +326,7 @@ class AdaptiveLearningRate(BaseCallback):
 class CurriculumCallback(BaseCallback):
     """The step-height curriculum's state (``step_height_levels``): its worlds' levels logged as
     ``curriculum/level`` (mean) after each rollout and saved as ``curriculum_<n>_steps.json`` beside
-    each checkpoint, which ``--resume`` reads back."""
+    each checkpoint, which ``--resume`` and ``--init-from`` read back."""
 
     def __init__(self, save_freq: int, folder: Path) -> None:
         super().__init__()
@@ -348,9 +348,14 @@ class CurriculumCallback(BaseCallback):
         return True
 
 
+def _saved_beside(checkpoint: Path, kind: str, suffix: str) -> Path:
+    """What a run saves beside ``ppo_<n>_steps.zip`` under another name: ``<kind>_<n>_steps<suffix>``."""
+    return checkpoint.with_name(f"{kind}_{checkpoint.stem.removeprefix('ppo_')}{suffix}")
+
+
 def curriculum_state_beside(checkpoint: Path) -> Path | None:
     """The curriculum levels saved with a checkpoint (ppo_<n>_steps.zip -> curriculum_<n>_steps.json)."""
-    path = checkpoint.with_name("curriculum_" + checkpoint.stem.removeprefix("ppo_") + ".json")
+    path = _saved_beside(checkpoint, "curriculum", ".json")
     return path if checkpoint.stem.startswith("ppo_") and path.is_file() else None
 
 
@@ -384,7 +389,7 @@ def evaluation_kwargs(env_kwargs: dict) -> dict:
 
 def _amp_state_candidates(checkpoint: Path) -> list[Path]:
     """Where the AMP state saved with a checkpoint lies (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
-    own = [checkpoint.with_name("amp_" + checkpoint.stem.removeprefix("ppo_") + ".pt")]
+    own = [_saved_beside(checkpoint, "amp", ".pt")]
     return (own if checkpoint.stem.startswith("ppo_") else []) + [checkpoint.parent / "amp.pt"]
 
 
