@@ -8,6 +8,7 @@ Examples::
     python baselines/evaluate.py --policy runs/ppo/model.zip --env InterLevel-v0 --csv out.csv
     python baselines/evaluate.py --policy SAC:runs/sac/model.zip --env-kwarg pd_gains=stiff
     python baselines/evaluate.py --policy policy.npz --paper-heights --gait   # + gait columns
+    python baselines/evaluate.py --policy policy.npz --paper-heights --num-envs 32   # 32 worlds side by side
 
 A model path is loaded with ``stable_baselines3.PPO.load`` (``ALGO:path`` for another
 algorithm); a ``vecnormalize.pkl`` beside it normalises the observations.
@@ -51,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--gait", action="store_true",
                         help="also record foot contacts and report alternating feet, touchdowns per tread, "
                              "hops, crawling and sliding")
+    parser.add_argument("--num-envs", type=int, default=1,
+                        help="run the episodes on this many worlds of the batched env side by side (physics on "
+                             "every core); 1 = one episode after another (default: %(default)s)")
     parser.add_argument("--compare-paper", action="store_true", help="also print the published numbers")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -74,6 +78,7 @@ def main(argv: list[str] | None = None) -> int:
             max_episode_steps=args.max_episode_steps,
             label=args.label,
             gait=args.gait,
+            num_envs=args.num_envs,
         )
     except ValueError as error:
         parser.error(str(error))

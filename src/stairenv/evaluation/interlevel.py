@@ -264,44 +264,104 @@ def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
     return bins
 
 
+class _EpisodeTracker:
+    """One evaluation episode's bookkeeping, fed its reset and then each step (one home for what the
+    sequential and the batched evaluation record)."""
+
+    def __init__(self, index: int, seed: int, fixed_height: float | None, info: dict[str, Any],
+                 recorder: GaitRecorder | None = None, data: Any = None) -> None:
+        self.index, self.seed, self.fixed_height = index, seed, fixed_height
+        self.recorder, self.data = recorder, data
+        self.num_steps = int(info["stairs"]["num_steps"]) if recorder is not None else None
+        self.step_height = float(info["stairs"]["step_height"])
+        self.best = float(info["progress"])
+        self.success, self.success_time = False, None
+        self.fell = self.unstable = self.truncated = False
+        self.steps, self.episode_return = 0, 0.0
+        if recorder is not None:  # the env's MuJoCo state, read after the reset and every stable step
+            recorder.reset()
+            recorder.record(data)
+
+    def update(self, reward: float, terminated: bool, truncated: bool, info: dict[str, Any]) -> bool:
+        """Record one step; True when it ended the episode."""
+        self.steps += 1
+        self.episode_return += float(reward)
+        self.unstable = bool(info.get("physics_unstable", False))
+        if not self.unstable:  # an unstable step reports no valid progress
+            self.best = max(self.best, float(info["progress"]))
+            if self.recorder is not None:
+                self.recorder.record(self.data)
+        if info.get("success") and not self.success:
+            self.success, self.success_time = True, float(info["time"])
+        if terminated or truncated:
+            self.fell, self.truncated = bool(info.get("fell", False)), bool(truncated)
+            return True
+        return False
+
+    def result(self, dt: float | None) -> EpisodeResult:
+        gait = summarize(self.recorder.trace(dt, self.num_steps)) if self.recorder is not None else None
+        return EpisodeResult(
+            index=self.index, seed=self.seed, step_height=self.step_height, fixed_height=self.fixed_height,
+            progress=self.best, fell=self.fell, success=self.success, time=self.success_time,
+            physics_unstable=self.unstable, truncated=self.truncated, steps=self.steps,
+            episode_return=self.episode_return, gait=gait,
+        )
+
+
 def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_height: float | None,
                  recorder: GaitRecorder | None = None) -> EpisodeResult:
     if callable(getattr(policy, "reset", None)):
         policy.reset(seed)
     obs, info = env.reset(seed=seed)
-    if recorder is not None:  # the env's MuJoCo state, read after the reset and every stable step
-        data, num_steps = env.unwrapped.data, int(info["stairs"]["num_steps"])
-        recorder.reset()
-        recorder.record(data)
-    step_height = float(info["stairs"]["step_height"])
-    best = float(info["progress"])
-    success, success_time = False, None
-    fell = unstable = truncated = False
-    steps, episode_return = 0, 0.0
+    data = env.unwrapped.data if recorder is not None else None
+    tracker = _EpisodeTracker(index, seed, fixed_height, info, recorder, data)
     while True:
-        action = np.asarray(policy(obs))
-        obs, reward, terminated, truncated, info = env.step(action)
-        steps += 1
-        episode_return += float(reward)
-        unstable = bool(info.get("physics_unstable", False))
-        if not unstable:  # an unstable step reports no valid progress
-            best = max(best, float(info["progress"]))
-            if recorder is not None:
-                recorder.record(data)
-        if info.get("success") and not success:
-            success, success_time = True, float(info["time"])
-        if terminated or truncated:
-            fell = bool(info.get("fell", False))
-            break
-    gait = None
-    if recorder is not None:
-        gait = summarize(recorder.trace(env.unwrapped.dt, num_steps))
-    return EpisodeResult(
-        index=index, seed=seed, step_height=step_height, fixed_height=fixed_height,
-        progress=best, fell=fell, success=success, time=success_time,
-        physics_unstable=unstable, truncated=bool(truncated), steps=steps, episode_return=episode_return,
-        gait=gait,
-    )
+        obs, reward, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+        if tracker.update(reward, terminated, truncated, info):
+            return tracker.result(env.unwrapped.dt if recorder is not None else None)
+
+
+def _batch_actions(policy: Policy, obs: np.ndarray, action_shape: tuple[int, ...]) -> np.ndarray:
+    """The policy's actions for a batch of observations: one call where the policy takes a batch
+    (returns ``(N, *action_shape)``), else one call per row."""
+    actions = np.asarray(policy(obs))
+    if actions.shape == (len(obs), *action_shape):
+        return actions
+    return np.stack([np.asarray(policy(row)) for row in obs])
+
+
+def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], fixed_height: float | None,
+                 gait: bool, on_result: Any) -> None:
+    """Run ``episodes`` ((index, seed) pairs) on the worlds of the batched env ``vec``: each world
+    takes the next episode when its last one ends (reset with that episode's seed, as the sequential
+    evaluation does); worlds left without an episode step on, unrecorded, until all are done."""
+    n = vec.num_envs
+    pending = list(episodes)
+    first = pending[:n]
+    del pending[:n]
+    obs, _ = vec.reset(seed=[seed for _, seed in first] + [None] * (n - len(first)))
+    recorders = [GaitRecorder(env.model) for env in vec.envs] if gait else [None] * n
+    trackers: list[_EpisodeTracker | None] = [None] * n
+
+    def start(k: int, index: int, seed: int, info: dict[str, Any]) -> None:
+        trackers[k] = _EpisodeTracker(index, seed, fixed_height, info, recorders[k], vec.envs[k].data)
+
+    for k, (index, seed) in enumerate(first):    # the reset's info per world, as the single env gives it
+        obs[k], info = vec.reset_world(k, seed=seed)
+        start(k, index, seed, info)
+    action_shape = vec.single_action_space.shape
+    dt = vec.envs[0].dt
+    while any(tracker is not None for tracker in trackers):
+        obs, rewards, terminated, truncated, infos = vec.step_worlds(_batch_actions(policy, obs, action_shape))
+        for k, tracker in enumerate(trackers):
+            if tracker is None or not tracker.update(rewards[k], terminated[k], truncated[k], infos[k]):
+                continue
+            on_result(tracker.result(dt))
+            trackers[k] = None
+            if pending:
+                index, seed = pending.pop(0)
+                obs[k], info = vec.reset_world(k, seed=seed)
+                start(k, index, seed, info)
 
 
 def evaluate(
@@ -316,6 +376,7 @@ def evaluate(
     label: str | None = None,
     height_bins: Sequence[float] | None = HEIGHT_BIN_EDGES,
     gait: bool = False,
+    num_envs: int = 1,
 ) -> EvaluationReport:
     """Run ``policy`` for ``episodes`` episodes (per step height) and compute the paper's metrics.
 
@@ -332,9 +393,18 @@ def evaluate(
     | label | None | the Method column; None = the policy spec string or the callable's name |
     | height_bins | (0.075, 0.125, 0.175) | interior bin edges (m) grouping random heights; None or () for no bins |
     | gait | False | also record foot contacts and add the gait columns (:data:`GAIT_LAYOUT`) |
+    | num_envs | 1 | worlds of the env's batched vector env that run the episodes side by side (physics on every core, the policy called on the batch); 1 = one env, episode after episode |
 
     If ``policy`` has a ``reset(seed)`` method it is called with each episode's seed
-    before the episode (:class:`~stairenv.evaluation.policies.RandomPolicy` reseeds itself).
+    before the episode (:class:`~stairenv.evaluation.policies.RandomPolicy` reseeds itself);
+    such a policy is always run one episode at a time.
+
+    With ``num_envs`` > 1 the same episodes (same seeds, same staircases) run on the worlds of
+    ``gym.make_vec(env_id, vectorization_mode="vector_entry_point")``, each world taking the next
+    episode when its last one ends; a world's physics is bit-identical to the single env's. The
+    policy is called on the whole batch (row by row if it does not take a batch), and a network's
+    batched matrix products may round differently from one observation's in the last bits, so a
+    chaotic episode (a stumble) can end differently; the metrics agree within sampling noise.
 
     Per episode: the highest ``info["progress"]``, whether it ended by a fall
     (``info["fell"]``), success (``info["success"]``) and the first success's
@@ -357,6 +427,8 @@ def evaluate(
         isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1
     ):
         raise ValueError(f"max_episode_steps must be None or an integer >= 1, got {max_episode_steps!r}")
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
     if not isinstance(policy, (str, os.PathLike)) and not callable(policy):
         raise ValueError(f"policy must be a callable (obs -> action) or a policy spec string, got {policy!r}")
     if env_id not in gym.registry:
@@ -390,6 +462,13 @@ def evaluate(
             kwargs["step_height_set"] = (fixed,)
         return gym.make(env_id, **make_kwargs, **kwargs)
 
+    def make_vec(fixed: float | None) -> gym.vector.VectorEnv:
+        kwargs = dict(env_kwargs)
+        if fixed is not None:
+            kwargs["step_height_set"] = (fixed,)
+        return gym.make_vec(env_id, num_envs=min(int(num_envs), episodes), vectorization_mode="vector_entry_point",
+                            **make_kwargs, **kwargs)
+
     label = label or policy_label(policy)
     # The first env is made (and a policy spec loaded) before the bar starts, so
     # that bad keywords or specs fail with a clean error.
@@ -401,25 +480,40 @@ def evaluate(
         env.close()
         raise
 
+    # a policy that reseeds itself per episode keeps the sequential order its seeds assume
+    batched = num_envs > 1 and not callable(getattr(policy, "reset", None))
     results: list[EpisodeResult] = []
     bar = tqdm(total=episodes * len(plan), desc=f"{label} on {env_id}", unit="ep", disable=not progress_bar)
     try:
         for k, fixed in enumerate(plan):
-            if k > 0:
+            if batched:
+                env.close()
+                env = make_vec(fixed)
+            elif k > 0:
                 env = make_env(fixed)
+            group: list[EpisodeResult] = []
+
+            def done(result: EpisodeResult) -> None:
+                group.append(result)
+                bar.update(1)
+                done_so_far = results + group
+                if len(done_so_far) % 10 == 0 or len(done_so_far) == bar.total:
+                    bar.set_postfix(
+                        progress=f"{100 * np.mean([e.progress for e in done_so_far]):.1f}%",
+                        et=f"{100 * np.mean([e.fell for e in done_so_far]):.0f}%",
+                        ok=sum(e.success for e in done_so_far),
+                    )
+
             try:
-                recorder = GaitRecorder(env.unwrapped.model) if gait else None
-                for i in range(episodes):
-                    results.append(_run_episode(env, policy, seed + i, i, fixed, recorder))
-                    bar.update(1)
-                    if len(results) % 10 == 0 or len(results) == bar.total:
-                        bar.set_postfix(
-                            progress=f"{100 * np.mean([e.progress for e in results]):.1f}%",
-                            et=f"{100 * np.mean([e.fell for e in results]):.0f}%",
-                            ok=sum(e.success for e in results),
-                        )
+                if batched:
+                    _run_batched(env, policy, [(i, seed + i) for i in range(episodes)], fixed, gait, done)
+                else:
+                    recorder = GaitRecorder(env.unwrapped.model) if gait else None
+                    for i in range(episodes):
+                        done(_run_episode(env, policy, seed + i, i, fixed, recorder))
             finally:
                 env.close()
+            results.extend(sorted(group, key=lambda e: e.index))
     finally:
         bar.close()
 
@@ -437,7 +531,8 @@ def evaluate(
     groups = [g for g, _ in grouped]
     rows = [group_row(label, env_id, g) for g in groups]
     meta = {"label": label, "env_id": env_id, "seed": int(seed), "episodes_per_group": int(episodes),
-            "step_heights": heights, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps}
+            "step_heights": heights, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
+            "num_envs": int(num_envs) if batched else 1}
     if gait:
         for row, (_, members) in zip(rows, grouped):
             row.update(gait_columns([e.gait for e in members], [e.success for e in members]))
