@@ -217,3 +217,19 @@ def test_train_ppo_restores_levels_and_refuses_bad_files(baseline_script, tmp_pa
               "step_height": (0.02, 0.2), "target_speed": 0.8}
     assert train.evaluation_kwargs(kwargs) == {"target_speed": 0.8}
     assert train.evaluation_kwargs({"step_height": (0.1, 0.2)}) == {"step_height": (0.1, 0.2)}
+
+
+@pytest.mark.parametrize("recipe", sorted((SCRIPT.parent / "recipes").glob("*.toml")), ids=lambda p: p.stem)
+def test_recipes_parse_and_build_their_env(recipe, baseline_script):
+    """Every shipped recipe is a valid --config: known keys, and env keywords the env accepts."""
+    import gymnasium as gym
+
+    train_ppo = baseline_script("train_ppo")
+    args = train_ppo.parse_args(["--config", str(recipe)])
+    env_kwargs = dict(args.env_kwarg)
+    assert args.env in gym.registry and env_kwargs
+    env = gym.make(args.env, **env_kwargs)
+    env.reset(seed=0)
+    env.close()
+    # what the final evaluation keeps: no training aid
+    assert not set(train_ppo.evaluation_kwargs(env_kwargs)) & set(train_ppo.TRAINING_AIDS)
