@@ -19,6 +19,7 @@ CASES = {
     "bench_planning": ["--rounds", "1", "--no-nx-full", "--crop", "60"],
     "bench_retrieval": ["--rooms", "20", "--stories", "1"],
     "bench_saturated": ["--steps", "30", "--ids", "InterLevel-v0,SIMS-Lie-v0"],
+    "bench_evaluate": ["--episodes", "1", "--num-envs", "2", "--rounds", "1"],
     "bench_vector": ["--ids", "InterLevel-v0", "--n-envs", "2", "--steps", "5", "--rounds", "1"],
     "bench_train": ["--default-steps", "256", "--paper-steps", "256", "--rounds", "1",
                     "--extra", "--n-envs 2 --n-steps 64 --batch-size 64"],
