@@ -9,6 +9,10 @@ batch), and prints episodes per second of each and their ratio, then the median,
 ratio over rounds. Both runs play the same episodes (seeds and staircases); with an MLP policy a
 chaotic episode can end differently (the batch's matrix products round differently), so the
 progress and early-termination rates of the two are printed beside the timings.
+
+Idle 2-core machine, the shipped policy: ``--episodes 48 --num-envs 16 --rounds 1``: 5.35 against
+6.05 episodes/s, 1.13x; ``--episodes 8 --num-envs 32 --rounds 2``: 0.94x and 1.04x (8 worlds per
+height: the batch lasts as long as its longest episode, and worlds without an episode left still step).
 """
 
 from __future__ import annotations
