@@ -339,6 +339,8 @@ def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], 
     pending = list(episodes)
     first = pending[:n]
     del pending[:n]
+    # the vector env wants one full reset before it steps; each world's own reset below gives its info
+    # dict as the single env does (the vector reset's infos are stacked), at the cost of n extra resets
     obs, _ = vec.reset(seed=[seed for _, seed in first] + [None] * (n - len(first)))
     recorders = [GaitRecorder(env.model) for env in vec.envs] if gait else [None] * n
     trackers: list[_EpisodeTracker | None] = [None] * n
