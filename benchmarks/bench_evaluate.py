@@ -20,9 +20,11 @@ from __future__ import annotations
 import argparse
 import time
 
+import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the ids)
+from stairenv.__main__ import resolve_policy
 from stairenv.evaluation.interlevel import PAPER_STEP_HEIGHTS, evaluate
 from stairenv.evaluation.policies import load_policy
 
@@ -45,16 +47,9 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=900000)
     args = parser.parse_args()
 
-    import gymnasium as gym
-
-    from stairenv.pretrained import load
-
-    if args.policy == "pretrained":
-        policy = load("InterLevel-v0")
-    else:    # loaded once: both runs call the same object
-        env = gym.make("InterLevel-v0")
-        policy = load_policy(args.policy, env)
-        env.close()
+    env = gym.make("InterLevel-v0")
+    policy = load_policy(resolve_policy(args.policy, "InterLevel-v0")[0], env)    # one object for both runs
+    env.close()
     timed(policy, 1, min(2, args.num_envs), args.seed)    # compile the JIT kernels outside the timings
     ratios = []
     for r in range(args.rounds):

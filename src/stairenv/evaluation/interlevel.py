@@ -458,18 +458,15 @@ def evaluate(
 
     from tqdm.auto import tqdm
 
+    def kwargs_for(fixed: float | None) -> dict[str, Any]:
+        return {**make_kwargs, **env_kwargs, **({"step_height_set": (fixed,)} if fixed is not None else {})}
+
     def make_env(fixed: float | None) -> gym.Env:
-        kwargs = dict(env_kwargs)
-        if fixed is not None:
-            kwargs["step_height_set"] = (fixed,)
-        return gym.make(env_id, **make_kwargs, **kwargs)
+        return gym.make(env_id, **kwargs_for(fixed))
 
     def make_vec(fixed: float | None) -> gym.vector.VectorEnv:
-        kwargs = dict(env_kwargs)
-        if fixed is not None:
-            kwargs["step_height_set"] = (fixed,)
         return gym.make_vec(env_id, num_envs=min(int(num_envs), episodes), vectorization_mode="vector_entry_point",
-                            **make_kwargs, **kwargs)
+                            **kwargs_for(fixed))
 
     label = label or policy_label(policy)
     # The first env is made (and a policy spec loaded) before the bar starts, so
