@@ -238,3 +238,100 @@ def test_interlevel_batch_evaluation_equals_per_world_finish():
         runs.append([vec.step(rng.uniform(-1, 1, (4, 28))) for _ in range(40)])
     assert_same(runs[0], runs[1])
     assert batched("PlaMo-v0", 1).batch_evaluation is False
+
+
+@pytest.mark.parametrize("env_id", ["InterLevel-v0", "SIMS-Sit-v0"])
+def test_same_step_autoreset_equals_sync_vector_env(env_id):
+    """``autoreset_mode=SAME_STEP``: the reset inside the step that ends an episode (for InterLevel in the
+    batch-first finish, for SIMS after the per-world finish) against SyncVectorEnv's SAME_STEP; exact,
+    final_obs and final_info included."""
+    same_step = gym.vector.AutoresetMode.SAME_STEP
+    n = 3
+    vec = batched(env_id, n, max_episode_steps=12, autoreset_mode=same_step)
+    assert vec.metadata["autoreset_mode"] == same_step
+    ref = gym.make_vec(env_id, num_envs=n, vectorization_mode="sync", max_episode_steps=12,
+                       vector_kwargs={"autoreset_mode": same_step})
+    assert_same(vec.reset(seed=5), ref.reset(seed=5), "reset")
+    rng = np.random.default_rng(2)
+    ends = 0
+    for t in range(40):
+        action = rng.uniform(-1, 1, (n, 28))
+        got, want = vec.step(action), ref.step(action)
+        assert_same(got, want, f"step {t}")
+        ends += int(np.sum(got[2] | got[3]))
+        if (got[2] | got[3]).any():
+            assert got[4]["_final_obs"].tolist() == (got[2] | got[3]).tolist()
+    assert ends >= n
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        batched(env_id, 1, autoreset_mode="partial")
+
+
+def test_sb3_adapter_equals_dummy_vec_env():
+    """The adapter (ended worlds reset inside the step) against SB3's DummyVecEnv over single envs."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+    from gymnasium.wrappers import TimeLimit
+    n = 3
+    venv = make_sb3_vec_env("InterLevel-v0", n, seed=9, max_episode_steps=10)
+    ref = DummyVecEnv([lambda: TimeLimit(gym.make("InterLevel-v0").unwrapped, 10) for _ in range(n)])
+    ref.seed(9)
+    assert_same(venv.reset(), ref.reset())
+    rng = np.random.default_rng(0)
+    for t in range(25):
+        action = rng.uniform(-1, 1, (n, 28)).astype(np.float32)
+        obs, reward, dones, infos = venv.step(action)
+        obs_r, reward_r, dones_r, infos_r = ref.step(action)
+        assert_same((obs, reward, dones), (obs_r, reward_r, dones_r), f"step {t}")
+        for info, info_r in zip(infos, infos_r):
+            assert info.keys() == info_r.keys(), f"step {t}"
+            for key in ("terminal_observation", "TimeLimit.truncated", "progress", "amp_obs"):
+                if key in info:
+                    assert_same(info[key], info_r[key], f"step {t} {key}")
+    assert venv.reset_infos[0].keys() == ref.reset_infos[0].keys()
+
+
+
+@pytest.mark.parametrize("backend", [SerialPhysics(), ThreadPoolPhysics(2), ThreadPoolPhysics(3, group=2)])
+def test_batch_physics_callbacks(backend):
+    """``then`` once per world after its physics, ``meanwhile`` once, ``collect`` after ``meanwhile`` with
+    every world exactly once, in groups of at least ``group`` (the last may be smaller)."""
+    vec = batched("InterLevel-v0", 7)
+    vec.reset(seed=0)
+    worlds = [(env.model, env.data) for env in vec.envs]
+    times = [data.time for _, data in worlds]
+    thens, groups, order = [], [], []
+    backend.step(worlds, 8, then=lambda k: thens.append((k, worlds[k][1].time > times[k])),
+                 meanwhile=lambda: order.append("meanwhile"),
+                 collect=lambda ks: (groups.append(list(ks)), order.append("collect")))
+    assert sorted(k for k, _ in thens) == list(range(7)) and all(stepped for _, stepped in thens)
+    assert sorted(k for group in groups for k in group) == list(range(7))
+    assert order[0] == "meanwhile" and order.count("meanwhile") == 1
+    if isinstance(backend, ThreadPoolPhysics):
+        least = backend.group or max(1, 7 // 8)
+        assert all(len(group) >= least for group in groups[:-1])
+
+
+def test_thread_pool_raises_a_failure_without_hanging():
+    """A failing ``then`` (in a physics thread) or ``collect`` (in the caller) is raised by ``step``
+    once every thread is done; the pool then steps the next batch."""
+    vec = batched("InterLevel-v0", 6)
+    vec.reset(seed=0)
+    worlds = [(env.model, env.data) for env in vec.envs]
+    pool = ThreadPoolPhysics(2, group=1)
+
+    def bad_then(k):
+        if k == 3:
+            raise RuntimeError("then failed")
+
+    with pytest.raises(RuntimeError, match="then failed"):
+        pool.step(worlds, 1, then=bad_then, collect=lambda ks: None)
+
+    def bad_collect(ks):
+        raise RuntimeError("collect failed")
+
+    with pytest.raises(RuntimeError, match="collect failed"):
+        pool.step(worlds, 1, collect=bad_collect)
+    seen = []
+    pool.step(worlds, 1, collect=seen.extend)
+    assert sorted(seen) == list(range(6))
+    with pytest.raises(ValueError, match="group"):
+        ThreadPoolPhysics(2, group=0)

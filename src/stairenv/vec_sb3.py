@@ -49,14 +49,15 @@ class SB3BatchedVecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
         actions, self._actions = self._actions, None
-        obs, rewards, terminated, truncated, infos = self.venv.step_worlds(actions)
+        # ended worlds are reset inside the step, while the other worlds' physics runs
+        obs, rewards, terminated, truncated, infos, finals = self.venv.step_worlds(actions, reset_ended=True)
         infos = [dict(info) for info in infos]
         dones = terminated | truncated
         for i in range(self.num_envs):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-            if dones[i]:
-                infos[i]["terminal_observation"] = obs[i].copy()
-                obs[i], self.reset_infos[i] = self.venv.reset_world(i)
+        for i, (final_obs, reset_info) in finals.items():
+            infos[i]["terminal_observation"] = final_obs
+            self.reset_infos[i] = reset_info
         return obs, rewards.astype(np.float32), dones, infos
 
     def close(self) -> None:

@@ -1,23 +1,30 @@
 """The physics of many worlds in one call: the one interface a batched env steps its worlds through.
 
-``BatchPhysics.step(worlds, nstep, then, meanwhile)`` advances every ``(model, data)`` of ``worlds`` by
-``nstep`` physics steps and calls ``then(k)`` for the k-th world once its physics is done, and
-``meanwhile()`` once in the calling thread while the physics runs (work on other worlds: the batched
-env resets there the worlds whose episode ended, which ``worlds`` does not hold). Each world keeps its
-own ``MjModel`` (InterLevel writes its staircase into it) and ``MjData`` (its warm start included), so a
-world stepped here is bit-identical to the same world stepped alone by ``mujoco.mj_step``.
+``BatchPhysics.step(worlds, nstep, then, meanwhile, collect)`` advances every ``(model, data)`` of
+``worlds`` by ``nstep`` physics steps. Around the physics, three optional callbacks let the batched env
+do its Python work while the physics runs:
 
-``then`` is where the batched env finishes a world's step (divergence check, evaluation). An
-implementation may call it from any thread and in any order, but once per world and only after that
-world's physics; ``step`` returns when every ``then`` and ``meanwhile`` has returned. A GPU back-end
-(MuJoCo Warp) would launch the whole batch, run ``meanwhile``, then call ``then`` for each world; ``ThreadPoolPhysics`` calls it in the
-worker thread right after the world's ``mj_step``, so that one world's Python-side finish overlaps
-other worlds' physics (``mj_step`` releases the GIL).
+- ``then(k)``: once per world, right after that world's physics, from any thread (the per-world
+  finish of envs without a batch evaluation: its Python overlaps other worlds' physics);
+- ``meanwhile()``: once, in the calling thread, while the physics runs; it must not wait for the
+  physics (the batched env resets there the worlds whose episode ended, which ``worlds`` does not hold);
+- ``collect(ks)``: in the calling thread, after ``meanwhile``, with lists of worlds whose physics (and
+  ``then``) is done, each world in exactly one list; it may run while other worlds' physics still runs
+  (the batched env evaluates the task over each list in one call, so that evaluation overlaps the
+  physics of the worlds still stepping).
+
+``step`` returns when every callback has returned. Each world keeps its own ``MjModel`` (InterLevel
+writes its staircase into it) and ``MjData`` (its warm start included), so a world stepped here is
+bit-identical to the same world stepped alone by ``mujoco.mj_step``. A GPU back-end (MuJoCo Warp)
+would launch the whole batch, run ``meanwhile``, then call ``then`` for each world and ``collect`` once
+with all of them.
 """
 
 from __future__ import annotations
 
+import itertools
 import os
+import queue
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -32,7 +39,8 @@ class BatchPhysics(Protocol):
     """Steps a batch of worlds (see the module docstring)."""
 
     def step(self, worlds: Sequence[World], nstep: int, then: Callable[[int], None] | None = None,
-             meanwhile: Callable[[], None] | None = None) -> None:
+             meanwhile: Callable[[], None] | None = None,
+             collect: Callable[[list[int]], None] | None = None) -> None:
         ...
 
     def close(self) -> None:
@@ -43,55 +51,90 @@ class SerialPhysics:
     """One world after the other in the calling thread (the reference; one core)."""
 
     def step(self, worlds: Sequence[World], nstep: int, then: Callable[[int], None] | None = None,
-             meanwhile: Callable[[], None] | None = None) -> None:
+             meanwhile: Callable[[], None] | None = None,
+             collect: Callable[[list[int]], None] | None = None) -> None:
         if meanwhile is not None:
             meanwhile()
         for k, (model, data) in enumerate(worlds):
             mujoco.mj_step(model, data, nstep)
             if then is not None:
                 then(k)
+        if collect is not None and worlds:
+            collect(list(range(len(worlds))))
 
     def close(self) -> None:
         pass
 
 
 class ThreadPoolPhysics:
-    """A persistent pool of ``nthread`` threads (default ``os.cpu_count()``), each running
-    ``mujoco.mj_step(model, data, nstep)`` (GIL released) over its contiguous share of the worlds, and
-    ``then`` after each world."""
+    """A persistent pool of ``nthread`` threads (default ``os.cpu_count()``) that take the worlds one at a
+    time, in order, from a shared counter (worlds differ in cost: a fallen character's contacts cost
+    three times a standing one's, so fixed shares leave a thread idle) and run
+    ``mujoco.mj_step(model, data, nstep)`` (GIL released) and ``then``. The calling thread runs
+    ``meanwhile``, then ``collect`` over the finished worlds in groups of at least ``group`` worlds
+    (default an eighth of the batch; the last group may be smaller), while the pool steps the rest."""
 
-    def __init__(self, nthread: int | None = None) -> None:
+    def __init__(self, nthread: int | None = None, group: int | None = None) -> None:
         self.nthread = max(1, int(nthread or os.cpu_count() or 1))
+        if group is not None and (isinstance(group, bool) or not isinstance(group, int) or group < 1):
+            raise ValueError(f"group must be None or a positive integer, got {group!r}")
+        self.group = group
         self._pool = ThreadPoolExecutor(self.nthread, thread_name_prefix="stairenv-physics") \
             if self.nthread > 1 else None
         self._lock = threading.Lock()
 
     def step(self, worlds: Sequence[World], nstep: int, then: Callable[[int], None] | None = None,
-             meanwhile: Callable[[], None] | None = None) -> None:
-        if self._pool is None or len(worlds) < 2:
-            SerialPhysics().step(worlds, nstep, then, meanwhile)
-            return
-
-        def share(start: int, stop: int) -> None:
-            for k in range(start, stop):
-                model, data = worlds[k]
-                mujoco.mj_step(model, data, nstep)
-                if then is not None:
-                    then(k)
-
+             meanwhile: Callable[[], None] | None = None,
+             collect: Callable[[list[int]], None] | None = None) -> None:
         n = len(worlds)
-        parts = min(self.nthread, n)
-        bounds = [n * p // parts for p in range(parts + 1)]
+        if self._pool is None or n < 2:
+            SerialPhysics().step(worlds, nstep, then, meanwhile, collect)
+            return
+        claims = itertools.count()    # next() is atomic under the GIL
+        done: queue.SimpleQueue[int | None] = queue.SimpleQueue()
+
+        def work() -> None:
+            try:
+                while (k := next(claims)) < n:
+                    model, data = worlds[k]
+                    mujoco.mj_step(model, data, nstep)
+                    if then is not None:
+                        then(k)
+                    done.put(k)
+            except BaseException:
+                done.put(None)    # wakes the collecting caller, which then re-raises
+                raise
+
         with self._lock:    # one batch at a time per pool
-            futures = [self._pool.submit(share, bounds[p], bounds[p + 1]) for p in range(parts)]
+            futures = [self._pool.submit(work) for _ in range(min(self.nthread, n))]
             try:
                 if meanwhile is not None:
                     meanwhile()
+                if collect is not None:
+                    self._collect(done, n, collect)
             finally:
                 for future in futures:
                     future.exception()    # all done before anything is raised
             for future in futures:
                 future.result()    # re-raises a worker's exception
+
+    def _collect(self, done: queue.SimpleQueue, n: int, collect: Callable[[list[int]], None]) -> None:
+        group = self.group or max(1, n // 8)
+        remaining, pending = n, []
+        while remaining:
+            k = done.get()
+            while k is not None:
+                pending.append(k)
+                try:
+                    k = done.get_nowait()
+                except queue.Empty:
+                    break
+            if k is None:
+                return    # a worker failed: step re-raises its exception
+            if len(pending) >= min(group, remaining):
+                remaining -= len(pending)
+                collect(pending)
+                pending = []
 
     def close(self) -> None:
         if self._pool is not None:

@@ -8,29 +8,33 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 1. every world's action checked first (shape, NaN/inf: ``ValueError`` naming the world's index),
    nothing applied if one is bad;
 2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
-3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a thread pool of
-   ``os.cpu_count()`` threads calling ``mujoco.mj_step``, GIL released); meanwhile, in the calling
-   thread, the worlds whose episode ended at the last step are reset (autoreset);
-4. the finish (the divergence and speed check, ``_evaluate``, the style features, ``info``): for
-   InterLevel (``BATCH_EVALUATION``) over the batch, ``HumanoidEnv._finish_worlds``: the speeds of all
-   worlds checked at once, the stable worlds' state read as one batch (``read_states``), the task in
-   one compiled call (``InterLevelEnv._evaluate_worlds``, which the single env calls with one world)
-   and the style features in one; for the other envs ``_finish_step`` per world, right after its
-   physics, in the physics thread. Either way the code of the single env's ``step``, so a world's
-   trajectory is bit-identical to a single env's with the same seed.
+3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
+   ``os.cpu_count()`` threads taking the worlds one at a time and calling ``mujoco.mj_step``, GIL
+   released). Meanwhile, in the calling thread: the worlds whose episode ended at the last step are
+   reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
+   steps the rest (``collect``): the divergence and speed check, ``_evaluate``, the style features,
+   ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
+   For InterLevel (``BATCH_EVALUATION``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
+   the speeds checked at once, the stable worlds' state read as one batch (``read_states``), the task
+   in one compiled call (``InterLevelEnv._evaluate_worlds``, which the single env calls with one world)
+   and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
+   right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
+   is bit-identical to a single env's with the same seed.
 
 Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
-PlaMo, PlaMoScene and SIMS the whole finish (overlapping other worlds' physics); for InterLevel the
-divergence check's time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``.
-Batched: the action checks, the physics, InterLevel's evaluation, the assembly of obs / reward /
-flags / info.
+PlaMo, PlaMoScene and SIMS the whole finish; for InterLevel the divergence check's time and warning
+counts, ``mj_kinematics``, the reward terms' dicts and ``info``. Batched: the action checks, the
+physics, InterLevel's evaluation, the assembly of obs / reward / flags / info.
 
-Autoreset follows Gymnasium 1.x's default ``AutoresetMode.NEXT_STEP``: the step after a world's
+Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
-truncated False (its action is ignored). The episode limit (``max_episode_steps``, the registration's
-TimeLimit) truncates in the vector env. A world whose physics blows up is truncated alone, with
-``info["physics_unstable"]`` set for it. ``info`` is a dict of arrays with ``_key`` masks, as
-``SyncVectorEnv`` gives. ``reset(seed=s)`` seeds world i with ``s + i`` (as ``SyncVectorEnv``).
+truncated False; its action is ignored); ``autoreset_mode=AutoresetMode.SAME_STEP`` resets it within
+the step that ends it (the reset observation returned, the ended step's in ``info["final_obs"]``, its
+info in ``info["final_info"]``, as ``SyncVectorEnv`` gives; the SB3 adapter uses this). The episode
+limit (``max_episode_steps``, the registration's TimeLimit) truncates in the vector env. A world whose
+physics blows up is truncated alone, with ``info["physics_unstable"]`` set for it. ``info`` is a dict
+of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives. ``reset(seed=s)`` seeds world i with
+``s + i`` (as ``SyncVectorEnv``).
 """
 
 from __future__ import annotations
@@ -66,8 +70,12 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             raise TypeError("HumanoidVectorEnv needs env_class (or a subclass that sets it)")
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        if AutoresetMode(autoreset_mode) != AutoresetMode.NEXT_STEP:
-            raise ValueError(f"only AutoresetMode.NEXT_STEP is supported, got {autoreset_mode!r}")
+        try:
+            self.autoreset_mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            self.autoreset_mode = None
+        if self.autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be None or a positive integer, got {max_episode_steps!r}")
         self.num_envs = int(num_envs)
@@ -78,7 +86,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.single_action_space = first.action_space
         self.observation_space = batch_space(first.observation_space, self.num_envs)
         self.action_space = batch_space(first.action_space, self.num_envs)
-        self.metadata = {**first.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+        self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = first.render_mode
         self.physics = make_physics(physics, nthread)
         #: the task evaluated over the batch (``HumanoidEnv._finish_worlds``) where the env class can
@@ -115,12 +123,22 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         return obs, info
 
     def step(self, actions):
-        obs, rewards, terminated, truncated, infos = self.step_worlds(actions)
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        obs, rewards, terminated, truncated, infos, finals = self.step_worlds(actions, reset_ended=same_step)
+        for i, (final_obs, reset_info) in finals.items():    # SyncVectorEnv's SAME_STEP layout
+            infos[i] = {"final_obs": final_obs, "final_info": infos[i], **reset_info}
         return obs, rewards, terminated, truncated, self.batch_infos(infos)
 
     # --- the batch step ----------------------------------------------------------
-    def step_worlds(self, actions):
-        """``step`` with ``info`` as a list of per-world dicts (what the SB3 adapter hands on)."""
+    def step_worlds(self, actions, reset_ended: bool = False):
+        """``step`` with ``info`` as a list of per-world dicts, and a sixth result ``finals``.
+
+        ``reset_ended=False`` (``NEXT_STEP``): a world whose episode ended at the last step is reset now
+        (its action ignored, reward 0, flags False), while the other worlds' physics runs; ``finals`` is
+        empty. ``reset_ended=True`` (``SAME_STEP``, SB3's convention): a world whose episode ends in this
+        step is reset within it, as soon as its own step is finished (the other worlds' physics still
+        running); its row of ``obs`` is then the reset observation, ``infos[i]`` the ended step's info and
+        ``finals[i] = (the ended step's observation, the reset's info)``."""
         if not self._was_reset:
             raise gym.error.ResetNeeded("call reset() before step()")
         actions = self.check_actions(actions)
@@ -130,6 +148,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
         infos: list[dict[str, Any]] = [{}] * n
+        finals: dict[int, tuple[np.ndarray, dict[str, Any]]] = {}
         self._last_obs = obs
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset).tolist()
@@ -137,31 +156,39 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         for i in stepping:
             envs[i]._prepare_step(actions[i])
 
-        def reset_ended() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
+        def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             for i in resetting:
                 obs[i], infos[i] = self.reset_world(i)
 
         results = self._results
+        limit = self.max_episode_steps
+
+        def collect(ks: list[int]) -> None:    # in the calling thread, while other worlds' physics runs
+            if self.batch_evaluation:    # the task over this group of worlds in one call
+                for k, result in zip(ks, type(envs[0])._finish_worlds([envs[stepping[k]] for k in ks])):
+                    results[k] = result
+            for k in ks:
+                i = stepping[k]
+                obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
+                results[k] = None
+                self._elapsed[i] += 1
+                if limit is not None and self._elapsed[i] >= limit:
+                    truncated[i] = True
+                if terminated[i] or truncated[i]:
+                    if reset_ended:
+                        final_obs = obs[i].copy()
+                        obs[i], reset_info = self.reset_world(i)
+                        finals[i] = (final_obs, reset_info)
+                    else:
+                        self._autoreset[i] = True
+
+        def finish(k: int) -> None:    # per world, in the physics thread, right after its physics
+            results[k] = envs[stepping[k]]._finish_step()
+
         worlds = [(envs[i].model, envs[i].data) for i in stepping]
-        if self.batch_evaluation:    # physics of all (resets meanwhile), then the task over the batch in one call
-            self.physics.step(worlds, envs[0].frame_skip, meanwhile=reset_ended)
-            if stepping:
-                results[:len(stepping)] = type(envs[0])._finish_worlds([envs[i] for i in stepping])
-        else:                        # each world finished right after its physics, in the physics thread
-
-            def finish(k: int) -> None:
-                results[k] = envs[stepping[k]]._finish_step()
-
-            self.physics.step(worlds, envs[0].frame_skip, finish, reset_ended)
-        for k, i in enumerate(stepping):
-            obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
-            results[k] = None
-        if stepping:
-            self._elapsed[stepping] += 1
-            if self.max_episode_steps is not None:
-                truncated[stepping] |= self._elapsed[stepping] >= self.max_episode_steps
-            self._autoreset[stepping] = terminated[stepping] | truncated[stepping]
-        return obs.copy(), rewards, terminated, truncated, infos
+        self.physics.step(worlds, envs[0].frame_skip, None if self.batch_evaluation else finish,
+                          reset_ended_before, collect)
+        return obs.copy(), rewards, terminated, truncated, infos, finals
 
     def check_actions(self, actions) -> np.ndarray:
         """``actions`` as float64 (N, A); ``ValueError`` for a wrong shape or NaN/inf, naming the worlds."""

@@ -354,7 +354,7 @@ def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], 
     action_shape = vec.single_action_space.shape
     dt = vec.envs[0].dt
     while any(tracker is not None for tracker in trackers):
-        obs, rewards, terminated, truncated, infos = vec.step_worlds(_batch_actions(policy, obs, action_shape))
+        obs, rewards, terminated, truncated, infos, _ = vec.step_worlds(_batch_actions(policy, obs, action_shape))
         for k, tracker in enumerate(trackers):
             if tracker is None or not tracker.update(rewards[k], terminated[k], truncated[k], infos[k]):
                 continue
