@@ -12,8 +12,8 @@
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
-(``docs/reproducing.md``): the natively batched env (``--vec-env batched``, 64 worlds, physics on
-every core), MLP [256, 256] ReLU for policy and value, rollouts of 32 steps per world (2,048
+(``docs/reproducing.md``): the natively batched env (``--vec-env batched``, 128 worlds, physics on
+every core), MLP [256, 256] ReLU for policy and value, rollouts of 16 steps per world (2,048
 samples), minibatch 1024, 5 epochs, learning rate 1e-4 (``--target-kl`` adapts it to a KL target
 instead), initial action std 0.135 (``--log-std-init -2``), one torch thread, gradient-norm clip
 1.0, entropy 0, gamma 0.99, observation and return normalisation (VecNormalize). Style: the AMP
@@ -98,7 +98,7 @@ from stairenv.vec_sb3 import make_sb3_vec_env
 # The defaults: the fastest settings measured to learn on a 2-core CPU (docs/reproducing.md).
 PPO_DEFAULTS = {
     "learning_rate": 1e-4,
-    "n_steps": 32,
+    "n_steps": 16,
     "batch_size": 1024,
     "n_epochs": 5,
     "gamma": 0.99,
@@ -153,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env", default="InterLevel-v0", help="registered env id")
     p.add_argument("--env-kwarg", action="append", type=env_kwarg_argument, default=[], metavar="KEY=VALUE")
     p.add_argument("--timesteps", type=float, default=2e6)
-    p.add_argument("--n-envs", type=int, default=64, help="worlds (envs) stepped together")
+    p.add_argument("--n-envs", type=int, default=128, help="worlds (envs) stepped together")
     p.add_argument("--vec-env", choices=("dummy", "subproc", "batched"), default="batched",
                    help="dummy: the envs step one after another in this process; subproc: a process per env; "
                         "batched: the natively batched env (stairenv.vec_sb3), one step call advancing every "

@@ -75,8 +75,8 @@ def test_train_sims_with_a_text_conditioned_discriminator(tmp_path):
 def test_defaults_are_the_cpu_settings_and_the_paper_preset_restores_the_paper(baseline_script):
     train_ppo = baseline_script("train_ppo")
     cpu = train_ppo.parse_args([])
-    assert (cpu.vec_env, cpu.n_envs, cpu.policy_hidden, cpu.batch_size, cpu.n_steps) == ("batched", 64, (256, 256),
-                                                                                         1024, 32)
+    assert (cpu.vec_env, cpu.n_envs, cpu.policy_hidden, cpu.batch_size, cpu.n_steps) == ("batched", 128, (256, 256),
+                                                                                         1024, 16)
     assert cpu.learning_rate == 1e-4 and cpu.log_std_init == -2.0 and cpu.torch_threads == 1
     paper = train_ppo.parse_args(["--preset", "paper"])
     assert (paper.vec_env, paper.n_envs, paper.policy_hidden, paper.batch_size, paper.n_steps) == (
