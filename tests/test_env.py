@@ -423,3 +423,25 @@ def test_physics_blow_up_on_the_first_step_is_caught():
     env.reset(seed=1)  # a new episode starts clean
     _, _, _, truncated, info = env.step(np.zeros(28))
     assert not info["physics_unstable"]
+
+
+def test_yaw_quaternion_is_scipys_bit_for_bit():
+    from stairenv.rotations import yaw_to_quat_wxyz
+    for yaw in np.concatenate([np.random.default_rng(0).uniform(-7, 7, 500), [0.0, -0.0, math.pi, -math.pi]]):
+        x, y, z, w = Rotation.from_euler("z", yaw).as_quat()
+        assert np.array_equal(yaw_to_quat_wxyz(yaw), [w, x, y, z])
+
+
+def test_staircase_frame_is_cached_read_only_and_fresh_after_replace():
+    import dataclasses
+    stairs = Staircase(step_height=0.1, step_depth=0.3, width=1.5, num_steps=5, landing_depth=2.0, yaw=0.7,
+                       distance=3.0)
+    np.testing.assert_array_equal(stairs.axis, [math.cos(0.7), math.sin(0.7), 0.0])
+    np.testing.assert_array_equal(stairs.origin, 3.0 * stairs.axis)
+    assert stairs.rotation is stairs.rotation                       # computed once
+    with pytest.raises(ValueError):
+        stairs.origin[0] = 1.0                                      # a shared cache cannot be changed
+    turned = dataclasses.replace(stairs, yaw=-0.2)
+    np.testing.assert_array_equal(turned.axis, [math.cos(-0.2), math.sin(-0.2), 0.0])
+    assert turned == dataclasses.replace(stairs, yaw=-0.2) and turned.as_dict()["yaw"] == -0.2
+    assert stairs.as_dict() == dataclasses.asdict(stairs)

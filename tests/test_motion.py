@@ -109,6 +109,36 @@ def test_library_sampling_follows_weights():
         MotionLibrary([])
 
 
+def test_lowest_point_is_each_geoms_bottom_computed_by_hand():
+    """``humanoid_lowest_z`` (shapes at once) against each geom's lowest point worked out alone: a
+    sphere's centre minus its radius, a capsule's end cap, a box's lowest corner (the corners listed)."""
+    env = gym.make("InterLevel-v0")
+    u = env.unwrapped
+    geoms = humanoid_geoms(u.model, u._idx)
+    kinds = set(u.model.geom_type[geoms].tolist())
+    assert {int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_BOX)} <= kinds
+    rng = np.random.default_rng(0)
+    env.reset(seed=1)
+    for _ in range(15):
+        env.step(rng.uniform(-1, 1, 28))
+    model, data = u.model, u.data
+    lowest = []
+    for g in geoms:
+        z, size, rot = data.geom_xpos[g, 2], model.geom_size[g], data.geom_xmat[g].reshape(3, 3)
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+            lowest.append(z - size[0])
+        elif model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
+            ends = [data.geom_xpos[g] + sign * size[1] * rot[:, 2] for sign in (-1, 1)]
+            lowest.append(min(end[2] for end in ends) - size[0])
+        else:
+            corners = [data.geom_xpos[g] + rot @ (np.array(signs) * size)
+                       for signs in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3)]
+            lowest.append(min(corner[2] for corner in corners))
+    assert humanoid_lowest_z(model, data, geoms) == pytest.approx(min(lowest), abs=1e-12)
+    for g, expected in zip(geoms, lowest):
+        assert humanoid_lowest_z(model, data, np.array([g])) == pytest.approx(expected, abs=1e-12)
+
+
 def test_reference_init_places_the_character_on_the_floor():
     env = gym.make("InterLevel-v0", init="reference")
     u = env.unwrapped

@@ -24,8 +24,9 @@ into the compiled model at every reset (no recompilation).
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 
 import mujoco
 import numpy as np
@@ -104,25 +105,36 @@ class Staircase:
     distance: float
 
     # --- frames --------------------------------------------------------------
+    @functools.cached_property
+    def _frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(axis, across, origin, rotation), computed once (a reset reads them a dozen times), read-only."""
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        axis, across = np.array([c, s, 0.0]), np.array([-s, c, 0.0])
+        origin = self.distance * axis
+        rotation = np.stack((axis, across, np.array([0.0, 0.0, 1.0])), axis=1)
+        for array in (axis, across, origin, rotation):
+            array.flags.writeable = False
+        return axis, across, origin, rotation
+
     @property
     def axis(self) -> np.ndarray:
         """Unit ascent direction in the world (horizontal)."""
-        return np.array([math.cos(self.yaw), math.sin(self.yaw), 0.0])
+        return self._frame[0]
 
     @property
     def across(self) -> np.ndarray:
         """Unit direction across the stairs, to the left of the ascent."""
-        return np.array([-math.sin(self.yaw), math.cos(self.yaw), 0.0])
+        return self._frame[1]
 
     @property
     def origin(self) -> np.ndarray:
         """World position of the foot of the first riser on the centre line."""
-        return self.distance * self.axis
+        return self._frame[2]
 
     @property
     def rotation(self) -> np.ndarray:
         """World-from-stairs rotation matrix: columns (u, w, z)."""
-        return np.stack((self.axis, self.across, np.array([0.0, 0.0, 1.0])), axis=1)
+        return self._frame[3]
 
     def to_local(self, points: np.ndarray) -> np.ndarray:
         """World points (..., 3) -> stairs frame (u, w, z)."""
@@ -188,7 +200,7 @@ class Staircase:
         return self.to_world(self.marker_top_local)
 
     def as_dict(self) -> dict[str, float | int]:
-        return asdict(self)
+        return {field.name: getattr(self, field.name) for field in fields(self)}
 
 
 def generate_stairs(config: StairsConfig, rng: np.random.Generator) -> Staircase:
