@@ -100,7 +100,8 @@ class ThreadPoolPhysics:
                     mujoco.mj_step(model, data, nstep)
                     if then is not None:
                         then(k)
-                    done.put(k)
+                    if collect is not None:
+                        done.put(k)
             except BaseException:
                 done.put(None)    # wakes the collecting caller, which then re-raises
                 raise
