@@ -93,6 +93,8 @@ from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
+from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
+from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.vec_sb3 import make_sb3_vec_env
 
 # The defaults: the fastest settings measured to learn on a 2-core CPU (docs/reproducing.md).
@@ -215,6 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="torch intra-op threads (1: the batched env's physics uses the other cores; "
                         "paper preset: torch's default)")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--trainer", choices=("lean", "sb3"), default="lean",
+                   help="lean: stairenv.training, PPO + AMP on the batched env's arrays (checkpoints "
+                        "checkpoint_<n>.pt, final_policy.npz); sb3: Stable-Baselines3 PPO (checkpoints ppo_<n>_steps.zip)")
     p.add_argument("--no-progress-bar", action="store_true")
     for key, value in PPO_DEFAULTS.items():
         p.add_argument(f"--{key.replace('_', '-')}", type=type(value), default=value)
@@ -469,10 +474,9 @@ def discriminator_config(args: argparse.Namespace) -> DiscriminatorConfig:
     )
 
 
-def main(argv: list[str] | None = None) -> Path:
-    args = parse_args(argv)
-    if args.torch_threads is not None:
-        torch.set_num_threads(args.torch_threads)
+def run_env_kwargs(args: argparse.Namespace) -> dict:
+    """The env keywords of the run: ``--env-kwarg`` and ``--config``'s, plus the start, reference and
+    style-history flags."""
     env_kwargs = dict(args.env_kwarg)
     env_kwargs.setdefault("init", args.init)
     if args.reference is not None:
@@ -481,6 +485,137 @@ def main(argv: list[str] | None = None) -> Path:
         env_kwargs.setdefault("amp_history", args.amp_history)
     if args.amp_text_condition and args.style != "amp":
         raise SystemExit("--amp-text-condition needs --style amp")
+    return env_kwargs
+
+
+def reference_windows(args: argparse.Namespace, env_kwargs: dict) -> ReferenceWindows | None:
+    """The discriminator's reference windows (None without AMP): the ``--reference`` clips or the env's
+    own, ``--amp-history`` frames at the env's control rate; with ``--amp-text-condition`` each clip's
+    text embedding, and the env's captions set to the reference texts (in ``env_kwargs``)."""
+    if args.style != "amp":
+        return None
+    probe = gym.make(args.env, **env_kwargs).unwrapped
+    library = load_reference_library(args.reference if args.reference is not None
+                                     else probe.DEFAULT_REFERENCE_MOTION)
+    conditions = None
+    if args.amp_text_condition:
+        if not isinstance(probe, SIMSEnv) or not probe.text_conditioned:
+            raise SystemExit(f"--amp-text-condition needs a SIMS env with text_conditioned=True, not {args.env}")
+        conditions = text_conditions(library, probe.embed_text)
+        env_kwargs.setdefault("captions", reference_captions(library, probe.skill))
+    reference = ReferenceWindows(library, num_frames=args.amp_history, fps=1.0 / probe.dt, conditions=conditions)
+    probe.close()
+    return reference
+
+
+def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
+    """The flags as the lean trainer's ``TrainConfig``."""
+    disc = {f"disc_{name}": getattr(args, f"disc_{name}") for name in (
+        "hidden", "loss", "lr", "grad_penalty", "grad_penalty_batch", "weight_decay", "logit_reg", "input_noise",
+        "batch_size", "replay_size", "update_interval", "updates", "background", "scoring")}
+    try:
+        return TrainConfig(
+            env_id=args.env, env_kwargs=env_kwargs, num_envs=args.n_envs, seed=args.seed,
+            total_steps=int(args.timesteps), rollout_steps=args.n_steps, epochs=args.n_epochs,
+            minibatch_size=args.batch_size, learning_rate=args.learning_rate, target_kl=args.adaptive_kl,
+            gamma=args.gamma, gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
+            max_grad_norm=args.max_grad_norm, hidden=tuple(args.policy_hidden), log_std_init=args.log_std_init,
+            style=args.style, reference=None if args.reference is None else str(args.reference),
+            amp_history=args.amp_history, w_task=args.w_task, w_style=args.w_style,
+            torch_threads=args.torch_threads, checkpoint_every=args.checkpoint_every, **disc)
+    except (TypeError, ValueError) as err:
+        raise SystemExit(f"train_ppo: {err}") from None
+
+
+def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
+    """``(resume_state, init_state)`` read from ``--resume`` / ``--init-from`` (a lean ``.pt``; for
+    ``--init-from`` also an SB3 ``.zip`` with its statistics and AMP state beside it)."""
+    if args.resume is not None:
+        if args.resume.suffix == ".zip":
+            raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
+                             "with the lean trainer start a new run from it with --init-from")
+        try:
+            return read_checkpoint(args.resume), None
+        except CheckpointError as err:
+            raise SystemExit(f"--resume: {err}") from None
+    if args.init_from is None:
+        return None, None
+    if args.init_from.suffix != ".zip":
+        try:
+            return None, read_checkpoint(args.init_from)
+        except CheckpointError as err:
+            raise SystemExit(f"--init-from: {err}") from None
+    checkpoint = _checkpoint_file(args.init_from)
+    amp_state = _required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
+    state = state_from_sb3(checkpoint, _statistics_beside(checkpoint), amp_state)
+    saved = curriculum_state_beside(checkpoint)
+    state["curriculum_level"] = json.loads(saved.read_text())["curriculum_level"] if saved else []
+    return None, state
+
+
+def train_lean(args: argparse.Namespace) -> Path:
+    """The lean trainer (``stairenv.training``): PPO + AMP on the batched env's arrays."""
+    resume, init = _lean_start(args)
+    if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
+        config = TrainConfig.from_dict(resume["config"])
+        config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
+        args.env, args.amp_history, args.style = config.env_id, config.amp_history, config.style
+        env_kwargs = dict(config.env_kwargs)
+    else:
+        env_kwargs = run_env_kwargs(args)
+        config = None
+    if args.vec_env != "batched":
+        print(f"note: the lean trainer steps the batched env ({args.vec_env!r} is --trainer sb3's)", file=sys.stderr)
+    reference = reference_windows(args, env_kwargs)
+    if config is None:
+        config = lean_config(args, env_kwargs)
+    elif reference is not None:
+        config = config.replace(env_kwargs=env_kwargs)
+    run_dir = args.logdir / config.env_id / f"seed{config.seed}"
+    trainer = Trainer(config, build_style(config, reference))
+    if resume is not None:
+        trainer.load_state(resume)
+        print(f"resumed from {args.resume} at {trainer.steps} steps")
+    elif init is not None:
+        try:
+            trainer.load_state(init, weights_only=True)
+        except (RuntimeError, ValueError, KeyError) as err:
+            raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
+                             "--policy-hidden and --env it was trained with") from None
+        print(f"initialised from {args.init_from} (weights, optimiser, statistics"
+              f"{', discriminator' if init.get('style') else ''})")
+    log = RunLog(run_dir)
+    start_steps, start = trainer.steps, time.perf_counter()
+    try:
+        trainer.learn(log, run_dir / "checkpoints")
+    finally:
+        log.close()
+    seconds = time.perf_counter() - start
+    print(f"trained {trainer.steps - start_steps} env steps in {seconds:.1f} s "
+          f"({(trainer.steps - start_steps) / max(seconds, 1e-9):.0f} env steps/s)")
+    final = trainer.save(run_dir / "final_checkpoint.pt")
+    policy_path = run_dir / "final_policy.npz"
+    trainer.policy().save(policy_path)
+    trainer.close()
+    print(f"saved {final} and {policy_path}")
+    if args.eval_episodes > 0:
+        report = evaluator_for(config.env_id)(
+            load_policy(str(policy_path), gym.make(config.env_id, **env_kwargs)), env_id=config.env_id,
+            episodes=args.eval_episodes, seed=10_000 + config.seed, env_kwargs=evaluation_kwargs(env_kwargs),
+            max_episode_steps=args.eval_max_episode_steps, progress_bar=not args.no_progress_bar,
+            label=str(policy_path))
+        print(report.format_table())
+        write_reports([report], run_dir / "evaluation.csv", run_dir / "evaluation.json")
+    return policy_path
+
+
+def main(argv: list[str] | None = None) -> Path:
+    args = parse_args(argv)
+    if args.trainer == "lean":
+        return train_lean(args)
+    if args.torch_threads is not None:
+        torch.set_num_threads(args.torch_threads)
+    env_kwargs = run_env_kwargs(args)
     checkpoint = stats = amp_state = None
     source = args.resume if args.resume is not None else args.init_from
     if source is not None:  # every file first, before minutes of env setup
@@ -492,20 +627,7 @@ def main(argv: list[str] | None = None) -> Path:
     run_dir.mkdir(parents=True, exist_ok=True)
 
     style = None
-    reference = None
-    if args.style == "amp":
-        probe = gym.make(args.env, **env_kwargs).unwrapped
-        library = load_reference_library(args.reference if args.reference is not None
-                                         else probe.DEFAULT_REFERENCE_MOTION)
-        conditions = None
-        if args.amp_text_condition:
-            if not isinstance(probe, SIMSEnv) or not probe.text_conditioned:
-                raise SystemExit(f"--amp-text-condition needs a SIMS env with text_conditioned=True, not {args.env}")
-            conditions = text_conditions(library, probe.embed_text)
-            env_kwargs.setdefault("captions", reference_captions(library, probe.skill))
-        reference = ReferenceWindows(library, num_frames=args.amp_history, fps=1.0 / probe.dt, conditions=conditions)
-        probe.close()
-
+    reference = reference_windows(args, env_kwargs)
     if args.vec_env == "batched":
         # VecMonitor: episode returns and lengths for SB3's rollout/ep_*_mean (make_vec_env's Monitor does it
         # for the other vec envs)

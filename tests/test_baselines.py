@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
-TINY = ["--n-envs", "2", "--vec-env", "dummy", "--n-steps", "256", "--batch-size", "128",
+# the SB3 trainer (--trainer sb3); the lean trainer's runs are in test_training.py
+TINY = ["--trainer", "sb3", "--n-envs", "2", "--vec-env", "dummy", "--n-steps", "256", "--batch-size", "128",
         "--no-progress-bar", "--checkpoint-every", "512"]
 
 

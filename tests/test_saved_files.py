@@ -101,7 +101,7 @@ def test_evaluate_style_refuses_a_crafted_discriminator(crafted, tmp_path, basel
 
 
 # --- train_ppo.py --resume -------------------------------------------------------
-FAST = ["--n-envs", "1", "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar"]
+FAST = ["--trainer", "sb3", "--n-envs", "1", "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar"]
 
 
 def statistics_for(env_id: str, path) -> None:

@@ -1,0 +1,162 @@
+"""The lean trainer's settings: one frozen dataclass, saved whole beside every checkpoint.
+
+``TrainConfig`` holds everything a run depends on (env, PPO, AMP, run bookkeeping); ``as_dict`` /
+``from_dict`` turn it into plain values and back (the checkpoint stores it, ``--resume`` reads it).
+Values are checked once, in ``__post_init__``, each error naming the field and its range.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from stairenv.validation import check_choice, check_float, check_int
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One PPO + AMP run on a natively batched stairenv env.
+
+    | field | default | meaning |
+    |---|---|---|
+    | env_id | "InterLevel-v0" | registered stairenv id |
+    | env_kwargs | {} | keyword arguments of the env (training aids included: the evaluation drops them) |
+    | num_envs | 128 | worlds stepped together |
+    | physics | "threads" | the batched env's physics back-end ("threads", "serial") |
+    | seed | 0 | seeds torch, the trainer's generators and the worlds (world i: seed + i) |
+    | total_steps | 2,000,000 | env steps (all worlds together) |
+    | rollout_steps | 16 | steps per world between updates |
+    | epochs | 5 | passes over a rollout |
+    | minibatch_size | 1024 | samples per gradient step |
+    | learning_rate | 1e-4 | Adam (eps 1e-5) |
+    | target_kl | None | adapt the rate to keep approx-KL near this (x1.5 / /1.5, bounds 1e-6..1e-3) |
+    | gamma, gae_lambda | 0.99, 0.95 | discount, GAE |
+    | clip_range | 0.2 | PPO ratio clip |
+    | ent_coef, vf_coef | 0.0, 0.5 | entropy and value-loss weights |
+    | max_grad_norm | 1.0 | gradient-norm clip |
+    | hidden | (256, 256) | policy and value MLPs (ReLU, separate) |
+    | log_std_init | -2.0 | initial log std of the Gaussian (std 0.135) |
+    | clip_obs, clip_reward | 10.0, 10.0 | observation / reward normaliser clips |
+    | style | "amp" | "amp": reward ``w_task r_task + w_style r_style``; "none": task only |
+    | w_task, w_style | 0.5, 0.5 | reward weights |
+    | disc_* | see ``DiscriminatorConfig`` | the discriminator and its training schedule |
+    | torch_threads | 1 | torch intra-op threads (the physics pool uses the cores) |
+    | checkpoint_every | 100,000 | env steps between checkpoints |
+    """
+
+    env_id: str = "InterLevel-v0"
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    num_envs: int = 128
+    physics: str = "threads"
+    seed: int = 0
+    total_steps: int = 2_000_000
+    rollout_steps: int = 16
+    epochs: int = 5
+    minibatch_size: int = 1024
+    learning_rate: float = 1e-4
+    target_kl: float | None = None
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 1.0
+    hidden: tuple[int, ...] = (256, 256)
+    log_std_init: float = -2.0
+    clip_obs: float = 10.0
+    clip_reward: float = 10.0
+    style: str = "amp"
+    reference: str | None = None
+    amp_history: int = 2
+    w_task: float = 0.5
+    w_style: float = 0.5
+    disc_hidden: tuple[int, ...] = (1024, 512)
+    disc_loss: str = "lsgan"
+    disc_lr: float = 1e-4
+    disc_grad_penalty: float = 10.0
+    disc_grad_penalty_batch: int | None = None
+    disc_weight_decay: float = 1e-4
+    disc_logit_reg: float = 0.01
+    disc_input_noise: float = 1.0
+    disc_batch_size: int = 256
+    disc_replay_size: int = 200_000
+    disc_update_interval: int = 2048
+    disc_updates: int = 2
+    disc_background: bool = True
+    disc_scoring: str = "auto"
+    torch_threads: int | None = 1
+    checkpoint_every: int = 100_000
+
+    def __post_init__(self) -> None:
+        self._set("num_envs", check_int("num_envs", self.num_envs, 1, 1_000_000))
+        self._set("physics", check_choice("physics", self.physics, ("threads", "serial")))
+        self._set("seed", check_int("seed", self.seed, 0, 2**31 - 1))
+        self._set("total_steps", check_int("total_steps", self.total_steps, 0, 10**12))
+        self._set("rollout_steps", check_int("rollout_steps", self.rollout_steps, 1, 100_000))
+        self._set("epochs", check_int("epochs", self.epochs, 1, 1000))
+        # larger than a rollout: one minibatch of the whole rollout (as SB3)
+        self._set("minibatch_size", check_int("minibatch_size", self.minibatch_size, 1, 10**9))
+        self._set("learning_rate", check_float("learning_rate", self.learning_rate, 0.0, 1.0))
+        if self.target_kl is not None:
+            self._set("target_kl", check_float("target_kl", self.target_kl, 1e-6, 10.0))
+        self._set("gamma", check_float("gamma", self.gamma, 0.0, 1.0))
+        self._set("gae_lambda", check_float("gae_lambda", self.gae_lambda, 0.0, 1.0))
+        self._set("clip_range", check_float("clip_range", self.clip_range, 1e-6, 10.0))
+        self._set("ent_coef", check_float("ent_coef", self.ent_coef, 0.0, 10.0))
+        self._set("vf_coef", check_float("vf_coef", self.vf_coef, 0.0, 100.0))
+        self._set("max_grad_norm", check_float("max_grad_norm", self.max_grad_norm, 1e-6, 1e6))
+        self._set("log_std_init", check_float("log_std_init", self.log_std_init, -20.0, 5.0))
+        self._set("clip_obs", check_float("clip_obs", self.clip_obs, 1e-3, 1e9))
+        self._set("clip_reward", check_float("clip_reward", self.clip_reward, 1e-3, 1e9))
+        self._set("style", check_choice("style", self.style, ("amp", "none")))
+        self._set("amp_history", check_int("amp_history", self.amp_history, 1, 100))
+        self._set("w_task", check_float("w_task", self.w_task, 0.0, 1e6))
+        self._set("w_style", check_float("w_style", self.w_style, 0.0, 1e6))
+        self._set("checkpoint_every", check_int("checkpoint_every", self.checkpoint_every, 1, 10**12))
+        if self.torch_threads is not None:
+            self._set("torch_threads", check_int("torch_threads", self.torch_threads, 1, 1024))
+        for name in ("hidden", "disc_hidden"):
+            sizes = getattr(self, name)
+            if not sizes or any(isinstance(s, bool) or not isinstance(s, int) or s < 1 for s in sizes):
+                raise ValueError(f"{name} must be positive layer sizes like (256, 256), got {sizes!r}")
+            object.__setattr__(self, name, tuple(sizes))
+        object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
+
+    def _set(self, name: str, value: Any) -> None:
+        object.__setattr__(self, name, value)
+
+    @property
+    def batch_size(self) -> int:
+        """Samples per rollout (all worlds)."""
+        return self.num_envs * self.rollout_steps
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain values (lists for tuples), as a checkpoint stores them."""
+        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> "TrainConfig":
+        """The config ``as_dict`` wrote; unknown keys raise ``ValueError`` naming them."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ValueError(f"unknown TrainConfig fields {unknown}; valid: {sorted(names)}")
+        values = dict(values)
+        for name in ("hidden", "disc_hidden"):
+            if name in values:
+                values[name] = tuple(values[name])
+        return cls(**values)
+
+    def replace(self, **changes: Any) -> "TrainConfig":
+        return dataclasses.replace(self, **changes)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_plain(v) for v in value]
+    return value

@@ -1,0 +1,534 @@
+"""PPO + AMP on the batched env's arrays: the lean trainer, readable in one sitting.
+
+One loop (``Trainer.learn``), in the shape of CleanRL's and rsl_rl's PPO::
+
+    for each iteration:
+        rollout:  rollout_steps x num_envs transitions, the policy called on the whole batch,
+                  the batched env stepping every world (``HumanoidVectorEnv.step_worlds``, ended worlds
+                  reset inside the step), AMP scoring the step's style windows in one call
+        returns:  GAE over the rollout (truncations bootstrapped with the value of the final observation)
+        update:   epochs x minibatches of the clipped PPO loss (policy, value, entropy), one optimiser
+
+Everything is an array: observations, rewards, flags, style windows and the episode statistics the
+log shows; the per-world ``info`` dicts are read only for the worlds whose episode ended. The
+algorithm is Stable-Baselines3's PPO with VecNormalize as ``train_ppo.py --trainer sb3`` runs it
+(same initialisation, normalisers, bootstrapping, losses and defaults), so recipes carry over;
+``docs/training.md`` gives the measurements against it and against skrl and rsl-rl-lib.
+
+A checkpoint (``checkpoint_<steps>.pt``) is one file of tensors and plain values: the whole resolved
+``TrainConfig``, policy, optimiser, observation and return normalisers, the AMP discriminator with its
+optimiser and schedule, the curriculum levels, the step counter and the trainer's generators. It is
+read with ``torch.load(weights_only=True)``: opening one runs no code from it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torch import nn
+
+from stairenv.environments.vector import HumanoidVectorEnv
+from stairenv.pretrained import NumpyPolicy
+from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, plain_config
+from stairenv.style.wrappers import AMPStyleReward
+from stairenv.training.config import TrainConfig
+
+#: the task's results logged at each episode's end (InterLevel's; other families log what they report)
+EPISODE_KEYS = ("progress", "success", "fell", "stalled", "contact_error", "xy_error", "z_error")
+CHECKPOINT_FORMAT = "stairenv-ppo-amp/1"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be read as the lean trainer's (names the file and the fault)."""
+
+
+# --- normalisers (VecNormalize's statistics, on arrays) ------------------------------------------------
+class RunningMeanStd:
+    """Running mean and variance over batches (Chan et al.'s parallel update; count starts at 1e-4)."""
+
+    def __init__(self, shape: tuple[int, ...] = ()) -> None:
+        self.mean = np.zeros(shape, dtype=np.float64)
+        self.var = np.ones(shape, dtype=np.float64)
+        self.count = 1e-4
+
+    def update(self, batch: np.ndarray) -> None:
+        batch_mean, batch_var, n = batch.mean(axis=0), batch.var(axis=0), batch.shape[0]
+        delta = batch_mean - self.mean
+        total = self.count + n
+        self.mean = self.mean + delta * n / total
+        self.var = (self.var * self.count + batch_var * n + delta**2 * self.count * n / total) / total
+        self.count = total
+
+    def state(self) -> dict[str, Any]:
+        return {"mean": torch.from_numpy(np.array(self.mean, dtype=np.float64)),
+                "var": torch.from_numpy(np.array(self.var, dtype=np.float64)), "count": float(self.count)}
+
+    def load(self, state: dict[str, Any]) -> None:
+        mean, var = state["mean"].numpy().astype(np.float64), state["var"].numpy().astype(np.float64)
+        if mean.shape != np.shape(self.mean) or var.shape != np.shape(self.var):
+            raise ValueError(f"statistics of shape {tuple(mean.shape)}, this run needs {np.shape(self.mean)}")
+        self.mean, self.var, self.count = mean, var, float(state["count"])
+
+
+class Normalizer:
+    """Observation and reward normalisation as SB3's ``VecNormalize`` (epsilon 1e-8): observations
+    standardised by their running statistics and clipped; rewards divided by the running std of the
+    discounted return (reset where an episode ends) and clipped."""
+
+    EPSILON = 1e-8
+
+    def __init__(self, obs_size: int, num_envs: int, gamma: float, clip_obs: float, clip_reward: float) -> None:
+        self.obs_rms = RunningMeanStd((obs_size,))
+        self.ret_rms = RunningMeanStd(())
+        self.returns = np.zeros(num_envs, dtype=np.float64)
+        self.gamma, self.clip_obs, self.clip_reward = gamma, clip_obs, clip_reward
+
+    def observations(self, obs: np.ndarray, update: bool = True) -> np.ndarray:
+        if update:
+            self.obs_rms.update(obs)
+        scaled = (obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.EPSILON)
+        return np.clip(scaled, -self.clip_obs, self.clip_obs).astype(np.float32)
+
+    def rewards(self, reward: np.ndarray, dones: np.ndarray) -> np.ndarray:
+        self.returns = self.returns * self.gamma + reward
+        self.ret_rms.update(self.returns)
+        scaled = np.clip(reward / np.sqrt(self.ret_rms.var + self.EPSILON), -self.clip_reward, self.clip_reward)
+        self.returns[dones] = 0.0
+        return scaled.astype(np.float32)
+
+
+# --- the networks ------------------------------------------------------------------------------------
+def _mlp(sizes: list[int]) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        layers += [nn.Linear(a, b), nn.ReLU()]
+    return nn.Sequential(*layers)
+
+
+class ActorCritic(nn.Module):
+    """Separate ReLU MLPs for the Gaussian policy's mean and the value; a state-independent log std.
+    Orthogonal initialisation (hidden gain sqrt 2, mean 0.01, value 1), as SB3's ``MlpPolicy``."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: tuple[int, ...], log_std_init: float) -> None:
+        super().__init__()
+        self.policy_net = _mlp([obs_size, *hidden])
+        self.value_net = _mlp([obs_size, *hidden])
+        self.action_mean = nn.Linear(hidden[-1], action_size)
+        self.value = nn.Linear(hidden[-1], 1)
+        self.log_std = nn.Parameter(torch.full((action_size,), float(log_std_init)))
+        for layer in (*self.policy_net, *self.value_net):
+            if isinstance(layer, nn.Linear):
+                nn.init.orthogonal_(layer.weight, math.sqrt(2))
+                nn.init.zeros_(layer.bias)
+        nn.init.orthogonal_(self.action_mean.weight, 0.01)
+        nn.init.zeros_(self.action_mean.bias)
+        nn.init.orthogonal_(self.value.weight, 1.0)
+        nn.init.zeros_(self.value.bias)
+
+    def values(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.value(self.value_net(obs)).squeeze(-1)
+
+    def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
+        return torch.distributions.Normal(self.action_mean(self.policy_net(obs)), self.log_std.exp())
+
+    def act(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """A sampled action (unclipped), its log-probability and the value."""
+        dist = self.distribution(obs)
+        action = dist.sample()
+        return action, dist.log_prob(action).sum(-1), self.values(obs)
+
+    def as_numpy(self, normalizer: Normalizer, clip_obs: float, config: dict[str, Any]) -> NumpyPolicy:
+        """The deterministic actor with its observation statistics (``stairenv.pretrained``'s format)."""
+        linear = [m for m in self.policy_net if isinstance(m, nn.Linear)] + [self.action_mean]
+        return NumpyPolicy([m.weight.detach().numpy().copy() for m in linear],
+                           [m.bias.detach().numpy().copy() for m in linear],
+                           normalizer.obs_rms.mean.copy(), normalizer.obs_rms.var.copy(), clip_obs,
+                           Normalizer.EPSILON, config)
+
+
+# --- the rollout --------------------------------------------------------------------------------------
+@dataclass
+class Rollout:
+    """``rollout_steps x num_envs`` transitions (float32 tensors), then their advantages and returns."""
+
+    obs: torch.Tensor
+    actions: torch.Tensor
+    log_probs: torch.Tensor
+    values: torch.Tensor
+    rewards: torch.Tensor
+    starts: torch.Tensor          # 1 where the observation is an episode's first
+    advantages: torch.Tensor
+    returns: torch.Tensor
+
+    @classmethod
+    def empty(cls, steps: int, n: int, obs_size: int, action_size: int) -> "Rollout":
+        z = torch.zeros
+        return cls(z(steps, n, obs_size), z(steps, n, action_size), z(steps, n), z(steps, n), z(steps, n),
+                   z(steps, n), z(steps, n), z(steps, n))
+
+    def compute_returns(self, last_values: torch.Tensor, last_starts: torch.Tensor, gamma: float,
+                        lam: float) -> None:
+        """GAE(gamma, lambda); ``starts[t + 1]`` cuts the sum where an episode ended after step t."""
+        steps = self.rewards.shape[0]
+        advantage = torch.zeros_like(last_values)
+        for t in reversed(range(steps)):
+            next_values = last_values if t == steps - 1 else self.values[t + 1]
+            next_live = 1.0 - (last_starts if t == steps - 1 else self.starts[t + 1])
+            delta = self.rewards[t] + gamma * next_values * next_live - self.values[t]
+            advantage = delta + gamma * lam * next_live * advantage
+            self.advantages[t] = advantage
+        self.returns = self.advantages + self.values
+
+
+class EpisodeLog:
+    """Per-world episode returns and lengths, and the task's results of ended episodes, as arrays."""
+
+    def __init__(self, n: int) -> None:
+        self.task_return = np.zeros(n)
+        self.length = np.zeros(n, dtype=np.int64)
+        self.sums: dict[str, list[float]] = {}
+
+    def step(self, task_reward: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
+        self.task_return += task_reward
+        self.length += 1
+        for i in np.flatnonzero(dones):
+            self._add("episode/task_return", self.task_return[i])
+            self._add("episode/length", self.length[i])
+            info = infos[i]
+            groups = ("episode",) if info.get("stairs_start") else ("episode", "episode_floor_start")
+            for key in EPISODE_KEYS:
+                if key in info:
+                    for group in groups:
+                        self._add(f"{group}/{key}", float(info[key]))
+        self.task_return[dones] = 0.0
+        self.length[dones] = 0
+
+    def _add(self, key: str, value: float) -> None:
+        self.sums.setdefault(key, []).append(float(value))
+
+    def means(self) -> dict[str, float]:
+        """The means since the last call, then forgotten."""
+        out = {key: float(np.mean(values)) for key, values in self.sums.items() if values}
+        self.sums = {}
+        return out
+
+
+# --- the trainer -------------------------------------------------------------------------------------
+class Trainer:
+    """PPO + AMP over a ``HumanoidVectorEnv`` (see the module docstring).
+
+    ``Trainer(config, style=None)`` builds the env and networks; ``learn(log)`` trains to
+    ``config.total_steps``; ``save(path)`` / ``Trainer.load(path)`` checkpoint and resume.
+    ``style``: an ``AMPStyleReward`` (built by the caller from reference windows; None with
+    ``config.style == "none"``)."""
+
+    def __init__(self, config: TrainConfig, style: AMPStyleReward | None = None,
+                 venv: HumanoidVectorEnv | None = None) -> None:
+        if config.style == "amp" and style is None:
+            raise ValueError("style='amp' needs an AMPStyleReward (see stairenv.training.build_style)")
+        self.config = config
+        if config.torch_threads is not None:
+            torch.set_num_threads(config.torch_threads)
+        torch.manual_seed(config.seed)
+        self.rng = np.random.default_rng(config.seed)
+        self.venv = venv if venv is not None else make_env(config)
+        obs_size = self.venv.single_observation_space.shape[0]
+        action_size = self.venv.single_action_space.shape[0]
+        self.action_low = self.venv.single_action_space.low.astype(np.float32)
+        self.action_high = self.venv.single_action_space.high.astype(np.float32)
+        self.model = ActorCritic(obs_size, action_size, config.hidden, config.log_std_init)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.learning_rate, eps=1e-5)
+        self.learning_rate = config.learning_rate
+        self.normalizer = Normalizer(obs_size, config.num_envs, config.gamma, config.clip_obs, config.clip_reward)
+        self.style = style
+        self.rollout = Rollout.empty(config.rollout_steps, config.num_envs, obs_size, action_size)
+        self.steps = 0
+        self.iterations = 0
+        self.episodes = EpisodeLog(config.num_envs)
+        self._obs: torch.Tensor | None = None
+        self._starts = torch.ones(config.num_envs)
+
+    # --- one iteration --------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Reset every world (world i seeded with seed + i + num_envs x the iterations done, so that a
+        resumed run does not replay its first episodes)."""
+        n = self.config.num_envs
+        obs, _ = self.venv.reset(seed=self.config.seed + n * self.iterations)
+        self._obs = torch.from_numpy(self.normalizer.observations(obs))
+        self._starts = torch.ones(n)
+        self.normalizer.returns[:] = 0.0
+
+    def collect(self) -> dict[str, float]:
+        """Fill the rollout; returns the mean task and style rewards."""
+        if self._obs is None:
+            self.reset()
+        cfg, r = self.config, self.rollout
+        task_sum = style_sum = 0.0
+        for t in range(cfg.rollout_steps):
+            with torch.no_grad():
+                action, log_prob, value = self.model.act(self._obs)
+            clipped = np.clip(action.numpy(), self.action_low, self.action_high)
+            obs, task_reward, terminated, truncated, infos, finals = self.venv.step_worlds(clipped, reset_ended=True)
+            dones = terminated | truncated
+            if self.style is not None:
+                amp = np.stack([info["amp_obs"] for info in infos])
+                conditions = None
+                if self.style.reference.condition_dim:
+                    conditions = np.stack([info["amp_condition"] for info in infos])
+                reward, style = self.style(self.style.agent_inputs(amp, conditions), task_reward)
+                style_sum += float(style.mean())
+            else:
+                reward = np.asarray(task_reward, dtype=np.float64)
+            task_sum += float(np.mean(task_reward))
+            self.episodes.step(task_reward, dones, infos)
+            norm_obs = self.normalizer.observations(obs)
+            norm_reward = torch.from_numpy(self.normalizer.rewards(reward, dones))
+            # a truncated episode did not end: its last reward also earns the value of where it stopped
+            cut = [i for i in np.flatnonzero(truncated & ~terminated) if i in finals]
+            if cut:
+                final = self.normalizer.observations(np.stack([finals[i][0] for i in cut]), update=False)
+                with torch.no_grad():
+                    norm_reward[cut] += cfg.gamma * self.model.values(torch.from_numpy(final))
+            r.obs[t], r.actions[t], r.log_probs[t], r.values[t] = self._obs, action, log_prob, value
+            r.rewards[t], r.starts[t] = norm_reward, self._starts
+            self._obs = torch.from_numpy(norm_obs)
+            self._starts = torch.from_numpy(dones.astype(np.float32))
+            self.steps += cfg.num_envs
+        with torch.no_grad():
+            last_values = self.model.values(self._obs)
+        r.compute_returns(last_values, self._starts, cfg.gamma, cfg.gae_lambda)
+        return {"rollout/task_reward": task_sum / cfg.rollout_steps,
+                "rollout/style_reward": style_sum / cfg.rollout_steps}
+
+    def update(self) -> dict[str, float]:
+        """``epochs`` passes of shuffled minibatches of the clipped PPO loss."""
+        cfg, r = self.config, self.rollout
+        total = cfg.batch_size
+        obs, actions = r.obs.reshape(total, -1), r.actions.reshape(total, -1)
+        old_log_probs, advantages, returns = r.log_probs.reshape(-1), r.advantages.reshape(-1), r.returns.reshape(-1)
+        for group in self.optimizer.param_groups:
+            group["lr"] = self.learning_rate
+        stats: dict[str, list[float]] = {"loss/policy": [], "loss/value": [], "loss/entropy": [], "train/approx_kl": [],
+                                         "train/clip_fraction": []}
+        for _ in range(cfg.epochs):
+            order = torch.randperm(total)
+            for start in range(0, total, cfg.minibatch_size):
+                mb = order[start:start + cfg.minibatch_size]
+                dist = self.model.distribution(obs[mb])
+                log_prob = dist.log_prob(actions[mb]).sum(-1)
+                entropy = dist.entropy().sum(-1)
+                values = self.model.values(obs[mb])
+                adv = advantages[mb]
+                if len(mb) > 1:
+                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                log_ratio = log_prob - old_log_probs[mb]
+                ratio = log_ratio.exp()
+                policy_loss = -torch.min(adv * ratio, adv * ratio.clamp(1 - cfg.clip_range, 1 + cfg.clip_range)).mean()
+                value_loss = (returns[mb] - values).pow(2).mean()
+                entropy_loss = -entropy.mean()
+                loss = policy_loss + cfg.ent_coef * entropy_loss + cfg.vf_coef * value_loss
+                self.optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                nn.utils.clip_grad_norm_(self.model.parameters(), cfg.max_grad_norm)
+                self.optimizer.step()
+                with torch.no_grad():
+                    stats["loss/policy"].append(policy_loss.item())
+                    stats["loss/value"].append(value_loss.item())
+                    stats["loss/entropy"].append(entropy_loss.item())
+                    stats["train/approx_kl"].append(((ratio - 1) - log_ratio).mean().item())
+                    stats["train/clip_fraction"].append(((ratio - 1).abs() > cfg.clip_range).float().mean().item())
+        out = {key: float(np.mean(values)) for key, values in stats.items()}
+        if cfg.target_kl is not None:    # the legged-robot rule: keep approx-KL near the target
+            kl = out["train/approx_kl"]
+            if kl > 2.0 * cfg.target_kl:
+                self.learning_rate = max(1e-6, self.learning_rate / 1.5)
+            elif 0.0 < kl < 0.5 * cfg.target_kl:
+                self.learning_rate = min(1e-3, self.learning_rate * 1.5)
+        out["train/learning_rate"] = self.learning_rate
+        out["train/std"] = float(self.model.log_std.detach().exp().mean())
+        self.iterations += 1
+        return out
+
+    # --- the loop ---------------------------------------------------------------------------------
+    def learn(self, log: "RunLog | None" = None, checkpoint_dir: Path | None = None) -> None:
+        """Train until ``config.total_steps`` env steps; a checkpoint every ``checkpoint_every`` steps."""
+        cfg = self.config
+        next_checkpoint = (self.steps // cfg.checkpoint_every + 1) * cfg.checkpoint_every
+        start_steps, start = self.steps, time.perf_counter()
+        while self.steps < cfg.total_steps:
+            stats = self.collect()
+            stats.update(self.update())
+            if self.style is not None:
+                stats.update({f"amp/{k}": v for k, v in self.style.last_stats.items()})
+            levels = [level for level in self.curriculum_levels() if level is not None]
+            if levels:
+                stats["curriculum/level"] = float(np.mean(levels))
+            stats.update(self.episodes.means())
+            stats["time/steps_per_second"] = (self.steps - start_steps) / (time.perf_counter() - start)
+            if log is not None:
+                log.write(self.steps, stats)
+            if checkpoint_dir is not None and self.steps >= next_checkpoint:
+                self.save(checkpoint_dir / f"checkpoint_{self.steps}.pt")
+                next_checkpoint += cfg.checkpoint_every
+
+    def close(self) -> None:
+        if self.style is not None:
+            self.style.close()
+        self.venv.close()
+
+    # --- the curriculum (InterLevel's step_height_levels) ----------------------------------------------
+    def curriculum_levels(self) -> list[int | None]:
+        if not self.config.env_kwargs.get("step_height_levels"):
+            return []
+        return list(self.venv.get_attr("curriculum_level"))
+
+    def set_curriculum_levels(self, levels: list[int | None]) -> None:
+        if len(levels) != self.config.num_envs:
+            raise ValueError(f"{len(levels)} saved curriculum levels, this run has {self.config.num_envs} worlds")
+        self.venv.set_attr("curriculum_level", list(levels))
+
+    # --- checkpoints ----------------------------------------------------------------------------------
+    def policy(self) -> NumpyPolicy:
+        """The deterministic policy as ``stairenv.pretrained`` stores it."""
+        return self.model.as_numpy(self.normalizer, self.config.clip_obs,
+                                   {"env_id": self.config.env_id, "steps": self.steps,
+                                    "training": self.config.as_dict()})
+
+    def state(self) -> dict[str, Any]:
+        style = None
+        if self.style is not None:
+            self.style.wait()
+            style = {"discriminator": self.style.disc.state(), "config": plain_config(self.style.config),
+                     "rounds": int(self.style.rounds), "pending": int(self.style.pending),
+                     "rng": self.style.rng.bit_generator.state}
+        return {
+            "format": CHECKPOINT_FORMAT, "config": self.config.as_dict(), "steps": int(self.steps),
+            "iterations": int(self.iterations), "learning_rate": float(self.learning_rate),
+            "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
+            "obs_rms": self.normalizer.obs_rms.state(), "ret_rms": self.normalizer.ret_rms.state(),
+            "style": style, "curriculum_level": self.curriculum_levels(),
+            "torch_rng": torch.get_rng_state(), "rng": self.rng.bit_generator.state,
+        }
+
+    def save(self, path: Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".tmp")
+        torch.save(self.state(), tmp)
+        tmp.replace(path)    # a checkpoint is whole or absent, never half-written
+        return path
+
+    def load_state(self, state: dict[str, Any], weights_only: bool = False) -> None:
+        """Take a checkpoint's state (``weights_only``: policy, value, optimiser, normalisers and
+        discriminator, for a new run from a trained one; else also the counters and generators)."""
+        self.model.load_state_dict(state["model"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.normalizer.obs_rms.load(state["obs_rms"])
+        self.normalizer.ret_rms.load(state["ret_rms"])
+        if self.style is not None and state.get("style") is not None:
+            disc = AMPDiscriminator.from_state(state["style"]["discriminator"])
+            if disc.input_dim != self.style.reference.dim:
+                raise ValueError(f"the checkpoint's discriminator judges {disc.input_dim} numbers, "
+                                 f"this run's reference windows have {self.style.reference.dim}")
+            keep = self.style.config
+            self.style.disc = disc
+            if weights_only:    # this run's settings of the discriminator's training
+                disc.config = keep
+            self.style.config = disc.config
+            self.style.rounds = int(state["style"]["rounds"])
+            if not weights_only:
+                self.style.pending = int(state["style"]["pending"])
+                self.style.rng.bit_generator.state = state["style"]["rng"]
+        if state.get("curriculum_level"):
+            self.set_curriculum_levels(state["curriculum_level"])
+        if not weights_only:
+            self.steps, self.iterations = int(state["steps"]), int(state["iterations"])
+            self.learning_rate = float(state["learning_rate"])
+            torch.set_rng_state(state["torch_rng"])
+            self.rng.bit_generator.state = state["rng"]
+
+
+def read_checkpoint(path: str | Path) -> dict[str, Any]:
+    """A checkpoint's state, read without running code from the file; ``CheckpointError`` otherwise."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"no checkpoint file {str(path)!r}")
+    try:
+        state = torch.load(path, weights_only=True, map_location="cpu")
+    except Exception as err:  # noqa: BLE001  (truncated or foreign files surface as many types)
+        raise CheckpointError(f"{path}: not a readable lean-trainer checkpoint ({type(err).__name__}); "
+                              "nothing in it was run") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(f"{path}: not a lean-trainer checkpoint (format {CHECKPOINT_FORMAT!r} expected)")
+    return state
+
+
+# --- building a run --------------------------------------------------------------------------------
+def make_env(config: TrainConfig) -> HumanoidVectorEnv:
+    """The batched env of ``config`` (SAME_STEP autoreset; the registration's episode limit)."""
+    kwargs = dict(config.env_kwargs)
+    if config.style == "amp":
+        kwargs.setdefault("amp_history", config.amp_history)
+    venv = gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
+                        physics=config.physics, **kwargs)
+    if not isinstance(venv, HumanoidVectorEnv):
+        raise TypeError(f"{config.env_id} has no natively batched env; the lean trainer needs one")
+    return venv
+
+
+def discriminator_config(config: TrainConfig) -> DiscriminatorConfig:
+    return DiscriminatorConfig(
+        hidden=config.disc_hidden, loss=config.disc_loss, learning_rate=config.disc_lr,
+        grad_penalty=config.disc_grad_penalty, grad_penalty_batch=config.disc_grad_penalty_batch,
+        weight_decay=config.disc_weight_decay, logit_reg=config.disc_logit_reg,
+        input_noise=config.disc_input_noise, batch_size=config.disc_batch_size, replay_size=config.disc_replay_size)
+
+
+def build_style(config: TrainConfig, reference) -> AMPStyleReward | None:
+    """The AMP reward of ``config`` on ``reference`` windows (None with ``style == "none"``)."""
+    if config.style != "amp":
+        return None
+    return AMPStyleReward(reference, w_task=config.w_task, w_style=config.w_style, seed=config.seed,
+                          update_interval=config.disc_update_interval, updates_per_round=config.disc_updates,
+                          config=discriminator_config(config), background_training=config.disc_background,
+                          scoring=config.disc_scoring)
+
+
+class RunLog:
+    """Scalars to TensorBoard (when installed) and a JSON line per iteration (``log.jsonl``)."""
+
+    def __init__(self, folder: Path, print_every: int = 20) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        self.lines = (folder / "log.jsonl").open("a")
+        self.print_every, self.count = print_every, 0
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+            self.writer = SummaryWriter(str(folder / "tb"))
+        except ImportError:
+            self.writer = None
+
+    def write(self, steps: int, stats: dict[str, float]) -> None:
+        self.lines.write(json.dumps({"steps": steps, **stats}) + "\n")
+        self.lines.flush()
+        if self.writer is not None:
+            for key, value in stats.items():
+                self.writer.add_scalar(key, value, steps)
+        self.count += 1
+        if self.count % self.print_every == 0:
+            shown = {k: stats[k] for k in ("time/steps_per_second", "episode/length", "rollout/task_reward",
+                                           "rollout/style_reward", "episode_floor_start/progress") if k in stats}
+            print(f"{steps:>11,d} steps  " + "  ".join(f"{k.split('/')[-1]} {v:.3g}" for k, v in shown.items()),
+                  flush=True)
+
+    def close(self) -> None:
+        self.lines.close()
+        if self.writer is not None:
+            self.writer.close()

@@ -1,0 +1,223 @@
+"""The lean PPO + AMP trainer (``stairenv.training``): its pieces against Stable-Baselines3's, which it
+mirrors (normalisers, GAE, networks), its checkpoints, and ``train_ppo.py`` running it end to end."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from stable_baselines3.common.vec_env import VecEnv
+
+import stairenv  # noqa: F401
+from stairenv.training import CheckpointError, TrainConfig, Trainer, read_checkpoint
+from stairenv.training.ppo import ActorCritic, Normalizer, Rollout
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "baselines" / "train_ppo.py"
+SHIPPED_CHECKPOINT = ROOT / "checkpoints" / "InterLevel-v0" / "ppo_3200000_steps.zip"
+
+
+class ScriptedVecEnv(VecEnv):
+    """An SB3 VecEnv that replays given (obs, rewards, dones): what VecNormalize sees from an env."""
+
+    def __init__(self, first: np.ndarray, steps: list) -> None:
+        space = gym.spaces.Box(-np.inf, np.inf, shape=first.shape[1:], dtype=np.float64)
+        self.first, self.steps = first, iter(steps)
+        super().__init__(first.shape[0], space, gym.spaces.Box(-1, 1, (1,)))
+
+    def reset(self):
+        return self.first.copy()
+
+    def step_async(self, actions):
+        pass
+
+    def step_wait(self):
+        obs, rewards, dones = next(self.steps)
+        return obs.copy(), rewards.copy(), dones.copy(), [{} for _ in dones]
+
+    def close(self):
+        pass
+
+    def get_attr(self, name, indices=None):
+        return [None] * self.num_envs
+
+    def set_attr(self, name, value, indices=None):
+        pass
+
+    def env_method(self, *args, **kwargs):
+        return []
+
+    def env_is_wrapped(self, wrapper_class, indices=None):
+        return [False] * self.num_envs
+
+
+def test_normalizer_matches_vecnormalize():
+    """Observations and rewards normalised as SB3's VecNormalize does, step by step, episode ends included."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    rng = np.random.default_rng(0)
+    n, size, gamma = 4, 5, 0.99
+    first = rng.normal(3.0, 2.0, (n, size))
+    steps = [(rng.normal(3.0, 2.0, (n, size)), rng.normal(0.5, 1.0, n), rng.uniform(size=n) < 0.2)
+             for _ in range(30)]
+    sb3 = VecNormalize(ScriptedVecEnv(first, steps), gamma=gamma)
+    ours = Normalizer(size, n, gamma, clip_obs=10.0, clip_reward=10.0)
+    np.testing.assert_allclose(ours.observations(first), sb3.reset(), rtol=1e-6, atol=1e-6)
+    for obs, rewards, dones in steps:
+        want_obs, want_rewards, _, _ = sb3.step(np.zeros((n, 1)))
+        np.testing.assert_allclose(ours.observations(obs), want_obs, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(ours.rewards(rewards, dones), want_rewards, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(ours.obs_rms.var, sb3.obs_rms.var)
+    np.testing.assert_allclose(ours.ret_rms.var, sb3.ret_rms.var)
+
+
+def test_gae_matches_sb3_rollout_buffer():
+    from stable_baselines3.common.buffers import RolloutBuffer
+
+    rng = np.random.default_rng(1)
+    steps, n = 7, 3
+    rewards, values = rng.normal(size=(steps, n)), rng.normal(size=(steps, n))
+    starts = (rng.uniform(size=(steps, n)) < 0.3).astype(np.float32)
+    last_values, last_dones = rng.normal(size=n), rng.uniform(size=n) < 0.5
+    buffer = RolloutBuffer(steps, gym.spaces.Box(-1, 1, (2,)), gym.spaces.Box(-1, 1, (1,)), n_envs=n,
+                           gamma=0.98, gae_lambda=0.9)
+    for t in range(steps):
+        buffer.add(np.zeros((n, 2)), np.zeros((n, 1)), rewards[t], starts[t], torch.as_tensor(values[t]),
+                   torch.zeros(n))
+    buffer.compute_returns_and_advantage(torch.as_tensor(last_values), last_dones)
+    rollout = Rollout.empty(steps, n, 2, 1)
+    rollout.rewards[:], rollout.values[:] = torch.as_tensor(rewards), torch.as_tensor(values)
+    rollout.starts[:] = torch.as_tensor(starts)
+    rollout.compute_returns(torch.as_tensor(last_values, dtype=torch.float32),
+                            torch.as_tensor(last_dones, dtype=torch.float32), 0.98, 0.9)
+    np.testing.assert_allclose(rollout.advantages.numpy(), buffer.advantages, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(rollout.returns.numpy(), buffer.returns, rtol=1e-5, atol=1e-5)
+
+
+def small_trainer(**changes) -> Trainer:
+    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=2, style="none",
+                         total_steps=32, **changes)
+    return Trainer(config)
+
+
+@pytest.mark.skipif(not SHIPPED_CHECKPOINT.is_file(), reason="needs the committed SB3 checkpoint")
+def test_an_sb3_checkpoint_carries_over(tmp_path):
+    """``--init-from ppo_<n>_steps.zip``: the lean trainer's policy and value equal SB3's, so a run
+    trained with SB3 goes on where it was."""
+    from stable_baselines3 import PPO
+
+    from stairenv.evaluation.policies import read_normalizer
+    from stairenv.pretrained import from_sb3
+    from stairenv.training.from_sb3 import state_from_sb3
+
+    stats = SHIPPED_CHECKPOINT.with_name("ppo_vecnormalize_3200000_steps.pkl")
+    trainer = small_trainer()
+    trainer.load_state(state_from_sb3(SHIPPED_CHECKPOINT, stats, None), weights_only=True)
+    model = PPO.load(str(SHIPPED_CHECKPOINT), device="cpu")
+    reference = from_sb3(model, read_normalizer(stats))
+    obs = np.random.default_rng(2).normal(size=(16, 118))
+    np.testing.assert_allclose(trainer.policy()(obs), reference(obs), atol=1e-6)
+    normalised = torch.as_tensor(trainer.normalizer.observations(obs, update=False))
+    with torch.no_grad():
+        want = model.policy.predict_values(normalised).squeeze(-1)
+        np.testing.assert_allclose(trainer.model.values(normalised).numpy(), want.numpy(), rtol=1e-5, atol=1e-5)
+    assert trainer.optimizer.state_dict()["state"].keys() == model.policy.optimizer.state_dict()["state"].keys()
+    trainer.close()
+
+
+def test_checkpoint_round_trip(tmp_path):
+    trainer = small_trainer()
+    trainer.collect()
+    trainer.update()
+    path = trainer.save(tmp_path / "checkpoint_16.pt")
+    other = small_trainer(seed=5)
+    other.load_state(read_checkpoint(path))
+    assert (other.steps, other.iterations) == (16, 1)
+    for a, b in zip(trainer.model.parameters(), other.model.parameters()):
+        assert torch.equal(a, b)
+    np.testing.assert_array_equal(other.normalizer.obs_rms.mean, trainer.normalizer.obs_rms.mean)
+    assert other.config.seed == 5    # the caller chooses the config; train_ppo --resume takes the saved one
+    assert TrainConfig.from_dict(read_checkpoint(path)["config"]) == trainer.config
+    trainer.close()
+    other.close()
+
+
+def test_a_checkpoint_never_runs_code(tmp_path):
+    marker = tmp_path / "ran"
+
+    class Payload:
+        def __reduce__(self):
+            return (os.system, (f"touch {marker}",))
+
+    crafted = tmp_path / "crafted.pt"
+    torch.save({"format": "stairenv-ppo-amp/1", "model": Payload()}, crafted)
+    with pytest.raises(CheckpointError, match="nothing in it was run"):
+        read_checkpoint(crafted)
+    assert not marker.exists()
+    other = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(2)}, other)
+    with pytest.raises(CheckpointError, match="not a lean-trainer checkpoint"):
+        read_checkpoint(other)
+    (tmp_path / "truncated.pt").write_bytes(pickle.dumps({"a": 1})[:5])
+    with pytest.raises(CheckpointError):
+        read_checkpoint(tmp_path / "truncated.pt")
+    with pytest.raises(CheckpointError, match="no checkpoint file"):
+        read_checkpoint(tmp_path / "missing.pt")
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("num_envs", 0, "num_envs"), ("epochs", 2.5, "epochs"), ("physics", "gpu", "physics"),
+    ("hidden", (256, 0), "hidden"), ("style", "gail", "style"), ("learning_rate", -1.0, "learning_rate"),
+])
+def test_config_errors_name_the_field(field, value, message):
+    with pytest.raises((TypeError, ValueError), match=message):
+        TrainConfig(**{field: value})
+
+
+def test_config_round_trip_and_unknown_fields():
+    config = TrainConfig(env_kwargs={"step_height": (0.05, 0.1)}, hidden=(64, 32), target_kl=0.02)
+    again = TrainConfig.from_dict(config.as_dict())
+    assert again.hidden == (64, 32) and again.target_kl == 0.02
+    with pytest.raises(ValueError, match="unknown TrainConfig fields"):
+        TrainConfig.from_dict({"bogus": 1})
+
+
+def test_actor_critic_mirrors_sb3_parameter_order():
+    """Same parameter order as SB3's MlpPolicy, so an Adam state carries over slot by slot."""
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    sb3 = ActorCriticPolicy(gym.spaces.Box(-1, 1, (5,)), gym.spaces.Box(-1, 1, (3,)), lambda _: 1e-4,
+                            net_arch={"pi": [8, 8], "vf": [8, 8]}, activation_fn=torch.nn.ReLU)
+    ours = ActorCritic(5, 3, (8, 8), 0.0)
+    assert [tuple(p.shape) for p in ours.parameters()] == [tuple(p.shape) for p in sb3.parameters()]
+
+
+def run_script(args: list[str], cwd: Path) -> str:
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(SCRIPT), *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
+    tiny = ["--n-envs", "4", "--n-steps", "32", "--batch-size", "64", "--checkpoint-every", "128",
+            "--no-progress-bar", "--logdir", str(tmp_path)]
+    out = run_script(["--timesteps", "256", "--eval-episodes", "2", "--eval-max-episode-steps", "20", *tiny], tmp_path)
+    run_dir = tmp_path / "InterLevel-v0" / "seed0"
+    for name in ("checkpoints/checkpoint_128.pt", "checkpoints/checkpoint_256.pt", "final_checkpoint.pt",
+                 "final_policy.npz", "evaluation.json", "log.jsonl"):
+        assert (run_dir / name).exists(), name
+    assert "Progress (%)" in out
+    state = read_checkpoint(run_dir / "checkpoints" / "checkpoint_128.pt")
+    assert state["steps"] == 128 and state["config"]["num_envs"] == 4 and state["style"] is not None
+    out = run_script(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
+                      "--eval-episodes", "0", *tiny], tmp_path)
+    assert "at 128 steps" in out and "trained 128 env steps" in out
