@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 import stairenv  # noqa: F401
 from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.motion import MotionClip, MotionLibrary
+from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import (
     AMPDiscriminator,
     DiscriminatorConfig,
@@ -471,3 +472,30 @@ def test_gymnasium_vector_wrapper(reference):
             assert np.all(info["style_reward"][prev_done] == 0.0)
         prev_done = terminated | truncated
     assert saw_reset_step
+
+
+@pytest.mark.parametrize("env_id", ["InterLevel-v0", "SIMS-Sit-v0"])
+def test_isaac_lab_amp_convention(env_id):
+    """``amp_observation_space`` holds every ``info["amp_obs"]``; ``collect_reference_motions`` gives
+    windows of the env's reference clips shaped as it, and drawing them changes no episode."""
+    env = gym.make(env_id, amp_history=3).unwrapped
+    _, info = env.reset(seed=0)
+    space = env.amp_observation_space
+    assert space.shape == info["amp_obs"].shape == (3 * AMP_FEATURE_SIZE,)
+    windows = env.collect_reference_motions(64)
+    assert windows.shape == (64, *space.shape) and windows.dtype == np.float64 and space.contains(windows[0])
+    library = load_reference_library(env.DEFAULT_REFERENCE_MOTION)
+    every = ReferenceWindows(library, num_frames=3, fps=1.0 / env.dt).windows
+    assert all(np.isclose(every, row, atol=1e-6).all(axis=1).any() for row in windows[:8].astype(np.float32))
+    with pytest.raises(ValueError, match="num_samples"):
+        env.collect_reference_motions(0)
+    # the episode does not depend on whether reference windows were drawn
+    action = np.full(28, 0.1)
+    first = [env.step(action)[0] for _ in range(3)]
+    env.reset(seed=0)
+    env.collect_reference_motions(10)
+    np.testing.assert_array_equal(first, [env.step(action)[0] for _ in range(3)])
+    venv = gym.make_vec("InterLevel-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    assert venv.amp_observation_space.shape == (2 * AMP_FEATURE_SIZE,)
+    assert venv.collect_reference_motions(5).shape == (5, 2 * AMP_FEATURE_SIZE)
+    venv.close()

@@ -20,6 +20,7 @@ from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_refere
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
+from stairenv.style.reference import ReferenceWindows
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
@@ -116,6 +117,28 @@ class HumanoidEnv(gym.Env):
         """Frames of style features in ``info["amp_obs"]`` (the ``amp_history`` keyword): the
         ``num_frames`` of the reference windows a discriminator compares them with."""
         return len(self._amp.frames)
+
+    # Isaac Lab's AMP convention (``amp_observation_space``, ``collect_reference_motions``, ``amp_obs`` in
+    # the step's info), so that skrl's AMP agent and Isaac Lab-style trainers run against these envs.
+    @property
+    def amp_observation_space(self) -> spaces.Box:
+        """The space of ``info["amp_obs"]``: ``amp_history`` frames of style features, oldest first."""
+        return spaces.Box(-np.inf, np.inf, shape=(self._amp.frames.size,), dtype=np.float64)
+
+    def collect_reference_motions(self, num_samples: int, rng: np.random.Generator | None = None) -> np.ndarray:
+        """``num_samples`` reference windows shaped as ``info["amp_obs"]`` (float64, numpy where Isaac Lab
+        gives torch): the env's reference clips (``reference_motion``, else ``DEFAULT_REFERENCE_MOTION``)
+        in windows of ``amp_history`` frames at the control rate, each clip weighted as its library
+        says. Drawn from ``rng`` (default: a generator of this method's own, so that calling it changes
+        no episode)."""
+        num_samples = check_int("num_samples", num_samples, 1, 10**8)
+        if getattr(self, "_reference_windows", None) is None:
+            source = getattr(self, "reference_motion", None) or self.DEFAULT_REFERENCE_MOTION  # None: builtin:stairs
+            self._reference_windows = ReferenceWindows(load_reference_library(source), num_frames=self.amp_history,
+                                                       fps=1.0 / self.dt)
+            self._reference_rng = np.random.default_rng(0)
+        rng = self._reference_rng if rng is None else rng
+        return self._reference_windows.sample(num_samples, rng).astype(np.float64)
 
     # --- construction ---------------------------------------------------------
     def _setup(self, spec: mujoco.MjSpec, frame_skip: int, amp_history: int, render_mode: str | None,

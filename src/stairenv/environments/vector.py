@@ -223,6 +223,15 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             raise ValueError(f"reset needs one seed per world ({self.num_envs}), got {len(seeds)}")
         return seeds
 
+    @property
+    def amp_observation_space(self) -> gym.spaces.Box:
+        """One world's ``info["amp_obs"]`` space (Isaac Lab's AMP convention; see ``HumanoidEnv``)."""
+        return self.envs[0].amp_observation_space
+
+    def collect_reference_motions(self, num_samples: int, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Reference windows shaped as one world's ``info["amp_obs"]`` (``HumanoidEnv.collect_reference_motions``)."""
+        return self.envs[0].collect_reference_motions(num_samples, rng)
+
     def get_attr(self, name: str) -> tuple:
         return tuple(getattr(env, name) for env in self.envs)
 
