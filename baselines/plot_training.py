@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 PANELS = (
-    ("rollout/ep_len_mean", None, "episode length (steps of 1/30 s)"),
+    ("rollout/ep_len_mean", "episode/length", "episode length (steps of 1/30 s)"),
     ("episode_floor_start/progress", "episode/progress", "progress, floor starts"),
     ("episode_floor_start/success", "episode/success", "success, floor starts"),
     ("episode_floor_start/fell", "episode/fell", "falls, floor starts"),

@@ -474,6 +474,12 @@ def discriminator_config(args: argparse.Namespace) -> DiscriminatorConfig:
     )
 
 
+def cpu_line(steps: int, seconds: float, cpu_seconds: float) -> str:
+    """The CPU a run spent per env step (all threads) and how many cores it kept busy on average."""
+    return (f"cpu {1e6 * cpu_seconds / max(steps, 1):.0f} us per env step, "
+            f"{cpu_seconds / max(seconds, 1e-9):.2f} cores busy")
+
+
 def run_env_kwargs(args: argparse.Namespace) -> dict:
     """The env keywords of the run: ``--env-kwarg`` and ``--config``'s, plus the start, reference and
     style-history flags."""
@@ -585,7 +591,7 @@ def train_lean(args: argparse.Namespace) -> Path:
         print(f"initialised from {args.init_from} (weights, optimiser, statistics"
               f"{', discriminator' if init.get('style') else ''})")
     log = RunLog(run_dir)
-    start_steps, start = trainer.steps, time.perf_counter()
+    start_steps, start, start_cpu = trainer.steps, time.perf_counter(), time.process_time()
     try:
         trainer.learn(log, run_dir / "checkpoints")
     finally:
@@ -593,6 +599,7 @@ def train_lean(args: argparse.Namespace) -> Path:
     seconds = time.perf_counter() - start
     print(f"trained {trainer.steps - start_steps} env steps in {seconds:.1f} s "
           f"({(trainer.steps - start_steps) / max(seconds, 1e-9):.0f} env steps/s)")
+    print(cpu_line(trainer.steps - start_steps, seconds, time.process_time() - start_cpu))
     final = trainer.save(run_dir / "final_checkpoint.pt")
     policy_path = run_dir / "final_policy.npz"
     trainer.policy().save(policy_path)
@@ -714,7 +721,7 @@ def main(argv: list[str] | None = None) -> Path:
             levels = restore_curriculum(venv, saved)
             known = [level for level in levels if level is not None] or [0]
             print(f"curriculum levels from {saved} (mean {np.mean(known):.2f})")
-    start_steps, start_time = model.num_timesteps, time.perf_counter()
+    start_steps, start_time, start_cpu = model.num_timesteps, time.perf_counter(), time.process_time()
     model.learn(
         total_timesteps=int(args.timesteps),
         callback=CallbackList(callbacks),
@@ -724,6 +731,7 @@ def main(argv: list[str] | None = None) -> Path:
     )
     trained, seconds = model.num_timesteps - (0 if args.resume is None else start_steps), time.perf_counter() - start_time
     print(f"trained {trained} env steps in {seconds:.1f} s ({trained / seconds:.0f} env steps/s)")
+    print(cpu_line(trained, seconds, time.process_time() - start_cpu))
     model_path = run_dir / "final_model.zip"
     model.save(model_path)
     venv.save(str(run_dir / "vecnormalize.pkl"))

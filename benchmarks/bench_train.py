@@ -1,14 +1,18 @@
-"""End-to-end training throughput of ``baselines/train_ppo.py``: its defaults against ``--preset paper``.
+"""End-to-end training throughput of ``baselines/train_ppo.py``: the lean trainer against SB3, same settings.
 
-    python benchmarks/bench_train.py [--env InterLevel-v0] [--default-steps 131072] [--paper-steps 16384]
-                                     [--rounds 2] [--extra "--style none"]
+    python benchmarks/bench_train.py [--env InterLevel-v0] [--steps 131072] [--rounds 3]
+                                     [--settings lean sb3 paper] [--extra "--style none"]
 
-Each round runs the script once per setting, in turn (the order alternates between rounds), PPO + AMP,
-no evaluation, no checkpoints in the timed part; the rate is the script's own ``trained N env steps
-in T s`` line (``model.learn`` only: start-up and env construction excluded). Printed: each run's env
-steps per second, the ratio defaults / paper per round, and the median over rounds. Target for
-InterLevel-v0 on 2 cores: >= 6,000 env steps/s with the defaults. Run it on an idle machine: the
-absolute rates move with the load, the ratio of back-to-back runs much less.
+Settings (each ``train_ppo.py`` with its defaults, PPO + AMP, 128 worlds x 16-step rollouts):
+``lean`` (``--trainer lean``, the default), ``sb3`` (``--trainer sb3``: Stable-Baselines3 PPO on the
+same batched env, the defaults before the lean trainer), ``paper`` (``--trainer sb3 --preset paper``,
+run for an eighth of the steps). Each round runs every setting once, the order rotating between
+rounds; no evaluation, no checkpoint in the timed part. The rate is the script's own ``trained N env
+steps in T s`` line (the training loop only: start-up and env construction excluded), and its ``cpu``
+line the CPU (all threads) per env step. Printed: each run's env steps/s and CPU per step, each
+setting's ratio to the first per round, and the medians. Target (issue #22) for InterLevel-v0 on 2
+cores: >= 5,000 env steps/s with the defaults. Run it on an idle machine: absolute rates move with
+the load, ratios of back-to-back runs much less; the CPU per step moves least.
 """
 
 from __future__ import annotations
@@ -24,42 +28,55 @@ from pathlib import Path
 
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
 RATE = re.compile(r"trained (\d+) env steps in ([\d.]+) s \((\d+) env steps/s\)")
+CPU = re.compile(r"cpu (\d+) us per env step, ([\d.]+) cores busy")
+SETTINGS = {"lean": (1, ["--trainer", "lean"]), "sb3": (1, ["--trainer", "sb3"]),
+            "paper": (8, ["--trainer", "sb3", "--preset", "paper"])}
 
 
-def run(env: str, steps: int, extra: list[str], logdir: str) -> float:
+def run(env: str, steps: int, extra: list[str], logdir: str) -> tuple[float, float, float]:
+    """(env steps/s, CPU us per env step, cores busy) of one training run."""
     cmd = [sys.executable, str(SCRIPT), "--env", env, "--timesteps", str(steps), "--eval-episodes", "0",
            "--no-progress-bar", "--checkpoint-every", str(10 * steps), "--logdir", logdir, *extra]
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    found = RATE.search(done.stdout)
-    if done.returncode != 0 or found is None:
+    rate, cpu = RATE.search(done.stdout), CPU.search(done.stdout)
+    if done.returncode != 0 or rate is None or cpu is None:
         raise SystemExit(f"{shlex.join(cmd)} failed:\n{done.stderr[-2000:]}")
-    return float(found.group(3))
+    return float(rate.group(3)), float(cpu.group(1)), float(cpu.group(2))
 
 
 def main(argv: list[str] | None = None) -> dict[str, list[float]]:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--env", default="InterLevel-v0")
-    p.add_argument("--default-steps", type=int, default=131_072, help="env steps of each defaults run")
-    p.add_argument("--paper-steps", type=int, default=16_384, help="env steps of each --preset paper run")
-    p.add_argument("--rounds", type=int, default=2)
-    p.add_argument("--extra", default="", help="flags added to both settings, e.g. \"--style none\"")
+    p.add_argument("--steps", type=int, default=131_072, help="env steps of each run (paper: an eighth)")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--settings", nargs="+", choices=sorted(SETTINGS), default=["lean", "sb3"])
+    p.add_argument("--extra", default="", help="flags added to every setting, e.g. \"--style none\"")
     args = p.parse_args(argv)
     extra = shlex.split(args.extra)
-    settings = {"defaults": (args.default_steps, []), "paper": (args.paper_steps, ["--preset", "paper"])}
-    rates: dict[str, list[float]] = {name: [] for name in settings}
-    ratios = []
+    names = list(dict.fromkeys(args.settings))
+    rates: dict[str, list[float]] = {name: [] for name in names}
+    cpus: dict[str, list[float]] = {name: [] for name in names}
+    ratios: dict[str, list[float]] = {name: [] for name in names[1:]}
     with tempfile.TemporaryDirectory() as logdir:
         for r in range(args.rounds):
-            order = list(settings) if r % 2 == 0 else list(settings)[::-1]
+            order = names[r % len(names):] + names[:r % len(names)]
             for name in order:
-                steps, flags = settings[name]
-                rates[name].append(run(args.env, steps, [*flags, *extra], logdir))
-                print(f"round {r}: {name:8s} {rates[name][-1]:8.0f} env steps/s", flush=True)
-            ratios.append(rates["defaults"][-1] / rates["paper"][-1])
-            print(f"round {r}: defaults / paper = {ratios[-1]:.2f}x", flush=True)
-    print(f"{args.env}: defaults {statistics.median(rates['defaults']):.0f} env steps/s, paper preset "
-          f"{statistics.median(rates['paper']):.0f}; defaults / paper median {statistics.median(ratios):.2f}x "
-          f"(min {min(ratios):.2f}, max {max(ratios):.2f}) over {args.rounds} rounds; target >= 6000 env steps/s")
+                divisor, flags = SETTINGS[name]
+                rate, cpu, cores = run(args.env, max(args.steps // divisor, 2048), [*flags, *extra], logdir)
+                rates[name].append(rate)
+                cpus[name].append(cpu)
+                print(f"round {r}: {name:6s} {rate:7.0f} env steps/s, {cpu:5.0f} us CPU per step, "
+                      f"{cores:.2f} cores busy", flush=True)
+            for name in names[1:]:
+                ratios[name].append(rates[names[0]][-1] / rates[name][-1])
+                print(f"round {r}: {names[0]} / {name} = {ratios[name][-1]:.2f}x", flush=True)
+    for name in names:
+        print(f"{args.env} {name}: {statistics.median(rates[name]):.0f} env steps/s "
+              f"({min(rates[name]):.0f}-{max(rates[name]):.0f}), {statistics.median(cpus[name]):.0f} us CPU per step")
+    for name in names[1:]:
+        print(f"{names[0]} / {name}: median {statistics.median(ratios[name]):.2f}x "
+              f"(min {min(ratios[name]):.2f}, max {max(ratios[name]):.2f}) over {args.rounds} rounds")
+    print("target (issue #22): >= 5,000 env steps/s with the defaults on 2 cores")
     return rates
 
 

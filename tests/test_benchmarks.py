@@ -21,7 +21,7 @@ CASES = {
     "bench_saturated": ["--steps", "30", "--ids", "InterLevel-v0,SIMS-Lie-v0"],
     "bench_evaluate": ["--episodes", "1", "--num-envs", "2", "--rounds", "1"],
     "bench_vector": ["--ids", "InterLevel-v0", "--n-envs", "2", "--steps", "5", "--rounds", "1"],
-    "bench_train": ["--default-steps", "256", "--paper-steps", "256", "--rounds", "1",
+    "bench_train": ["--steps", "256", "--rounds", "1", "--settings", "lean", "sb3",
                     "--extra", "--n-envs 2 --n-steps 64 --batch-size 64"],
 }
 
@@ -34,3 +34,19 @@ def test_benchmark_runs(name, tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.strip(), "prints its measurements"
+
+
+@pytest.mark.slow
+def test_bench_libraries_runs(tmp_path):
+    """The lean trainer always runs; skrl and rsl-rl run where importable, else are skipped with a note."""
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(BENCHMARKS / "bench_libraries.py"), "--iterations", "1", "--rounds", "1",
+                           "--num-envs", "8"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = done.stdout.splitlines()
+    assert any(line.startswith("round 0: lean ") for line in lines), done.stdout
+    assert any(line.startswith("round 0: lean-amp ") for line in lines), done.stdout
+    for name, library in (("skrl", "skrl"), ("skrl-amp", "skrl"), ("rsl-rl", "rsl_rl")):
+        ran = any(line.startswith(f"round 0: {name} ") for line in lines)
+        skipped = any(line.startswith(f"note: {name} skipped") for line in lines)
+        assert ran != skipped, f"{name}: neither a rate nor a skip note ({library})\n{done.stdout}"

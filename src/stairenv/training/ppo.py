@@ -305,8 +305,7 @@ class Trainer:
         with torch.no_grad():
             last_values = self.model.values(self._obs)
         r.compute_returns(last_values, self._starts, cfg.gamma, cfg.gae_lambda)
-        return {"rollout/task_reward": task_sum / cfg.rollout_steps,
-                "rollout/style_reward": style_sum / cfg.rollout_steps}
+        return {"amp/task_reward": task_sum / cfg.rollout_steps, "amp/style_reward": style_sum / cfg.rollout_steps}
 
     def update(self) -> dict[str, float]:
         """``epochs`` passes of shuffled minibatches of the clipped PPO loss."""
@@ -364,8 +363,16 @@ class Trainer:
         next_checkpoint = (self.steps // cfg.checkpoint_every + 1) * cfg.checkpoint_every
         start_steps, start = self.steps, time.perf_counter()
         while self.steps < cfg.total_steps:
+            clock, cpu = time.perf_counter(), time.process_time()
             stats = self.collect()
+            clock_collect, cpu_collect = time.perf_counter(), time.process_time()
             stats.update(self.update())
+            # where the time goes: wall and CPU (all threads) microseconds per env step, per phase
+            per_step = 1e6 / cfg.batch_size
+            stats.update({"time/collect_us": (clock_collect - clock) * per_step,
+                          "time/collect_cpu_us": (cpu_collect - cpu) * per_step,
+                          "time/update_us": (time.perf_counter() - clock_collect) * per_step,
+                          "time/update_cpu_us": (time.process_time() - cpu_collect) * per_step})
             if self.style is not None:
                 stats.update({f"amp/{k}": v for k, v in self.style.last_stats.items()})
             levels = [level for level in self.curriculum_levels() if level is not None]
@@ -523,8 +530,8 @@ class RunLog:
                 self.writer.add_scalar(key, value, steps)
         self.count += 1
         if self.count % self.print_every == 0:
-            shown = {k: stats[k] for k in ("time/steps_per_second", "episode/length", "rollout/task_reward",
-                                           "rollout/style_reward", "episode_floor_start/progress") if k in stats}
+            shown = {k: stats[k] for k in ("time/steps_per_second", "episode/length", "amp/task_reward",
+                                           "amp/style_reward", "episode_floor_start/progress") if k in stats}
             print(f"{steps:>11,d} steps  " + "  ".join(f"{k.split('/')[-1]} {v:.3g}" for k, v in shown.items()),
                   flush=True)
 
