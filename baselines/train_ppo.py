@@ -217,6 +217,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="torch intra-op threads (1: the batched env's physics uses the other cores; "
                         "paper preset: torch's default)")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--update-threads", type=int, default=None,
+                   help="lean trainer: torch threads during the PPO update, when the physics is idle "
+                        "(default: --torch-threads)")
+    p.add_argument("--update-bf16", action="store_true",
+                   help="lean trainer: the PPO update's matrix products in bfloat16 (weights stay float32)")
     p.add_argument("--trainer", choices=("lean", "sb3"), default="lean",
                    help="lean: stairenv.training, PPO + AMP on the batched env's arrays (checkpoints "
                         "checkpoint_<n>.pt, final_policy.npz); sb3: Stable-Baselines3 PPO (checkpoints ppo_<n>_steps.zip)")
@@ -528,7 +533,8 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
             max_grad_norm=args.max_grad_norm, hidden=tuple(args.policy_hidden), log_std_init=args.log_std_init,
             style=args.style, reference=None if args.reference is None else str(args.reference),
             amp_history=args.amp_history, w_task=args.w_task, w_style=args.w_style,
-            torch_threads=args.torch_threads, checkpoint_every=args.checkpoint_every, **disc)
+            torch_threads=args.torch_threads, update_threads=args.update_threads, update_bf16=args.update_bf16,
+            checkpoint_every=args.checkpoint_every, **disc)
     except (TypeError, ValueError) as err:
         raise SystemExit(f"train_ppo: {err}") from None
 
@@ -581,7 +587,12 @@ def train_lean(args: argparse.Namespace) -> Path:
     trainer = Trainer(config, build_style(config, reference))
     if resume is not None:
         trainer.load_state(resume)
-        print(f"resumed from {args.resume} at {trainer.steps} steps")
+        try:
+            replay = trainer.load_replay(args.resume, resume)
+        except CheckpointError as err:
+            raise SystemExit(f"--resume: {err}") from None
+        note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
+        print(f"resumed from {args.resume} at {trainer.steps} steps{note}")
     elif init is not None:
         try:
             trainer.load_state(init, weights_only=True)

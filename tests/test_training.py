@@ -221,3 +221,43 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     out = run_script(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
                       "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
+
+
+def test_resume_equals_an_uninterrupted_run(tmp_path):
+    """Serial physics, PPO + AMP (discriminator trained in the background): training on from a checkpoint
+    (and the replay buffer beside it) gives the same weights, statistics and discriminator as the run
+    that was never stopped."""
+    from stairenv.style.wrappers import default_reference
+    from stairenv.training import build_style, make_env
+
+    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=2,
+                         total_steps=64, checkpoint_every=32, disc_hidden=(16,), disc_replay_size=40,
+                         disc_update_interval=16, disc_updates=1, disc_batch_size=8)
+
+    def trainer() -> Trainer:
+        venv = make_env(config)
+        return Trainer(config, build_style(config, default_reference(venv)), venv)
+
+    whole = trainer()
+    whole.learn(checkpoint_dir=tmp_path / "whole")
+    assert (tmp_path / "whole" / "checkpoint_32.pt").exists() and (tmp_path / "whole" / "replay_64.npy").exists()
+    assert not (tmp_path / "whole" / "replay_32.npy").exists()    # only the latest replay buffer is kept
+    # the same run stopped at 32 steps (its checkpoint's replay buffer then the latest), and resumed
+    first = trainer()
+    first.config = config.replace(total_steps=32)
+    first.learn(checkpoint_dir=tmp_path / "first")
+    first.close()
+    resumed = trainer()
+    state = read_checkpoint(tmp_path / "first" / "checkpoint_32.pt")
+    resumed.load_state(state)
+    assert resumed.load_replay(tmp_path / "first" / "checkpoint_32.pt", state)
+    resumed.learn(checkpoint_dir=tmp_path / "resumed")
+    assert resumed.steps == whole.steps == 64
+    for a, b in zip(whole.model.parameters(), resumed.model.parameters()):
+        assert torch.equal(a, b)
+    for a, b in zip(whole.style.disc.state_dict().values(), resumed.style.disc.state_dict().values()):
+        assert torch.equal(a, b)
+    np.testing.assert_array_equal(whole.normalizer.obs_rms.var, resumed.normalizer.obs_rms.var)
+    np.testing.assert_array_equal(whole.normalizer.ret_rms.var, resumed.normalizer.ret_rms.var)
+    whole.close()
+    resumed.close()

@@ -41,7 +41,9 @@ class TrainConfig:
     | style | "amp" | "amp": reward ``w_task r_task + w_style r_style``; "none": task only |
     | w_task, w_style | 0.5, 0.5 | reward weights |
     | disc_* | see ``DiscriminatorConfig`` | the discriminator and its training schedule |
-    | torch_threads | 1 | torch intra-op threads (the physics pool uses the cores) |
+    | torch_threads | 1 | torch intra-op threads during the rollout (the physics pool uses the cores) |
+    | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
+    | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
     | checkpoint_every | 100,000 | env steps between checkpoints |
     """
 
@@ -86,6 +88,8 @@ class TrainConfig:
     disc_background: bool = True
     disc_scoring: str = "auto"
     torch_threads: int | None = 1
+    update_threads: int | None = None
+    update_bf16: bool = False
     checkpoint_every: int = 100_000
 
     def __post_init__(self) -> None:
@@ -116,6 +120,10 @@ class TrainConfig:
         self._set("checkpoint_every", check_int("checkpoint_every", self.checkpoint_every, 1, 10**12))
         if self.torch_threads is not None:
             self._set("torch_threads", check_int("torch_threads", self.torch_threads, 1, 1024))
+        if self.update_threads is not None:
+            self._set("update_threads", check_int("update_threads", self.update_threads, 1, 1024))
+        if not isinstance(self.update_bf16, bool):
+            raise TypeError(f"update_bf16 must be True or False, got {self.update_bf16!r}")
         for name in ("hidden", "disc_hidden"):
             sizes = getattr(self, name)
             if not sizes or any(isinstance(s, bool) or not isinstance(s, int) or s < 1 for s in sizes):

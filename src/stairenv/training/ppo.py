@@ -255,21 +255,24 @@ class Trainer:
         self.episodes = EpisodeLog(config.num_envs)
         self._obs: torch.Tensor | None = None
         self._starts = torch.ones(config.num_envs)
+        self._resumed = False
 
     # --- one iteration --------------------------------------------------------------------------
-    def reset(self) -> None:
-        """Reset every world (world i seeded with seed + i + num_envs x the iterations done, so that a
-        resumed run does not replay its first episodes)."""
+    def reset(self, update_statistics: bool = True) -> None:
+        """Reset every world, world i seeded with ``seed + i + num_envs x iterations done`` (a run's first
+        reset and each checkpoint's; ``update_statistics=False``: a resumed run repeating the reset its
+        checkpoint already counted)."""
         n = self.config.num_envs
         obs, _ = self.venv.reset(seed=self.config.seed + n * self.iterations)
-        self._obs = torch.from_numpy(self.normalizer.observations(obs))
+        self._obs = torch.from_numpy(self.normalizer.observations(obs, update=update_statistics))
         self._starts = torch.ones(n)
         self.normalizer.returns[:] = 0.0
+        self.episodes = EpisodeLog(n)
 
     def collect(self) -> dict[str, float]:
         """Fill the rollout; returns the mean task and style rewards."""
         if self._obs is None:
-            self.reset()
+            self.reset(update_statistics=not self._resumed)
         cfg, r = self.config, self.rollout
         task_sum = style_sum = 0.0
         for t in range(cfg.rollout_steps):
@@ -317,14 +320,19 @@ class Trainer:
             group["lr"] = self.learning_rate
         stats: dict[str, list[float]] = {"loss/policy": [], "loss/value": [], "loss/entropy": [], "train/approx_kl": [],
                                          "train/clip_fraction": []}
+        rollout_threads = torch.get_num_threads()
+        if cfg.update_threads is not None:    # the physics pool is idle now: its cores may serve the update
+            torch.set_num_threads(cfg.update_threads)
         for _ in range(cfg.epochs):
             order = torch.randperm(total)
             for start in range(0, total, cfg.minibatch_size):
                 mb = order[start:start + cfg.minibatch_size]
-                dist = self.model.distribution(obs[mb])
+                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=cfg.update_bf16):
+                    mean, values = self.model.action_mean(self.model.policy_net(obs[mb])), self.model.values(obs[mb])
+                dist = torch.distributions.Normal(mean.float(), self.model.log_std.exp())
+                values = values.float()
                 log_prob = dist.log_prob(actions[mb]).sum(-1)
                 entropy = dist.entropy().sum(-1)
-                values = self.model.values(obs[mb])
                 adv = advantages[mb]
                 if len(mb) > 1:
                     adv = (adv - adv.mean()) / (adv.std() + 1e-8)
@@ -344,6 +352,7 @@ class Trainer:
                     stats["loss/entropy"].append(entropy_loss.item())
                     stats["train/approx_kl"].append(((ratio - 1) - log_ratio).mean().item())
                     stats["train/clip_fraction"].append(((ratio - 1).abs() > cfg.clip_range).float().mean().item())
+        torch.set_num_threads(rollout_threads)
         out = {key: float(np.mean(values)) for key, values in stats.items()}
         if cfg.target_kl is not None:    # the legged-robot rule: keep approx-KL near the target
             kl = out["train/approx_kl"]
@@ -383,8 +392,20 @@ class Trainer:
             if log is not None:
                 log.write(self.steps, stats)
             if checkpoint_dir is not None and self.steps >= next_checkpoint:
-                self.save(checkpoint_dir / f"checkpoint_{self.steps}.pt")
+                self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
                 next_checkpoint += cfg.checkpoint_every
+
+    def checkpoint(self, path: Path) -> Path:
+        """A checkpoint that resumes exactly: every world starts a new episode here (their episodes end
+        as truncations, bootstrapped), so the state to save is the trainer's, not the worlds'; the
+        style's background round is joined and its scoring follows the trained weights from here, as
+        in a resumed run; the replay buffer goes beside it (``replay_<steps>.npy``, the latest only)."""
+        self.reset()
+        if self.style is not None:
+            self.style.wait()
+            self.style.disc.unfreeze_scoring()
+        self._resumed = False
+        return self.save(path, replay=True)
 
     def close(self) -> None:
         if self.style is not None:
@@ -413,9 +434,12 @@ class Trainer:
         style = None
         if self.style is not None:
             self.style.wait()
+            replay = self.style.replay
             style = {"discriminator": self.style.disc.state(), "config": plain_config(self.style.config),
                      "rounds": int(self.style.rounds), "pending": int(self.style.pending),
-                     "rng": self.style.rng.bit_generator.state}
+                     "rng": self.style.rng.bit_generator.state,
+                     "noise_rng": self.style.disc.noise_generator.get_state(),
+                     "replay_size": int(replay.size), "replay_next": int(replay.next)}
         return {
             "format": CHECKPOINT_FORMAT, "config": self.config.as_dict(), "steps": int(self.steps),
             "iterations": int(self.iterations), "learning_rate": float(self.learning_rate),
@@ -425,12 +449,19 @@ class Trainer:
             "torch_rng": torch.get_rng_state(), "rng": self.rng.bit_generator.state,
         }
 
-    def save(self, path: Path) -> Path:
+    def save(self, path: Path, replay: bool = False) -> Path:
+        """Write ``state()`` to ``path`` (whole or not at all); with ``replay``, the style's replay buffer
+        to ``replay_<steps>.npy`` beside it, removing older ones (a run keeps one: ~170 MB at 200k windows)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        torch.save(self.state(), tmp)
-        tmp.replace(path)    # a checkpoint is whole or absent, never half-written
+        if replay and self.style is not None:
+            buffer = self.style.replay
+            target = replay_beside(path, self.steps)
+            _atomic(target, lambda tmp: np.save(tmp, buffer.data[:buffer.size]))
+            for older in path.parent.glob("replay_*.npy"):
+                if older != target:
+                    older.unlink()
+        _atomic(path, lambda tmp: torch.save(self.state(), tmp))
         return path
 
     def load_state(self, state: dict[str, Any], weights_only: bool = False) -> None:
@@ -454,13 +485,49 @@ class Trainer:
             if not weights_only:
                 self.style.pending = int(state["style"]["pending"])
                 self.style.rng.bit_generator.state = state["style"]["rng"]
+                disc.noise_generator.set_state(state["style"]["noise_rng"])
         if state.get("curriculum_level"):
             self.set_curriculum_levels(state["curriculum_level"])
         if not weights_only:
+            self._resumed = True
             self.steps, self.iterations = int(state["steps"]), int(state["iterations"])
             self.learning_rate = float(state["learning_rate"])
             torch.set_rng_state(state["torch_rng"])
             self.rng.bit_generator.state = state["rng"]
+
+
+    def load_replay(self, path: Path, state: dict[str, Any]) -> bool:
+        """Refill the style's replay buffer from ``replay_<steps>.npy`` beside checkpoint ``path`` (read
+        without pickles); False when there is none (the buffer then refills within a round)."""
+        if self.style is None or state.get("style") is None:
+            return False
+        file = replay_beside(path, int(state["steps"]))
+        if not file.is_file():
+            return False
+        try:
+            windows = np.load(file, allow_pickle=False, mmap_mode="r")
+        except (OSError, ValueError) as err:
+            raise CheckpointError(f"{file}: not a readable replay buffer ({err})") from None
+        buffer = self.style.replay
+        size, position = int(state["style"]["replay_size"]), int(state["style"]["replay_next"])
+        if windows.shape != (size, buffer.data.shape[1]) or size > len(buffer.data) or windows.dtype != np.float32:
+            raise CheckpointError(f"{file}: holds {windows.shape} {windows.dtype} windows, the checkpoint says "
+                                  f"({size}, {buffer.data.shape[1]}) float32 in a buffer of {len(buffer.data)}")
+        buffer.data[:size] = windows
+        buffer.size, buffer.next = size, position
+        return True
+
+
+def replay_beside(checkpoint: Path, steps: int) -> Path:
+    return Path(checkpoint).with_name(f"replay_{steps}.npy")
+
+
+def _atomic(path: Path, write) -> None:
+    """``write(tmp)`` then rename to ``path``: a file is whole or absent, never half-written."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as f:
+        write(f)
+    tmp.replace(path)
 
 
 def read_checkpoint(path: str | Path) -> dict[str, Any]:
