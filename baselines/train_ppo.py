@@ -162,7 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "world's physics on every core")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
-    p.add_argument("--checkpoint-every", type=int, default=100_000, help="env steps between checkpoints")
+    p.add_argument("--checkpoint-every", type=int, default=None,
+                   help="env steps between checkpoints (default: 1,000,000 with the lean trainer, whose checkpoints "
+                        "start every world's episode anew so that a resume is exact; 100,000 with sb3)")
     p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from (its settings, its step count)")
     p.add_argument("--init-from", type=Path,
                    help="checkpoint .zip to start a new run from: its policy and value weights, optimiser, "
@@ -224,7 +226,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="lean trainer: the PPO update's matrix products in bfloat16 (weights stay float32)")
     p.add_argument("--trainer", choices=("lean", "sb3"), default="lean",
                    help="lean: stairenv.training, PPO + AMP on the batched env's arrays (checkpoints "
-                        "checkpoint_<n>.pt, final_policy.npz); sb3: Stable-Baselines3 PPO (checkpoints ppo_<n>_steps.zip)")
+                        "checkpoint_<n>.pt, final_policy.npz); sb3: Stable-Baselines3 PPO (ppo_<n>_steps.zip)")
     p.add_argument("--no-progress-bar", action="store_true")
     for key, value in PPO_DEFAULTS.items():
         p.add_argument(f"--{key.replace('_', '-')}", type=type(value), default=value)
@@ -534,7 +536,7 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
             style=args.style, reference=None if args.reference is None else str(args.reference),
             amp_history=args.amp_history, w_task=args.w_task, w_style=args.w_style,
             torch_threads=args.torch_threads, update_threads=args.update_threads, update_bf16=args.update_bf16,
-            checkpoint_every=args.checkpoint_every, **disc)
+            checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every, **disc)
     except (TypeError, ValueError) as err:
         raise SystemExit(f"train_ppo: {err}") from None
 
@@ -716,7 +718,7 @@ def main(argv: list[str] | None = None) -> Path:
                                  "with") from None
             print(f"initialised from {checkpoint} (weights, optimiser, statistics{', discriminator' if amp_state else ''})")
 
-    save_freq = max(args.checkpoint_every // args.n_envs, 1)
+    save_freq = max((args.checkpoint_every or 100_000) // args.n_envs, 1)
     callbacks: list[BaseCallback] = [CheckpointCallback(
         save_freq=save_freq, save_path=str(run_dir / "checkpoints"), name_prefix="ppo", save_vecnormalize=True,
     )]

@@ -261,3 +261,18 @@ def test_resume_equals_an_uninterrupted_run(tmp_path):
     np.testing.assert_array_equal(whole.normalizer.ret_rms.var, resumed.normalizer.ret_rms.var)
     whole.close()
     resumed.close()
+
+
+def test_a_checkpoint_cut_is_not_judged_by_the_curriculum():
+    """The worlds' episodes cut at a checkpoint keep their curriculum levels (a task-ended one moves them)."""
+    env = gym.make("InterLevel-v0", step_height_levels=4).unwrapped
+    env.reset(seed=0)
+    env.curriculum_level = 2
+    for _ in range(3):
+        env.step(np.zeros(28))
+    env.reset(seed=1, options={"episode_cut": True})
+    assert env.curriculum_level == 2
+    for _ in range(3):
+        env.step(np.zeros(28))
+    env.reset(seed=1)    # a 3-step floor-start episode far below half the stairs: down a level
+    assert env.curriculum_level == 1

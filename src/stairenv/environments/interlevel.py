@@ -265,11 +265,15 @@ class InterLevelEnv(HumanoidEnv):
 
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """New staircase and start pose. ``options={"stairs": Staircase}`` fixes the staircase."""
+        """New staircase and start pose. ``options={"stairs": Staircase}`` fixes the staircase;
+        ``options={"episode_cut": True}`` says the episode in progress was cut short by the trainer (a
+        checkpoint), not ended by the task: the step-height curriculum does not judge it."""
         return super().reset(seed=seed, options=options)
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
-        config = self._episode_stairs_config(rng)
+        # options={"episode_cut": True}: the episode in progress was cut short (a trainer's checkpoint),
+        # not ended by the task, so the curriculum does not judge it
+        config = self._episode_stairs_config(rng, judge_last=not (options or {}).get("episode_cut", False))
         stairs = generate_stairs(config, rng)
         # drawn only when asked for, so that the default episodes' random stream is unchanged
         self._stairs_start = self.stairs_start_fraction > 0.0 and rng.uniform() < self.stairs_start_fraction
@@ -284,10 +288,10 @@ class InterLevelEnv(HumanoidEnv):
                 step_depth=stair_starts.snap(stairs.step_depth, *config.step_depth))
         self._set_stairs(stairs)
 
-    def _episode_stairs_config(self, rng: np.random.Generator) -> StairsConfig:
+    def _episode_stairs_config(self, rng: np.random.Generator, judge_last: bool = True) -> StairsConfig:
         """``stairs_config``, its step heights narrowed to the curriculum level's band when there is a
         curriculum; the level first moved by the outcome of the episode that just ended (if it started on
-        the floor)."""
+        the floor and ``judge_last``)."""
         levels = self.step_height_levels
         if not levels:
             return self.stairs_config
@@ -295,7 +299,7 @@ class InterLevelEnv(HumanoidEnv):
         last = getattr(self, "_evaluation", None) if getattr(self, "_steps", 0) > 0 else None
         if self.curriculum_level is None:
             self.curriculum_level = curriculum.initial_level(levels, rng)
-        elif last is not None and not self._stairs_start:
+        elif last is not None and not self._stairs_start and judge_last:
             self.curriculum_level = curriculum.next_level(
                 self.curriculum_level, levels, bool(last.results["success"]), last.results["progress"], rng,
                 demote_below=self.curriculum_demote_below, promote_at=self.curriculum_promote_at)

@@ -44,7 +44,7 @@ class TrainConfig:
     | torch_threads | 1 | torch intra-op threads during the rollout (the physics pool uses the cores) |
     | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
     | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
-    | checkpoint_every | 100,000 | env steps between checkpoints |
+    | checkpoint_every | 1,000,000 | env steps between checkpoints (each starts every episode anew: resumes are exact) |
     """
 
     env_id: str = "InterLevel-v0"
@@ -90,7 +90,7 @@ class TrainConfig:
     torch_threads: int | None = 1
     update_threads: int | None = None
     update_bf16: bool = False
-    checkpoint_every: int = 100_000
+    checkpoint_every: int = 1_000_000
 
     def __post_init__(self) -> None:
         self._set("num_envs", check_int("num_envs", self.num_envs, 1, 1_000_000))

@@ -263,7 +263,8 @@ class Trainer:
         reset and each checkpoint's; ``update_statistics=False``: a resumed run repeating the reset its
         checkpoint already counted)."""
         n = self.config.num_envs
-        obs, _ = self.venv.reset(seed=self.config.seed + n * self.iterations)
+        cut = {"episode_cut": True} if self._obs is not None else None    # a checkpoint's: no task judged them
+        obs, _ = self.venv.reset(seed=self.config.seed + n * self.iterations, options=cut)
         self._obs = torch.from_numpy(self.normalizer.observations(obs, update=update_statistics))
         self._starts = torch.ones(n)
         self.normalizer.returns[:] = 0.0
