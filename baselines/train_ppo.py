@@ -1,4 +1,4 @@
-"""Train PPO + AMP (Stable-Baselines3) on a stairenv env: CPU-tuned defaults, the InterLevel paper's settings as a preset.
+"""Train PPO + AMP on a stairenv env: CPU-tuned defaults, the InterLevel paper's settings as a preset.
 
     python baselines/train_ppo.py                         # InterLevel-v0, PPO + AMP, the CPU settings below
     python baselines/train_ppo.py --preset paper          # the paper's settings
@@ -6,10 +6,20 @@
     python baselines/train_ppo.py --env InterSceneStairs-v0 --style none   # task reward only
     python baselines/train_ppo.py --env-kwarg target_speed=0.8 --timesteps 5e6
     python baselines/train_ppo.py --config baselines/recipes/interlevel_climb.toml   # any flags below as keys
-    python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/ppo_100000_steps.zip
-    python baselines/train_ppo.py --resume .../ppo_100000_steps.zip --fresh-discriminator   # AMP state lost
-    python baselines/train_ppo.py --init-from .../ppo_100000_steps.zip --learning-rate 3e-5  # new run, trained weights
+    python baselines/train_ppo.py --resume runs/InterLevel-v0/seed0/checkpoints/checkpoint_1000448.pt
+    python baselines/train_ppo.py --init-from .../checkpoint_1000448.pt --learning-rate 3e-5  # new run, trained weights
+    python baselines/train_ppo.py --init-from checkpoints/InterLevel-v0/ppo_3200000_steps.zip   # from an SB3 run
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
+    python baselines/train_ppo.py --trainer sb3 ...       # Stable-Baselines3 PPO instead (ppo_<n>_steps.zip)
+
+Two trainers run the same algorithm with the same flags. ``--trainer lean`` (the default):
+``stairenv.training``, PPO + AMP written for the batched env's arrays (the loop is
+``stairenv.training.ppo.Trainer.learn``; the run's whole resolved ``TrainConfig`` is saved in every
+checkpoint, one ``checkpoint_<n>.pt`` holding policy, optimiser, normalisers, discriminator, curriculum
+levels, step counter and generators, read without running code, ``replay_<n>.npy`` beside the latest;
+``--resume`` continues exactly; ``final_policy.npz`` is the numpy policy ``stairenv.pretrained`` loads).
+``--trainer sb3``: Stable-Baselines3 PPO with VecNormalize and the AMP wrapper (the files below).
+``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
 (``docs/reproducing.md``): the natively batched env (``--vec-env batched``, 128 worlds, physics on
@@ -31,7 +41,7 @@ style weighted 0.8), on the paper's sizes. ``PRESETS`` holds them; flags and ``-
 over a preset. The runs behind each setting are in ``docs/reproducing.md``.
 
 ``--init-from CHECKPOINT`` starts a new run (steps counted from 0, this run's flags) from a
-checkpoint's policy and value weights, optimiser state, VecNormalize statistics and discriminator
+checkpoint's (lean ``.pt`` or SB3 ``.zip``) policy and value weights, optimiser state, statistics and discriminator
 (task and style weights, the discriminator's instance noise and gradient penalty from this run's
 flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained
 policy. ``--resume`` continues a run exactly (the checkpoint's own settings and step count).
@@ -49,14 +59,15 @@ judges [motion window, text embedding]; each reference clip is embedded from its
 ``meta["text"]`` with the env's encoder, and the env's captions become the
 reference texts of its skill, so agent and reference conditions come from one set.
 
-Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``),
-checkpoints (model, VecNormalize statistics, AMP state), ``final_model.zip`` +
+Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``; the lean trainer also
+``log.jsonl``, one line of scalars per iteration, with the wall and CPU time of each phase per env step),
+checkpoints; with ``--trainer sb3`` (model, VecNormalize statistics, AMP state) ``final_model.zip`` +
 ``vecnormalize.pkl`` + ``amp.pt`` and the evaluation table
 (``evaluation.csv`` / ``.json``) of the trained policy, by the evaluator of the env's family
 (``stairenv.evaluation.evaluator_for``: InterLevel Tables 1-3, PlaMo Table 2 or SIMS Table 1);
 the JSON is a list of reports.
 
-``--resume`` needs the checkpoint's VecNormalize statistics and, with AMP, its
+With ``--trainer sb3``, ``--resume`` needs the checkpoint's VecNormalize statistics and, with AMP, its
 AMP state (``amp_<n>_steps.pt``, or ``amp.pt`` beside ``final_model.zip``); without
 the AMP state it stops unless ``--fresh-discriminator`` asks for a new one. The
 model .zip and statistics .pkl are pickles (SB3's formats): resume only from files
@@ -80,21 +91,35 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
-from stable_baselines3.common.utils import ConstantSchedule
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.sims import SIMSEnv, reference_captions
 from stairenv.evaluation import evaluator_for
 from stairenv.evaluation.cli import env_kwarg_argument
-from stairenv.evaluation.policies import load_policy, normalizer_beside, read_normalizer
+from stairenv.evaluation.policies import load_policy, read_normalizer
 from stairenv.evaluation.report import write_reports
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
-from stairenv.style.wrappers import AMPStateError, AMPStyleReward, AMPVecEnvWrapper
+from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
 from stairenv.training.from_sb3 import state_from_sb3
+from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
+    AdaptiveLearningRate,
+    AMPCallback,
+    CurriculumCallback,
+    EpisodeStatsCallback,
+    check_same_spaces,
+    checkpoint_file,
+    curriculum_state_beside,
+    load_checkpoint,
+    required_amp_state,
+    restore_curriculum,
+    resumed_style,
+    run_env,
+    statistics_beside,
+)
 from stairenv.vec_sb3 import make_sb3_vec_env
 
 # The defaults: the fastest settings measured to learn on a 2-core CPU (docs/reproducing.md).
@@ -273,120 +298,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
-class AMPCallback(BaseCallback):
-    """Logs the discriminator's statistics and saves the AMP state next to each checkpoint."""
-
-    def __init__(self, style: AMPStyleReward, save_freq: int, folder: Path) -> None:
-        super().__init__()
-        self.style, self.save_freq, self.folder = style, save_freq, folder
-
-    def _on_step(self) -> bool:
-        infos = self.locals.get("infos", [])
-        if infos:
-            self.logger.record_mean("amp/style_reward", float(sum(i["style_reward"] for i in infos) / len(infos)))
-            self.logger.record_mean("amp/task_reward", float(sum(i["task_reward"] for i in infos) / len(infos)))
-        for key, value in self.style.last_stats.items():
-            self.logger.record(f"amp/{key}", value)
-        if self.n_calls % self.save_freq == 0:
-            self.style.save(self.folder / f"amp_{self.num_timesteps}_steps.pt")
-        return True
-
-
-class EpisodeStatsCallback(BaseCallback):
-    """Logs the task's results at each episode's end (``episode/*``): InterLevel's progress, success and
-    falls, for all episodes and for those that started on the floor (``info["stairs_start"]`` false),
-    the ones comparable with the evaluation's."""
-
-    KEYS = ("progress", "success", "fell", "stalled")
-
-    def _on_step(self) -> bool:
-        for done, info in zip(self.locals["dones"], self.locals["infos"]):
-            if not done or "progress" not in info:
-                continue
-            groups = ("episode", "episode_floor_start") if not info.get("stairs_start") else ("episode",)
-            for group in groups:
-                for key in self.KEYS:
-                    if key in info:
-                        self.logger.record_mean(f"{group}/{key}", float(info[key]))
-        return True
-
-
-class AdaptiveLearningRate(BaseCallback):
-    """Keeps PPO's approx-KL near ``target``: after each update the learning rate is multiplied by 1.5
-    when the update's approx-KL was below target / 2 and divided by 1.5 when above 2 target (the rule of
-    legged-robot PPO trainers). The rate lives in the model's schedule, so checkpoints resume with it."""
-
-    def __init__(self, target: float, low: float = 1e-6, high: float = 1e-3) -> None:
-        super().__init__()
-        self.target, self.low, self.high = target, low, high
-
-    def _on_rollout_end(self) -> None:
-        kl = self.model.logger.name_to_value.get("train/approx_kl")
-        rate = float(self.model.lr_schedule(1.0))
-        if kl is not None and kl > 2.0 * self.target:
-            rate = max(self.low, rate / 1.5)
-        elif kl is not None and 0.0 < kl < 0.5 * self.target:
-            rate = min(self.high, rate * 1.5)
-        self.model.learning_rate = rate
-        self.model.lr_schedule = ConstantSchedule(rate)
-        self.logger.record("train/adaptive_learning_rate", rate)
-
-    def _on_step(self) -> bool:
-        return True
-
-
-class CurriculumCallback(BaseCallback):
-    """The step-height curriculum's state (``step_height_levels``): its worlds' levels logged as
-    ``curriculum/level`` (mean) after each rollout and saved as ``curriculum_<n>_steps.json`` beside
-    each checkpoint, which ``--resume`` and ``--init-from`` read back."""
-
-    def __init__(self, save_freq: int, folder: Path) -> None:
-        super().__init__()
-        self.save_freq, self.folder = save_freq, folder
-
-    def _levels(self) -> list[int | None]:
-        return list(self.training_env.get_attr("curriculum_level"))
-
-    def _on_rollout_end(self) -> None:
-        levels = [level for level in self._levels() if level is not None]
-        if levels:
-            self.logger.record("curriculum/level", float(np.mean(levels)))
-
-    def _on_step(self) -> bool:
-        if self.n_calls % self.save_freq == 0:
-            path = self.folder / f"curriculum_{self.num_timesteps}_steps.json"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(json.dumps({"curriculum_level": self._levels()}))
-        return True
-
-
-def _saved_beside(checkpoint: Path, kind: str, suffix: str) -> Path:
-    """What a run saves beside ``ppo_<n>_steps.zip`` under another name: ``<kind>_<n>_steps<suffix>``."""
-    return checkpoint.with_name(f"{kind}_{checkpoint.stem.removeprefix('ppo_')}{suffix}")
-
-
-def curriculum_state_beside(checkpoint: Path) -> Path | None:
-    """The curriculum levels saved with a checkpoint (ppo_<n>_steps.zip -> curriculum_<n>_steps.json)."""
-    path = _saved_beside(checkpoint, "curriculum", ".json")
-    return path if checkpoint.stem.startswith("ppo_") and path.is_file() else None
-
-
-def restore_curriculum(venv, path: Path) -> list[int | None]:
-    """Give each world its saved level; ``SystemExit`` naming the file when it does not fit this run."""
-    try:
-        levels = json.loads(path.read_text())["curriculum_level"]
-        if not isinstance(levels, list) or not all(level is None or type(level) is int for level in levels):
-            raise ValueError("curriculum_level must be a list of integers")
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        raise SystemExit(f"--resume: cannot read the curriculum state {path} ({err})") from None
-    if len(levels) != venv.num_envs:
-        raise SystemExit(f"--resume: {path} holds {len(levels)} worlds' levels, this run has {venv.num_envs} "
-                         "(--n-envs)")
-    for i, level in enumerate(levels):
-        venv.set_attr("curriculum_level", level, indices=[i])
-    return levels
-
-
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
                  "step_height_levels", "curriculum_promote_at", "curriculum_demote_below")
@@ -397,79 +308,6 @@ def evaluation_kwargs(env_kwargs: dict) -> dict:
     ``step_height`` range (the evaluation draws the env's own)."""
     aids = TRAINING_AIDS + (("step_height",) if env_kwargs.get("step_height_levels") else ())
     return {key: value for key, value in env_kwargs.items() if key not in aids}
-
-
-def _amp_state_candidates(checkpoint: Path) -> list[Path]:
-    """Where the AMP state saved with a checkpoint lies (ppo_<n>_steps.zip -> amp_<n>_steps.pt, or amp.pt)."""
-    own = [_saved_beside(checkpoint, "amp", ".pt")]
-    return (own if checkpoint.stem.startswith("ppo_") else []) + [checkpoint.parent / "amp.pt"]
-
-
-def _amp_state_beside(checkpoint: Path) -> Path | None:
-    return next((path for path in _amp_state_candidates(checkpoint) if path.is_file()), None)
-
-
-def _checkpoint_file(resume: Path) -> Path:
-    """The --resume checkpoint as an existing file (SB3 also takes it without its .zip)."""
-    for candidate in (resume, resume.with_name(resume.name + ".zip")):
-        if candidate.is_file():
-            return candidate
-    raise SystemExit(f"--resume {resume}: no such checkpoint file; give a run's checkpoints/ppo_<n>_steps.zip "
-                     "or its final_model.zip")
-
-
-def _statistics_beside(checkpoint: Path) -> Path:
-    stats = normalizer_beside(checkpoint)
-    if stats is None:
-        raise SystemExit(f"--resume {checkpoint}: no VecNormalize statistics beside it "
-                         "(ppo_vecnormalize_<n>_steps.pkl or vecnormalize.pkl); the policy cannot go on without "
-                         "the observation normalisation it learnt with: copy the file back or resume from "
-                         "another checkpoint")
-    return stats
-
-
-def _required_amp_state(checkpoint: Path) -> Path:
-    """The AMP state beside the checkpoint; missing, resuming would silently restart the discriminator."""
-    found = _amp_state_beside(checkpoint)
-    if found is None:
-        expected = " or ".join(str(path) for path in _amp_state_candidates(checkpoint))
-        raise SystemExit(f"--resume {checkpoint}: no AMP state beside it ({expected}), so the discriminator "
-                         "trained with it is lost: copy it back, or pass --fresh-discriminator to go on "
-                         "with a new discriminator (its style rewards start over), or --style none")
-    return found
-
-
-def _run_env(checkpoint: Path) -> str | None:
-    """The env id of the run folder a checkpoint lies in (<logdir>/<env>/seed<k>/[checkpoints/])."""
-    return next((folder.name for folder in list(checkpoint.parents)[:3] if folder.name in gym.registry), None)
-
-
-def _check_same_spaces(checkpoint: Path, stats: Path, normalizer: VecNormalize, venv, env_id: str) -> None:
-    """Stop when the checkpoint's env (its statistics' spaces) is not --env's."""
-    saved = (normalizer.observation_space.shape, normalizer.action_space.shape)
-    now = (venv.observation_space.shape, venv.action_space.shape)
-    if saved != now:
-        origin = _run_env(checkpoint)
-        hint = f" (its run folder is {origin}'s)" if origin and origin != env_id else ""
-        raise SystemExit(f"--resume {checkpoint}: trained on observations of shape {saved[0]} and actions of shape "
-                         f"{saved[1]} (statistics {stats}){hint}, but --env {env_id} gives {now[0]} and {now[1]}: "
-                         "pass the --env and --env-kwarg it was trained with")
-
-
-def _resumed_style(amp_state: Path, reference: ReferenceWindows, seed: int) -> AMPStyleReward:
-    try:
-        return AMPStyleReward.load(amp_state, reference, seed=seed)
-    except (AMPStateError, ValueError) as err:
-        raise SystemExit(f"--resume: {err}. To go on with a new discriminator instead, pass --fresh-discriminator"
-                         ) from None
-
-
-def _load_checkpoint(checkpoint: Path, venv, device: str, tensorboard: str | None) -> PPO:
-    try:
-        return PPO.load(checkpoint, env=venv, device=device, tensorboard_log=tensorboard)
-    except Exception as err:  # noqa: BLE001  (a truncated .zip, another algorithm's, other spaces: many types)
-        raise SystemExit(f"--resume {checkpoint}: cannot load it as a PPO checkpoint for this env "
-                         f"({type(err).__name__}: {err})") from None
 
 
 def discriminator_config(args: argparse.Namespace) -> DiscriminatorConfig:
@@ -559,9 +397,9 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
             return None, read_checkpoint(args.init_from)
         except CheckpointError as err:
             raise SystemExit(f"--init-from: {err}") from None
-    checkpoint = _checkpoint_file(args.init_from)
-    amp_state = _required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
-    state = state_from_sb3(checkpoint, _statistics_beside(checkpoint), amp_state)
+    checkpoint = checkpoint_file(args.init_from)
+    amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
+    state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
     saved = curriculum_state_beside(checkpoint)
     state["curriculum_level"] = json.loads(saved.read_text())["curriculum_level"] if saved else []
     return None, state
@@ -639,10 +477,10 @@ def main(argv: list[str] | None = None) -> Path:
     checkpoint = stats = amp_state = None
     source = args.resume if args.resume is not None else args.init_from
     if source is not None:  # every file first, before minutes of env setup
-        checkpoint = _checkpoint_file(source)
-        stats = _statistics_beside(checkpoint)
+        checkpoint = checkpoint_file(source)
+        stats = statistics_beside(checkpoint)
         if args.style == "amp" and not args.fresh_discriminator:
-            amp_state = _required_amp_state(checkpoint)
+            amp_state = required_amp_state(checkpoint)
     run_dir = args.logdir / args.env / f"seed{args.seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
 
@@ -665,11 +503,11 @@ def main(argv: list[str] | None = None) -> Path:
         except ValueError as err:
             raise SystemExit(f"--resume {checkpoint}: {err}; copy an intact file back or resume from another "
                              "checkpoint") from None
-        _check_same_spaces(checkpoint, stats, normalizer, venv, args.env)
+        check_same_spaces(checkpoint, stats, normalizer, venv, args.env)
 
     if reference is not None:
         if amp_state is not None:
-            style = _resumed_style(amp_state, reference, args.seed)
+            style = resumed_style(amp_state, reference, args.seed)
             if args.init_from is not None:  # a new run on the trained discriminator: this run's weights
                 style.w_task, style.w_style = args.w_task, args.w_style
                 # and this run's settings of the discriminator's training that can change on a trained one
@@ -685,12 +523,12 @@ def main(argv: list[str] | None = None) -> Path:
     if normalizer is not None and args.resume is not None:
         normalizer.set_venv(venv)
         venv = normalizer
-        model = _load_checkpoint(checkpoint, venv, args.device, tensorboard)
+        model = load_checkpoint(checkpoint, venv, args.device, tensorboard)
         discriminator = f", discriminator {amp_state}" if amp_state else ""
         if args.fresh_discriminator:
             discriminator = ", a fresh discriminator (--fresh-discriminator)"
         print(f"resumed from {checkpoint} ({model.num_timesteps} steps) with statistics {stats}{discriminator}")
-        origin = _run_env(checkpoint)
+        origin = run_env(checkpoint)
         if origin is not None and origin != args.env:
             print(f"note: {checkpoint} comes from a {origin} run; training goes on with --env {args.env}",
                   file=sys.stderr)

@@ -487,8 +487,8 @@ class Trainer:
                 self.style.pending = int(state["style"]["pending"])
                 self.style.rng.bit_generator.state = state["style"]["rng"]
                 disc.noise_generator.set_state(state["style"]["noise_rng"])
-        if state.get("curriculum_level"):
-            self.set_curriculum_levels(state["curriculum_level"])
+        if state.get("curriculum_level") and self.config.env_kwargs.get("step_height_levels"):
+            self.set_curriculum_levels(state["curriculum_level"])    # when both runs have a curriculum
         if not weights_only:
             self._resumed = True
             self.steps, self.iterations = int(state["steps"]), int(state["iterations"])
