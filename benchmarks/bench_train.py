@@ -6,7 +6,8 @@
 Settings (each ``train_ppo.py`` with its defaults, PPO + AMP, 128 worlds x 16-step rollouts):
 ``lean`` (``--trainer lean``, the default), ``sb3`` (``--trainer sb3``: Stable-Baselines3 PPO on the
 same batched env, the defaults before the lean trainer), ``paper`` (``--trainer sb3 --preset paper``,
-run for an eighth of the steps). Each round runs every setting once, the order rotating between
+run for an eighth of the steps); ``lean-bf16`` and ``lean-2threads``, the lean trainer with its update
+options ``--update-bf16`` and ``--update-threads 2``. Each round runs every setting once, the order rotating between
 rounds; no evaluation, no checkpoint in the timed part. The rate is the script's own ``trained N env
 steps in T s`` line (the training loop only: start-up and env construction excluded), and its ``cpu``
 line the CPU (all threads) per env step. Printed: each run's env steps/s and CPU per step, each
@@ -30,7 +31,10 @@ SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
 RATE = re.compile(r"trained (\d+) env steps in ([\d.]+) s \((\d+) env steps/s\)")
 CPU = re.compile(r"cpu (\d+) us per env step, ([\d.]+) cores busy")
 SETTINGS = {"lean": (1, ["--trainer", "lean"]), "sb3": (1, ["--trainer", "sb3"]),
-            "paper": (8, ["--trainer", "sb3", "--preset", "paper"])}
+            "paper": (8, ["--trainer", "sb3", "--preset", "paper"]),
+            # the lean trainer's update options (off by default): bfloat16 products, both cores in the update
+            "lean-bf16": (1, ["--trainer", "lean", "--update-bf16"]),
+            "lean-2threads": (1, ["--trainer", "lean", "--update-threads", "2"])}
 
 
 def run(env: str, steps: int, extra: list[str], logdir: str) -> tuple[float, float, float]:
