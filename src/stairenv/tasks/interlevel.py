@@ -512,8 +512,8 @@ def interlevel_evaluate(
     It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
     ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
     """
-    obs, results = _evaluate_packed(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
-                                    goal.rotation, cfg, dt, termination_height, success_radius)
+    obs, results = interlevel_evaluate_columns(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
+                                               goal.rotation, cfg, dt, termination_height, success_radius)
     return obs, StepResults.from_columns(results)
 
 
@@ -529,12 +529,13 @@ def interlevel_step(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``interlevel_evaluate`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
     the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
-    return _evaluate_packed(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
-                            termination_height, success_radius)
+    return interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
+                                       termination_height, success_radius)
 
 
-def _evaluate_packed(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
-    """The step kernel's call: observation (B, 118) and results (B, 8) in ``STEP_RESULTS`` order."""
+def interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
+    """The step kernel's call (what an env calls each step): the observation (B, 118) and the results
+    (B, 8) in ``STEP_RESULTS`` order; ``packed_goal`` is ``goal.pack()``, ``cfg`` a ``RewardParams``."""
     batch = state.body_pos.shape[0]
     obs = np.empty((batch, OBSERVATION_SIZE))
     results = np.empty((batch, len(STEP_RESULTS)))
