@@ -167,6 +167,7 @@ class HumanoidEnv(gym.Env):
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
         # Per-step views and constants, made once per MjData (its buffers never move):
         self._warning_counts = self.data.warning.number
+        self._ctrl = self.data.ctrl
         self._state_views = read_state(self.data, self._idx) if self._idx.body_slice is not None else None
         self._speed_limits = speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip
@@ -374,7 +375,7 @@ class HumanoidEnv(gym.Env):
 
     def _apply_action(self, action: np.ndarray) -> None:
         """PD targets ``offset + scale * action``."""
-        self.data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
+        np.add(self._ctrl_offset, self._ctrl_scale * action, out=self._ctrl)
 
     def _physics_sound(self, expected_time: float) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can

@@ -114,17 +114,18 @@ class StairsGoal(NamedTuple):
 
     @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
-        target = np.stack([s.marker_top for s in stairs])
-        bottom = np.stack([s.marker_bottom for s in stairs])
+        # np.array of a list of equal-shape arrays: np.stack's result (contiguous), for less per reset
+        target = np.array([s.marker_top for s in stairs])
+        bottom = np.array([s.marker_bottom for s in stairs])
         return cls(
             target=target,
             bottom=bottom,
-            origin=np.stack([s.origin for s in stairs]),
-            rotation=np.ascontiguousarray(np.stack([s.rotation for s in stairs])),
+            origin=np.array([s.origin for s in stairs]),
+            rotation=np.array([s.rotation for s in stairs]),
             yaw=np.array([s.yaw for s in stairs]),
             marker_distance=np.linalg.norm(target - bottom, axis=-1),
-            target_local=np.stack([s.marker_top_local for s in stairs]),
-            bottom_local=np.stack([s.marker_bottom_local for s in stairs]),
+            target_local=np.array([s.marker_top_local for s in stairs]),
+            bottom_local=np.array([s.marker_bottom_local for s in stairs]),
             top_height=np.array([s.top_height for s in stairs]),
             step_depth=np.array([s.step_depth for s in stairs]),
             num_steps=np.array([float(s.num_steps) for s in stairs]),
