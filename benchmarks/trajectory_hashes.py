@@ -6,7 +6,9 @@
 For each id: the single env (``gym.make``, wrappers included, a short episode limit so that
 truncations and resets happen) and the batched env (``gym.make_vec(..., "vector_entry_point")``, 4
 worlds, in both autoreset modes) run ``--steps`` steps of seeded uniform actions in [-1, 1] from a
-seeded reset. Hashed, separately: observations, rewards, terminated, truncated and every info value
+seeded reset; at two steps a world's state is broken before the step (a root speed far beyond the
+body's, which the speed check catches, then a NaN joint angle that MuJoCo resets the data for, which
+the divergence check catches), so that the unstable-physics branch is fingerprinted too. Hashed, separately: observations, rewards, terminated, truncated and every info value
 (numbers and arrays by dtype, shape and bytes; nested dicts and object arrays element by element).
 The hashes depend on the MuJoCo build and the CPU, so record and check on the same machine.
 """
@@ -17,12 +19,27 @@ import argparse
 import hashlib
 import json
 import sys
+import warnings
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 
 import stairenv
+
+# Steps before which the state is broken (see break_physics), and the joint whose angle is.
+IMPLAUSIBLE_SPEED_STEP, DIVERGENCE_STEP, BROKEN_JOINT = 50, 150, 3
+
+
+def break_physics(env, step: int) -> None:
+    """Before ``IMPLAUSIBLE_SPEED_STEP``: the root moving at 100 m/s (twice ``MAX_ROOT_SPEED``, below
+    anything MuJoCo flags: the speed check's case); before ``DIVERGENCE_STEP``: a NaN joint angle
+    (MuJoCo resets the data: the divergence check's case)."""
+    idx = env._idx
+    if step == IMPLAUSIBLE_SPEED_STEP:
+        env.data.qvel[idx.qvel_root.start] = 100.0
+    elif step == DIVERGENCE_STEP:
+        env.data.qpos[idx.qpos_joints.start + BROKEN_JOINT] = np.nan
 
 
 def _feed(digest, value) -> None:
@@ -67,8 +84,10 @@ def single_env(env_id: str, steps: int, seed: int) -> dict[str, str]:
     rng = np.random.default_rng(seed)
     obs, info = env.reset(seed=seed)
     trajectory.add(obs=obs, info=info)
-    for _ in range(steps):
-        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1.0, 1.0, env.action_space.shape))
+    for step in range(steps):
+        action = rng.uniform(-1.0, 1.0, env.action_space.shape)
+        break_physics(env.unwrapped, step)
+        obs, reward, terminated, truncated, info = env.step(action)
         trajectory.add(obs=obs, reward=reward, terminated=terminated, truncated=truncated, info=info)
         if terminated or truncated:
             obs, info = env.reset()
@@ -84,8 +103,10 @@ def batched_env(env_id: str, steps: int, seed: int, mode: AutoresetMode) -> dict
     rng = np.random.default_rng(seed)
     obs, info = env.reset(seed=seed)
     trajectory.add(obs=obs, info=info)
-    for _ in range(steps):
-        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1.0, 1.0, env.action_space.shape))
+    for step in range(steps):
+        action = rng.uniform(-1.0, 1.0, env.action_space.shape)
+        break_physics(env.unwrapped.envs[1], step)
+        obs, reward, terminated, truncated, info = env.step(action)
         trajectory.add(obs=obs, reward=reward, terminated=terminated, truncated=truncated, info=info)
     env.close()
     return trajectory.hexdigests()
@@ -110,6 +131,7 @@ def main() -> None:
     group.add_argument("--record", metavar="JSON")
     group.add_argument("--check", metavar="JSON")
     args = parser.parse_args()
+    warnings.filterwarnings("ignore", message=".*physics became unstable")
     hashes = all_hashes(args.ids.split(","), args.steps, args.seed)
     if args.record:
         with open(args.record, "w") as f:

@@ -103,7 +103,7 @@ class StairsGoal(NamedTuple):
     def pack(self) -> np.ndarray:
         b = self.target.shape[0]
         return np.ascontiguousarray(np.concatenate(
-            [np.reshape(getattr(self, name), (b, -1)) for name in GOAL_COLUMNS], axis=1))
+            [np.asarray(getattr(self, name)).reshape(b, -1) for name in GOAL_COLUMNS], axis=1))
 
     @classmethod
     def unpack(cls, packed: np.ndarray) -> StairsGoal:
