@@ -329,6 +329,22 @@ def test_real_actions_of_any_dtype_step_alike():
     np.testing.assert_array_equal(integer_obs, env.step(np.ones(28))[0])
 
 
+def test_a_deep_copy_steps_its_own_data_alike():
+    """The views a step reads and writes (ctrl, qvel, the state) belong to the copy's own MjData."""
+    import copy
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    env.step(np.zeros(28))
+    twin = copy.deepcopy(env)
+    for action in (np.full(28, 0.7), np.full(28, -0.4)):
+        obs, reward, *_ = env.step(action)
+        twin_obs, twin_reward, *_ = twin.step(action)
+        np.testing.assert_array_equal(obs, twin_obs)
+        assert reward == twin_reward
+    np.testing.assert_array_equal(twin.data.ctrl, env.data.ctrl)
+    assert twin.data.ctrl.ctypes.data != env.data.ctrl.ctypes.data
+
+
 def test_step_before_reset_raises():
     env = InterLevelEnv()
     with pytest.raises(gym.error.ResetNeeded):

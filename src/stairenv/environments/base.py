@@ -165,17 +165,35 @@ class HumanoidEnv(gym.Env):
         self._geoms = humanoid_geoms(self.model, self._idx)
         low, high = self.model.actuator_ctrlrange.T.copy()
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
-        # Per-step views and constants, made once per MjData (its buffers never move):
-        self._warning_counts = self.data.warning.number
-        self._ctrl = self.data.ctrl
-        self._state_views = read_state(self.data, self._idx) if self._idx.body_slice is not None else None
-        self._speed_limits = speed_limits(self._idx)
+        self._bind_data_views()
+        self._speed_start, self._speed_limits = self._idx.qvel_root.start, speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
         self._needs_reset = True
         self._camera = None
         self._viewer = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
+
+    # Views into ``self.data`` that each step reads or writes, made once per MjData (its buffers never
+    # move). A copy of the env (``copy.deepcopy``, pickle) gets its own views of its own data.
+    _DATA_VIEWS = ("_warning_counts", "_ctrl", "_qvel", "_state_views")
+
+    def _bind_data_views(self) -> None:
+        data = self.data
+        self._warning_counts = data.warning.number
+        self._ctrl, self._qvel = data.ctrl, data.qvel
+        self._state_views = read_state(data, self._idx) if self._idx.body_slice is not None else None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for name in self._DATA_VIEWS:
+            state.pop(name, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if getattr(self, "data", None) is not None:
+            self._bind_data_views()
 
     def _setup_starts(self, init: str, hybrid_fraction: float, reference_motion) -> None:
         """Check ``init``, ``hybrid_fraction`` and ``reference_motion`` (its files loaded whatever ``init``
@@ -396,7 +414,7 @@ class HumanoidEnv(gym.Env):
 
     def _speeds_plausible(self) -> bool:
         """False once the character moves faster than its body can (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``)."""
-        return within_limits(self.data.qvel, self._idx.qvel_root.start, self._speed_limits)
+        return within_limits(self._qvel, self._speed_start, self._speed_limits)
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:
