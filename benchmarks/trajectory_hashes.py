@@ -8,9 +8,12 @@ truncations and resets happen) and the batched env (``gym.make_vec(..., "vector_
 worlds, in both autoreset modes) run ``--steps`` steps of seeded uniform actions in [-1, 1] from a
 seeded reset; at two steps a world's state is broken before the step (a root speed far beyond the
 body's, which the speed check catches, then a NaN joint angle that MuJoCo resets the data for, which
-the divergence check catches), so that the unstable-physics branch is fingerprinted too. Hashed, separately: observations, rewards, terminated, truncated and every info value
-(numbers and arrays by dtype, shape and bytes; nested dicts and object arrays element by element).
-The hashes depend on the MuJoCo build and the CPU, so record and check on the same machine.
+the divergence check catches), so that the unstable-physics branch is fingerprinted too. Hashed,
+separately: observations, rewards, terminated, truncated and every info value (numbers and arrays by
+dtype, shape and bytes; nested dicts and object arrays element by element).
+The hashes depend on the MuJoCo build and the CPU, so record and check on the same machine. To
+record an earlier commit's: ``git archive <commit> src envs xml | tar -x -C /tmp/before``, then run
+this script with ``PYTHONPATH=/tmp/before/src``.
 """
 
 from __future__ import annotations

@@ -106,13 +106,14 @@ class HumanoidEnv(gym.Env):
     stands, optional) -> ``_begin_episode`` (bookkeeping, ``_start_tracking(state)``, the first
     ``_evaluate``, style features filled).
 
-    ``step``: ``_check_action`` (wrong shapes and NaN/inf raise ``ValueError``, a needed reset
+    ``step``: ``_check_action`` (wrong shapes, non-real dtypes and NaN/inf raise ``ValueError``, a needed reset
     ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range
     ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it) ->
     ``_before_physics`` (optional: moving obstacles, replanning) -> ``_physics`` (``frame_skip``
     physics steps) -> ``_physics_sound`` (divergence, i.e. MuJoCo resetting the data, or a speed no
-    body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED``, takes the one unstable branch: truncated, the last
-    good observation, ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
+    body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED`` checked in one compiled pass over qvel,
+    takes the one unstable branch: truncated, the last good observation,
+    ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
     features (``self._amp``, the last ``amp_history`` frames) -> ``_info(results)`` plus what every
     env reports (``time``, ``physics_unstable``, ``amp_obs``, ``reference_start``, the reward terms).
 

@@ -47,7 +47,7 @@ class InterLevelEnv(HumanoidEnv):
 
     **Action** (28,): in [-1, 1], mapped to PD targets ``offset + scale * a``
     (``stairenv.humanoid.pd_action_offset_scale``); MuJoCo clamps targets to that range.
-    Wrong shapes and non-finite values raise ``ValueError``.
+    Wrong shapes, non-real dtypes (complex, strings, objects) and non-finite values raise ``ValueError``.
 
     **Observation** (118,): the paper's layout, see ``observation_structure``
     (root height, root rotation 6-D, root linear and angular velocity, 12 local

@@ -5,7 +5,7 @@
 (``HumanoidEnv`` instances, one per world: each keeps its own ``MjModel``, which InterLevel writes its
 staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over the batch:
 
-1. every world's action checked first (shape, NaN/inf: ``ValueError`` naming the world's index),
+1. every world's action checked first (shape, a non-real dtype, NaN/inf: ``ValueError`` naming the worlds),
    nothing applied if one is bad;
 2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
@@ -15,9 +15,9 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    steps the rest (``collect``): the divergence and speed check, ``_evaluate``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
    For InterLevel (``BATCH_EVALUATION``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
-   the speeds checked at once, the stable worlds' state read as one batch (``read_states``), the task
-   in one compiled call (``InterLevelEnv._evaluate_worlds``, which the single env calls with one world)
-   and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
+   the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
+   read as one batch (``read_states``), the task in one compiled call (``InterLevelEnv._evaluate_worlds``,
+   which the single env calls with one world) and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
    right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
    is bit-identical to a single env's with the same seed.
 
