@@ -231,7 +231,7 @@ class HumanoidEnv(gym.Env):
         """What the task draws once the character is placed (a path from its start, a contact goal)."""
 
     def _read_state(self):
-        """``read_state`` of this env's data: the views made at ``_compile`` where the bodies are
+        """``read_state`` of this env's data: the views ``_bind_data_views`` made where the bodies are
         consecutive (the same arrays ``read_state`` would return), else a fresh read."""
         views = self._state_views
         return read_state(self.data, self._idx) if views is None else views
