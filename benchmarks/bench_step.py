@@ -2,14 +2,17 @@
 
     python benchmarks/bench_step.py [--steps 3000] [--rounds 3] [--json out.json]
 
-Compares, on the same model, the same initial state and the same actions:
-- ``env``: ``gym.make("InterLevel-v0")`` step (wrappers included), random actions;
-- ``raw``: ``mujoco.mj_step(model, data, frame_skip)`` with the same PD targets;
+Compares, on the same model, from the same initial state (a seeded reset):
+- ``env``: ``gym.make("InterLevel-v0")`` step (wrappers included), seeded random actions;
+- ``raw``: ``mujoco.mj_step(model, data, frame_skip)`` with the env's own PD targets for those
+  actions (``offset + scale * a`` as the env computes them), so that both step the same trajectory:
+  each round checks that they end in the same state, bit for bit;
 - Gymnasium's ``Humanoid-v5`` step (its own model, frame_skip 5 at 333 Hz);
 - reset with a new staircase, in milliseconds and in env steps.
-Falls are not terminated during the timed run (termination_height=0), so
-every timed call is a step; rounds are interleaved and the median is reported.
-Targets (issue: InterLevel-v0): env/raw <= 1.3; reset < 10 env steps.
+Falls are not terminated during the timed run (termination_height=0), so every timed call is a
+step. Rounds interleave the timings (env and raw in alternating order); the ratios are the medians
+of each round's ratios, all from this one run.
+Targets (issue #22): env/raw <= 1.15; reset < 10 env steps.
 """
 
 from __future__ import annotations
@@ -26,22 +29,29 @@ import numpy as np
 import stairenv  # noqa: F401  (registers the envs)
 
 
-def time_env_steps(env, actions: np.ndarray, seed: int) -> float:
+def end_state(env) -> bytes:
+    data = env.unwrapped.data
+    return data.qpos.tobytes() + data.qvel.tobytes() + np.float64(data.time).tobytes()
+
+
+def time_env_steps(env, actions: np.ndarray, seed: int) -> tuple[float, bytes]:
+    """Seconds per env step, and the state the steps end in."""
     env.reset(seed=seed)
     start = time.perf_counter()
     for action in actions:
         env.step(action)
-    return (time.perf_counter() - start) / len(actions)
+    return (time.perf_counter() - start) / len(actions), end_state(env)
 
 
-def time_raw_steps(env, ctrls: np.ndarray, seed: int) -> float:
+def time_raw_steps(env, ctrls: np.ndarray, seed: int) -> tuple[float, bytes]:
+    """Seconds per ``mj_step(frame_skip)`` from the env's seeded reset state, and the state they end in."""
     env.reset(seed=seed)
     model, data, frame_skip = env.unwrapped.model, env.unwrapped.data, env.unwrapped.frame_skip
     start = time.perf_counter()
     for ctrl in ctrls:
         data.ctrl[:] = ctrl
         mujoco.mj_step(model, data, frame_skip)
-    return (time.perf_counter() - start) / len(ctrls)
+    return (time.perf_counter() - start) / len(ctrls), end_state(env)
 
 
 def time_humanoid_v5(steps: int, seed: int) -> float:
@@ -70,7 +80,7 @@ def time_resets(env, n: int, seed: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, default=3000)
-    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--resets", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=str, default=None)
@@ -80,7 +90,9 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     actions = rng.uniform(-1.0, 1.0, (args.steps, 28))
     unwrapped = env.unwrapped
-    ctrls = np.clip(unwrapped._ctrl_offset + unwrapped._ctrl_scale * actions, *unwrapped.model.actuator_ctrlrange.T)
+    # The env's own PD targets (its action map, _apply_action: offset + scale * a, unclipped; MuJoCo
+    # clamps them to the ctrlrange in both loops).
+    ctrls = unwrapped._ctrl_offset + unwrapped._ctrl_scale * actions
     reset_env = gym.make("InterLevel-v0")
 
     # Warm up (numba kernels load from cache or compile, caches fill).
@@ -89,8 +101,15 @@ def main() -> None:
 
     env_t, raw_t, v5_t, reset_t = [], [], [], []
     for r in range(args.rounds):
-        env_t.append(time_env_steps(env, actions, args.seed + r))
-        raw_t.append(time_raw_steps(env, ctrls, args.seed + r))
+        timers = {"env": lambda: time_env_steps(env, actions, args.seed + r),
+                  "raw": lambda: time_raw_steps(env, ctrls, args.seed + r)}
+        order = ("env", "raw") if r % 2 == 0 else ("raw", "env")
+        timed = {name: timers[name]() for name in order}
+        (env_s, env_end), (raw_s, raw_end) = timed["env"], timed["raw"]
+        if env_end != raw_end:
+            raise RuntimeError(f"round {r}: the env and the raw loop ended in different states")
+        env_t.append(env_s)
+        raw_t.append(raw_s)
         v5_t.append(time_humanoid_v5(args.steps, args.seed + r))
         reset_t.append(time_resets(reset_env, args.resets, args.seed + r))
 
@@ -111,7 +130,7 @@ def main() -> None:
     print(f"raw mj_step x{unwrapped.frame_skip} (same model)  {results['raw_step_us']:8.1f} us")
     print(f"Humanoid-v5 step                {results['humanoid_v5_step_us']:8.1f} us")
     print(f"reset (new staircase)           {results['reset_ms']:8.3f} ms")
-    print(f"ratio env / raw physics         {step_ratio:8.3f}   (target <= 1.3)")
+    print(f"ratio env / raw physics         {step_ratio:8.3f}   (target <= 1.15; same trajectory, checked)")
     print(f"ratio env / Humanoid-v5         {v5_ratio:8.3f}")
     print(f"reset cost in env steps         {reset_steps:8.2f}   (target < 10)")
     if args.json:

@@ -298,6 +298,12 @@ def test_bad_keywords_name_the_parameter(kwargs, name):
         (np.zeros((2, 28)), "shape"),
         (np.full(28, np.nan), "finite"),
         (np.r_[np.zeros(27), np.inf], "finite"),
+        (np.r_[np.zeros(27), 0.5j], "real numbers, got dtype complex128"),      # not its real part
+        (np.zeros(28, dtype=complex), "real numbers, got dtype complex128"),
+        (np.zeros(28).astype(str), "real numbers, got dtype <U"),
+        ([0.0] * 27 + ["0.1"], "real numbers, got dtype <U"),
+        (np.zeros(28, dtype=object), "real numbers, got dtype object"),
+        (np.zeros(28, dtype=np.float32)[::2], "shape"),                     # the fast path checks shape too
     ],
 )
 def test_bad_actions_raise(action, message):
@@ -305,6 +311,38 @@ def test_bad_actions_raise(action, message):
     env.reset(seed=0)
     with pytest.raises(ValueError, match=message):
         env.step(action)
+
+
+def test_real_actions_of_any_dtype_step_alike():
+    """float32, float64 (also a list) and integer actions give the same step as their float64 values."""
+    results = []
+    for action in (np.full(28, 0.5, dtype=np.float32), np.full(28, 0.5), [0.5] * 28):
+        env = gym.make("InterLevel-v0").unwrapped
+        env.reset(seed=0)
+        results.append(env.step(action)[0])
+    for other in results[1:]:
+        np.testing.assert_array_equal(results[0], other)
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    integer_obs = env.step(np.ones(28, dtype=np.int64))[0]
+    env.reset(seed=0)
+    np.testing.assert_array_equal(integer_obs, env.step(np.ones(28))[0])
+
+
+def test_a_deep_copy_steps_its_own_data_alike():
+    """The views a step reads and writes (ctrl, qvel, the state) belong to the copy's own MjData."""
+    import copy
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    env.step(np.zeros(28))
+    twin = copy.deepcopy(env)
+    for action in (np.full(28, 0.7), np.full(28, -0.4)):
+        obs, reward, *_ = env.step(action)
+        twin_obs, twin_reward, *_ = twin.step(action)
+        np.testing.assert_array_equal(obs, twin_obs)
+        assert reward == twin_reward
+    np.testing.assert_array_equal(twin.data.ctrl, env.data.ctrl)
+    assert twin.data.ctrl.ctypes.data != env.data.ctrl.ctypes.data
 
 
 def test_step_before_reset_raises():

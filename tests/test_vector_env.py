@@ -151,6 +151,29 @@ def test_bad_actions_are_refused_naming_the_world():
         batched("InterLevel-v0", 0)
 
 
+def test_non_real_actions_are_refused_naming_the_world():
+    """Complex, string and object actions are refused, not converted (float64 would drop an imaginary part)."""
+    vec = batched("InterLevel-v0", 3)
+    vec.reset(seed=0)
+    times = [env.data.time for env in vec.envs]
+    complex_actions = np.zeros((3, 28), dtype=complex)
+    complex_actions[1, 4] = 0.5j
+    with pytest.raises(ValueError, match=r"real numbers, got dtype complex128 in world\(s\) \[1\]"):
+        vec.step(complex_actions)
+    with pytest.raises(ValueError, match=r"complex128 in every world"):
+        vec.step(np.zeros((3, 28), dtype=complex))
+    strings = np.zeros((3, 28)).astype(str)
+    with pytest.raises(ValueError, match=r"real numbers, got dtype <U"):
+        vec.step(strings)
+    objects = np.zeros((3, 28), dtype=object)
+    objects[2, 0] = "0.1"
+    with pytest.raises(ValueError, match=r"real numbers, got dtype object in world\(s\) \[2\]"):
+        vec.step(objects)
+    assert [env.data.time for env in vec.envs] == times                # nothing was stepped
+    vec.step(np.zeros((3, 28), dtype=np.float32))                       # real dtypes are converted
+    vec.step(np.zeros((3, 28), dtype=np.int64))
+
+
 def test_reset_mask_resets_only_those_worlds():
     vec = batched("InterLevel-v0", 3)
     vec.reset(seed=0)

@@ -21,6 +21,7 @@ from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.style.reference import ReferenceWindows
+from stairenv.tasks.kernels import all_finite, within_limits
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
@@ -32,6 +33,9 @@ _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
 # is a divergence on its way, flagged long before MuJoCo's own 1e10 check fires.
 MAX_JOINT_SPEED = 250.0        # rad/s, every hinge and the root's angular velocity
 MAX_ROOT_SPEED = 50.0          # m/s, the root's linear velocity
+# dtype kinds an action may have (bool, integers, floats): complex, strings and objects are refused
+# rather than converted (float64 would drop an imaginary part silently).
+NUMERIC_KINDS = frozenset("biuf")
 #: start poses: standing, a frame of a reference clip, or either (``hybrid_fraction`` of them reference)
 INITS = ("default", "reference", "hybrid")
 
@@ -67,6 +71,16 @@ def check_reference_motion(source) -> None:
         raise ValueError(f"reference_motion {str(source)!r} could not be loaded: {error}") from error
 
 
+def speed_limits(idx: HumanoidIndices) -> np.ndarray:
+    """The most each of the character's velocities may be, from the root's first: ``MAX_ROOT_SPEED`` for
+    the root's linear velocity, ``MAX_JOINT_SPEED`` for its angular velocity and every joint."""
+    if idx.qvel_joints.start != idx.qvel_root.stop:
+        raise ValueError("the speed check expects the joints' velocities right after the root's")
+    limits = np.full(idx.qvel_joints.stop - idx.qvel_root.start, MAX_JOINT_SPEED)
+    limits[:3] = MAX_ROOT_SPEED
+    return limits
+
+
 class Evaluation(NamedTuple):
     """What a task makes of its world after a step (or at the episode's start): ``_evaluate``'s result.
 
@@ -93,13 +107,14 @@ class HumanoidEnv(gym.Env):
     stands, optional) -> ``_begin_episode`` (bookkeeping, ``_start_tracking(state)``, the first
     ``_evaluate``, style features filled).
 
-    ``step``: ``_check_action`` (wrong shapes and NaN/inf raise ``ValueError``, a needed reset
+    ``step``: ``_check_action`` (wrong shapes, non-real dtypes and NaN/inf raise ``ValueError``, a needed reset
     ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range
     ``load_humanoid_spec`` wrote into the actuators' ctrlrange; MuJoCo clamps to it) ->
     ``_before_physics`` (optional: moving obstacles, replanning) -> ``_physics`` (``frame_skip``
     physics steps) -> ``_physics_sound`` (divergence, i.e. MuJoCo resetting the data, or a speed no
-    body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED``, takes the one unstable branch: truncated, the last
-    good observation, ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
+    body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED`` checked in one compiled pass over qvel,
+    takes the one unstable branch: truncated, the last good observation,
+    ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
     features (``self._amp``, the last ``amp_history`` frames) -> ``_info(results)`` plus what every
     env reports (``time``, ``physics_unstable``, ``amp_obs``, ``reference_start``, the reward terms).
 
@@ -174,12 +189,35 @@ class HumanoidEnv(gym.Env):
         self._geoms = humanoid_geoms(self.model, self._idx)
         low, high = self.model.actuator_ctrlrange.T.copy()
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
+        self._bind_data_views()
+        self._speed_start, self._speed_limits = self._idx.qvel_root.start, speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
         self._needs_reset = True
         self._camera = None
         self._viewer = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
+
+    # Views into ``self.data`` that each step reads or writes, made once per MjData (its buffers never
+    # move). A copy of the env (``copy.deepcopy``, pickle) gets its own views of its own data.
+    _DATA_VIEWS = ("_warning_counts", "_ctrl", "_qvel", "_state_views")
+
+    def _bind_data_views(self) -> None:
+        data = self.data
+        self._warning_counts = data.warning.number
+        self._ctrl, self._qvel = data.ctrl, data.qvel
+        self._state_views = read_state(data, self._idx) if self._idx.body_slice is not None else None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for name in self._DATA_VIEWS:
+            state.pop(name, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if getattr(self, "data", None) is not None:
+            self._bind_data_views()
 
     def _setup_starts(self, init: str, hybrid_fraction: float, reference_motion) -> None:
         """Check ``init``, ``hybrid_fraction`` and ``reference_motion`` (its files loaded whatever ``init``
@@ -215,12 +253,18 @@ class HumanoidEnv(gym.Env):
     def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """What the task draws once the character is placed (a path from its start, a contact goal)."""
 
+    def _read_state(self):
+        """``read_state`` of this env's data: the views ``_bind_data_views`` made where the bodies are
+        consecutive (the same arrays ``read_state`` would return), else a fresh read."""
+        views = self._state_views
+        return read_state(self.data, self._idx) if views is None else views
+
     def _begin_episode(self):
         """Start counting from the current state: the first evaluation, the style history filled.
         Returns ``reset``'s ``(obs, info)``."""
         self._needs_reset = False
         self._steps = 0
-        state = read_state(self.data, self._idx)
+        state = self._read_state()
         self._amp.fill(state)
         self._start_tracking(state)
         self._evaluation = self._evaluate(state)
@@ -265,7 +309,7 @@ class HumanoidEnv(gym.Env):
         self._steps += 1
         if not stable:
             return self._unstable_step()
-        state = read_state(self.data, self._idx)
+        state = self._read_state()
         evaluation = self._evaluation = self._evaluate(state)
         self._amp.push(state)
         info = self._full_info(evaluation, unstable=False, terms=True)
@@ -280,19 +324,14 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _finish_worlds(cls, envs: list[HumanoidEnv]) -> list[tuple]:
         """``_finish_step`` of many worlds of this class, batch-first: each world's result equals its
-        ``_finish_step``. The divergence check per world (the speeds of all at once), the state of the
-        stable worlds read as one batch, ``_evaluate_worlds`` and the style features in one call each."""
+        ``_finish_step``. The divergence check per world, the state of the stable worlds read as one
+        batch, ``_evaluate_worlds`` and the style features in one call each."""
         results: list[tuple | None] = [None] * len(envs)
-        qvel = np.stack([env.data.qvel for env in envs])
         idx = envs[0]._idx
-        root = qvel[:, idx.qvel_root]
-        plausible = ((np.abs(root[:, :3]).max(axis=1) <= MAX_ROOT_SPEED)
-                     & (np.abs(root[:, 3:]).max(axis=1) <= MAX_JOINT_SPEED)
-                     & (np.abs(qvel[:, idx.qvel_joints]).max(axis=1) <= MAX_JOINT_SPEED))
         stable = []
         for k, env in enumerate(envs):
             env._steps += 1
-            if env._physics_sound(env._expected_time, bool(plausible[k])):
+            if env._physics_sound(env._expected_time):
                 stable.append(k)
             else:
                 results[k] = env._unstable_step()
@@ -360,11 +399,16 @@ class HumanoidEnv(gym.Env):
         self.data.ctrl[:] = np.clip(self.data.qpos[self._idx.qpos_joints], *self.model.actuator_ctrlrange.T)
 
     def _check_action(self, action) -> np.ndarray:
-        """``action`` as float64 (28,); ``ValueError`` for a wrong shape or NaN/inf, ``ResetNeeded`` before a reset."""
-        action = np.asarray(action, dtype=np.float64)
+        """``action`` as float64 (28,); ``ValueError`` for a wrong shape, a non-numeric dtype (complex,
+        strings, objects) or NaN/inf, ``ResetNeeded`` before a reset."""
+        if type(action) is not np.ndarray or action.dtype != np.float64:    # the usual float64 array skips this
+            action = np.asarray(action)
+            if action.dtype.kind not in NUMERIC_KINDS:
+                raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
+            action = action.astype(np.float64, copy=False)
         if action.shape != (NUM_DOFS,):
             raise ValueError(f"action must have shape ({NUM_DOFS},), got {action.shape}")
-        if not np.isfinite(action).all():
+        if not all_finite(action):
             bad = np.flatnonzero(~np.isfinite(action)).tolist()
             raise ValueError(f"action must be finite, got NaN or inf at indices {bad}")
         if self._needs_reset:
@@ -373,19 +417,18 @@ class HumanoidEnv(gym.Env):
 
     def _apply_action(self, action: np.ndarray) -> None:
         """PD targets ``offset + scale * action``."""
-        self.data.ctrl[:] = self._ctrl_offset + self._ctrl_scale * action
+        np.add(self._ctrl_offset, self._ctrl_scale * action, out=self._ctrl)
 
-    def _physics_sound(self, expected_time: float, plausible: bool | None = None) -> bool:
+    def _physics_sound(self, expected_time: float) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can
-        (``plausible``: ``_speeds_plausible()`` if already known); otherwise body poses brought up to qpos."""
+        (``_speeds_plausible``); otherwise body poses brought up to qpos."""
         data = self.data
         # MuJoCo resets the data when positions, velocities or accelerations blow up:
         # the time jumps back and the warning counts (zeroed at every episode reset by
         # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.
-        warnings = data.warning
-        if (data.time < expected_time - 1e-9 or warnings[_BADQACC].number or warnings[_BADQVEL].number
-                or warnings[_BADQPOS].number
-                or not (self._speeds_plausible() if plausible is None else plausible)):
+        warnings = self._warning_counts
+        if (data.time < expected_time - 1e-9 or warnings[_BADQACC] or warnings[_BADQVEL] or warnings[_BADQPOS]
+                or not self._speeds_plausible()):
             self._needs_reset = True
             gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
             return False
@@ -395,10 +438,7 @@ class HumanoidEnv(gym.Env):
 
     def _speeds_plausible(self) -> bool:
         """False once the character moves faster than its body can (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``)."""
-        qvel = self.data.qvel
-        root = qvel[self._idx.qvel_root]
-        return bool(np.abs(root[:3]).max() <= MAX_ROOT_SPEED and np.abs(root[3:]).max() <= MAX_JOINT_SPEED
-                    and np.abs(qvel[self._idx.qvel_joints]).max() <= MAX_JOINT_SPEED)
+        return within_limits(self._qvel, self._speed_start, self._speed_limits)
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

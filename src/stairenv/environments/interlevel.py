@@ -23,6 +23,9 @@ from stairenv.validation import check_bool, check_choice, check_float, check_int
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
+# Columns of the step kernel's results (``task.STEP_RESULTS``), read row by row in ``_evaluate_worlds``.
+_FELL, _SUCCESS, _PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
+    "fell", "success", "progress", "height_progress", "distance_to_target"))
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw").
@@ -44,7 +47,7 @@ class InterLevelEnv(HumanoidEnv):
 
     **Action** (28,): in [-1, 1], mapped to PD targets ``offset + scale * a``
     (``stairenv.humanoid.pd_action_offset_scale``); MuJoCo clamps targets to that range.
-    Wrong shapes and non-finite values raise ``ValueError``.
+    Wrong shapes, non-real dtypes (complex, strings, objects) and non-finite values raise ``ValueError``.
 
     **Observation** (118,): the paper's layout, see ``observation_structure``
     (root height, root rotation 6-D, root linear and angular velocity, 12 local
@@ -354,42 +357,45 @@ class InterLevelEnv(HumanoidEnv):
             prev_root = np.concatenate([env._prev_root for env in envs])
             packed = np.concatenate([env._packed_goal for env in envs])
             goal = task.StairsGoal.unpack(packed)
-        obs, results = task.interlevel_evaluate(
-            state, prev_root, goal, first._reward_params, first.dt, first.termination_height,
-            first.success_radius, packed,
+        obs, results = task.interlevel_evaluate_columns(
+            state, prev_root, packed, goal.rotation, first._reward_params, first.dt, first.termination_height,
+            first.success_radius,
         )
-        started = np.array([env._steps > 0 for env in envs])
-        fell, success = started & results.fell.astype(bool), started & results.success.astype(bool)
+        # Python floats from here on: one tolist() per array instead of numpy calls per value.
+        rows = results.tolist()
         if first.reward_name == "interlevel":
-            values = np.stack([results.reward_location, results.reward_facing, results.reward_velocity], axis=1)
+            terms_rows = [row[:3] for row in rows]
         else:
-            values = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt)
-        # A fall replaces the task terms by the failure reward.
-        values = np.where(fell[:, None], 0.0, values).tolist()
+            terms_rows = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt).tolist()
+        no_terms = [0.0] * len(first._term_names)
         success_reward, failure_reward = first.success_reward, first.failure_reward
-        progress, height_progress = results.progress.tolist(), results.height_progress.tolist()
-        distance = results.distance_to_target.tolist()
+        body_pos = state.body_pos
         evaluations = []
         for k, env in enumerate(envs):
-            stalled = env._stalled(distance[k])
+            row = rows[k]
+            started = env._steps > 0    # nothing has happened yet at an episode's start
+            fell_k = started and row[_FELL] != 0.0
+            success_k = started and row[_SUCCESS] != 0.0
+            distance = row[_DISTANCE_TO_TARGET]
+            stalled = env._stalled(distance)
             terms, reward = {}, 0.0
-            for key, value in zip(env._term_names, values[k]):
+            # A fall replaces the task terms by the failure reward.
+            for key, value in zip(env._term_names, no_terms if fell_k else terms_rows[k]):
                 terms[key] = value
                 reward += value
-            fell_k, success_k = bool(fell[k]), bool(success[k])
             terms["reward_success"] = success_reward if success_k else 0.0
             terms["reward_failure"] = failure_reward if fell_k else 0.0
             reward += terms["reward_success"] + terms["reward_failure"]
-            env._prev_root = state.body_pos[k:k + 1, PELVIS].copy()
+            env._prev_root = body_pos[k:k + 1, PELVIS].copy()
             stalled = stalled and not (fell_k or success_k)
             ended = fell_k or (success_k and env.terminate_on_success) or stalled
             evaluations.append(Evaluation(obs[k], reward, terms, ended, {
-                "progress": progress[k],
-                "height_progress": height_progress[k],
+                "progress": row[_PROGRESS],
+                "height_progress": row[_HEIGHT_PROGRESS],
                 "success": success_k,
                 "fell": fell_k,
                 "stalled": stalled,
-                "distance_to_target": distance[k],
+                "distance_to_target": distance,
             }))
         return evaluations
 

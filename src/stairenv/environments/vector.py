@@ -5,7 +5,7 @@
 (``HumanoidEnv`` instances, one per world: each keeps its own ``MjModel``, which InterLevel writes its
 staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over the batch:
 
-1. every world's action checked first (shape, NaN/inf: ``ValueError`` naming the world's index),
+1. every world's action checked first (shape, a non-real dtype, NaN/inf: ``ValueError`` naming the worlds),
    nothing applied if one is bad;
 2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
@@ -15,9 +15,9 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    steps the rest (``collect``): the divergence and speed check, ``_evaluate``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
    For InterLevel (``BATCH_EVALUATION``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
-   the speeds checked at once, the stable worlds' state read as one batch (``read_states``), the task
-   in one compiled call (``InterLevelEnv._evaluate_worlds``, which the single env calls with one world)
-   and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
+   the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
+   read as one batch (``read_states``), the task in one compiled call (``InterLevelEnv._evaluate_worlds``,
+   which the single env calls with one world) and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
    right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
    is bit-identical to a single env's with the same seed.
 
@@ -47,7 +47,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from stairenv.environments.base import HumanoidEnv
+from stairenv.environments.base import NUMERIC_KINDS, HumanoidEnv
 from stairenv.environments.batch_physics import BatchPhysics, make_physics
 
 
@@ -191,8 +191,13 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         return obs.copy(), rewards, terminated, truncated, infos, finals
 
     def check_actions(self, actions) -> np.ndarray:
-        """``actions`` as float64 (N, A); ``ValueError`` for a wrong shape or NaN/inf, naming the worlds."""
-        actions = np.asarray(actions, dtype=np.float64)
+        """``actions`` as float64 (N, A); ``ValueError`` for a wrong shape, a non-numeric dtype (complex,
+        strings, objects: refused before any conversion) or NaN/inf, naming the worlds."""
+        actions = np.asarray(actions)
+        if actions.dtype.kind not in NUMERIC_KINDS:
+            raise ValueError(f"actions must be real numbers, got dtype {actions.dtype}{_non_real_worlds(actions)}; "
+                             "no world was stepped")
+        actions = actions.astype(np.float64, copy=False)
         expected = (self.num_envs, *self.single_action_space.shape)
         if actions.shape != expected:
             raise ValueError(f"actions must have shape {expected} (num_envs, action size), got {actions.shape}")
@@ -256,14 +261,35 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             env.close()
 
 
+def _non_real_worlds(actions: np.ndarray) -> str:
+    """Which worlds' rows hold something other than a real number (a complex number with an imaginary
+    part, a string, an object that is not a real number), as a phrase for ``check_actions``' error
+    (every world when each is only of a non-real dtype, e.g. complex with no imaginary parts)."""
+    if actions.ndim != 2:
+        return ""
+
+    def real(value) -> bool:
+        return isinstance(value, (bool, int, float, np.bool_, np.integer, np.floating)) or (
+            isinstance(value, (complex, np.complexfloating)) and value.imag == 0)
+
+    bad = [i for i, row in enumerate(actions.tolist()) if not all(real(value) for value in row)]
+    return f" in world(s) {bad}" if bad else " in every world"
+
+
 def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
     """``VectorEnv._add_info`` over all worlds at once: the same keys, arrays, dtypes (the first world
     with the key decides) and ``_key`` masks, a key at a time instead of a world at a time."""
     n = len(infos)
     batched: dict[str, Any] = {}
-    for key in dict.fromkeys(key for info in infos for key in info):
-        worlds = [i for i, info in enumerate(infos) if key in info]
-        values = [infos[i][key] for i in worlds]
+    first_keys = infos[0].keys() if infos else {}.keys()
+    if all(info.keys() == first_keys for info in infos):    # a step's usual case: every world, the same keys
+        everyone = list(range(n))
+        keyed = ((key, everyone, [info[key] for info in infos]) for key in first_keys)
+    else:
+        keyed = ((key, worlds, [infos[i][key] for i in worlds]) for key, worlds in (
+            (key, [i for i, info in enumerate(infos) if key in info])
+            for key in dict.fromkeys(key for info in infos for key in info)))
+    for key, worlds, values in keyed:
         first = values[0]
         if key != "final_obs" and isinstance(first, dict):
             inner: list[dict[str, Any]] = [{}] * n

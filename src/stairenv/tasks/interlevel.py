@@ -103,7 +103,7 @@ class StairsGoal(NamedTuple):
     def pack(self) -> np.ndarray:
         b = self.target.shape[0]
         return np.ascontiguousarray(np.concatenate(
-            [np.reshape(getattr(self, name), (b, -1)) for name in GOAL_COLUMNS], axis=1))
+            [np.asarray(getattr(self, name)).reshape(b, -1) for name in GOAL_COLUMNS], axis=1))
 
     @classmethod
     def unpack(cls, packed: np.ndarray) -> StairsGoal:
@@ -114,17 +114,18 @@ class StairsGoal(NamedTuple):
 
     @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
-        target = np.stack([s.marker_top for s in stairs])
-        bottom = np.stack([s.marker_bottom for s in stairs])
+        # np.array of a list of equal-shape arrays: np.stack's result (contiguous), for less per reset
+        target = np.array([s.marker_top for s in stairs])
+        bottom = np.array([s.marker_bottom for s in stairs])
         return cls(
             target=target,
             bottom=bottom,
-            origin=np.stack([s.origin for s in stairs]),
-            rotation=np.ascontiguousarray(np.stack([s.rotation for s in stairs])),
+            origin=np.array([s.origin for s in stairs]),
+            rotation=np.array([s.rotation for s in stairs]),
             yaw=np.array([s.yaw for s in stairs]),
             marker_distance=np.linalg.norm(target - bottom, axis=-1),
-            target_local=np.stack([s.marker_top_local for s in stairs]),
-            bottom_local=np.stack([s.marker_bottom_local for s in stairs]),
+            target_local=np.array([s.marker_top_local for s in stairs]),
+            bottom_local=np.array([s.marker_bottom_local for s in stairs]),
             top_height=np.array([s.top_height for s in stairs]),
             step_depth=np.array([s.step_depth for s in stairs]),
             num_steps=np.array([float(s.num_steps) for s in stairs]),
@@ -512,8 +513,8 @@ def interlevel_evaluate(
     It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
     ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
     """
-    obs, results = _evaluate_packed(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
-                                    goal.rotation, cfg, dt, termination_height, success_radius)
+    obs, results = interlevel_evaluate_columns(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
+                                               goal.rotation, cfg, dt, termination_height, success_radius)
     return obs, StepResults.from_columns(results)
 
 
@@ -529,12 +530,13 @@ def interlevel_step(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``interlevel_evaluate`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
     the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
-    return _evaluate_packed(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
-                            termination_height, success_radius)
+    return interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
+                                       termination_height, success_radius)
 
 
-def _evaluate_packed(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
-    """The step kernel's call: observation (B, 118) and results (B, 8) in ``STEP_RESULTS`` order."""
+def interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
+    """The step kernel's call (what an env calls each step): the observation (B, 118) and the results
+    (B, 8) in ``STEP_RESULTS`` order; ``packed_goal`` is ``goal.pack()``, ``cfg`` a ``RewardParams``."""
     batch = state.body_pos.shape[0]
     obs = np.empty((batch, OBSERVATION_SIZE))
     results = np.empty((batch, len(STEP_RESULTS)))

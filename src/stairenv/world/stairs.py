@@ -189,15 +189,23 @@ class Staircase:
             [self.landing_start + self.landing_depth / 2, 0.0, self.top_height + STANDING_ROOT_HEIGHT]
         )
 
+    @functools.cached_property
+    def _markers(self) -> tuple[np.ndarray, np.ndarray]:
+        """(M_B, M_T) in the world, computed once (a reset reads each twice), read-only."""
+        markers = self.to_world(self.marker_bottom_local), self.to_world(self.marker_top_local)
+        for array in markers:
+            array.flags.writeable = False
+        return markers
+
     @property
     def marker_bottom(self) -> np.ndarray:
         """M_B in the world."""
-        return self.to_world(self.marker_bottom_local)
+        return self._markers[0]
 
     @property
     def marker_top(self) -> np.ndarray:
         """M_T in the world: the target."""
-        return self.to_world(self.marker_top_local)
+        return self._markers[1]
 
     def as_dict(self) -> dict[str, float | int]:
         return {field.name: getattr(self, field.name) for field in fields(self)}
@@ -229,6 +237,14 @@ MARKER_RGBA = (0.9, 0.1, 0.1, 1.0)
 MARKER_RADIUS = 0.08
 
 
+def _rows(ids: np.ndarray) -> slice | np.ndarray:
+    """``ids`` as a slice when they are consecutive and ascending, else as they are."""
+    ids = np.asarray(ids)
+    if len(ids) and np.array_equal(ids, np.arange(ids[0], ids[0] + len(ids))):
+        return slice(int(ids[0]), int(ids[0]) + len(ids))
+    return ids
+
+
 class StairsSlots:
     """``max_steps`` step bodies and the two markers, built once with MjSpec.
 
@@ -242,6 +258,9 @@ class StairsSlots:
 
     def __init__(self, spec: mujoco.MjSpec, max_steps: int, prefix: str = "stairs") -> None:
         self.max_steps = int(max_steps)
+        # every slot parked, what ``place`` starts from (copied, not tiled, at each reset)
+        self._parked_pos = np.tile(_PARKED_POS, (self.max_steps, 1))
+        self._parked_half = np.tile(_PARKED_HALF, (self.max_steps, 1))
         self.prefix = prefix
         for i in range(self.max_steps):
             body = spec.worldbody.add_body(name=f"{prefix}_step{i}", pos=_PARKED_POS)
@@ -272,6 +291,10 @@ class StairsSlots:
         self._marker_ids = np.array(
             [model.body(f"{self.prefix}_{m}").id for m in ("marker_bottom", "marker_top")]
         )
+        # The rows ``place`` writes, as slices where consecutive (as built): a slice assignment costs
+        # a fraction of a fancy-indexed one, and a reset makes ten of them.
+        self._body_rows, self._geom_rows = _rows(self._body_ids), _rows(self._geom_ids)
+        self._bvh_rows = _rows(model.body_bvhadr[self._body_ids])
 
     @property
     def geom_ids(self) -> np.ndarray:
@@ -285,19 +308,19 @@ class StairsSlots:
             raise ValueError(f"staircase has {stairs.num_steps} steps; this model holds at most {self.max_steps}")
         n = stairs.num_steps
         centres, half = stairs.world_boxes()
-        half_all = np.tile(_PARKED_HALF, (self.max_steps, 1))
-        pos_all = np.tile(_PARKED_POS, (self.max_steps, 1))
+        half_all, pos_all = self._parked_half.copy(), self._parked_pos.copy()
         half_all[:n], pos_all[:n] = half, centres
         quat = np.array([math.cos(stairs.yaw / 2), 0.0, 0.0, math.sin(stairs.yaw / 2)])
-        model.body_pos[self._body_ids] = pos_all
-        model.body_quat[self._body_ids] = quat
-        model.geom_size[self._geom_ids] = half_all
-        model.geom_rbound[self._geom_ids] = np.linalg.norm(half_all, axis=1)
-        model.geom_aabb[self._geom_ids, :3] = 0.0
-        model.geom_aabb[self._geom_ids, 3:] = half_all
+        bodies, geoms = self._body_rows, self._geom_rows
+        model.body_pos[bodies] = pos_all
+        model.body_quat[bodies] = quat
+        model.geom_size[geoms] = half_all
+        model.geom_rbound[geoms] = np.linalg.norm(half_all, axis=1)
+        model.geom_aabb[geoms, :3] = 0.0
+        model.geom_aabb[geoms, 3:] = half_all
         # The body's bounding volume (used when the other body has several geoms, e.g. the
         # torso) is computed at compile time: resize it with the box (geom at the body origin).
-        bvh = model.body_bvhadr[self._body_ids]
+        bvh = self._bvh_rows
         model.bvh_aabb[bvh, :3] = 0.0
         model.bvh_aabb[bvh, 3:] = half_all
-        model.body_pos[self._marker_ids] = np.stack((stairs.marker_bottom, stairs.marker_top))
+        model.body_pos[self._marker_ids] = np.array((stairs.marker_bottom, stairs.marker_top))
