@@ -160,6 +160,8 @@ class PlaMoSceneEnv(PlaMoEnv):
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The scene (kept between resets, see the class docstring) and the episode's planned route."""
+        if self._seeded_reset:  # the resample count restarts: a seeded reset fixes every episode after it
+            self._resets = 0
         if self.scene is None or (self.scene_kind == "random" and (
                 self._seeded_reset or self._resets % self.scene_resample_every == 0)):
             self._build_scene(rng)

@@ -375,6 +375,8 @@ class SIMSEnv(HumanoidEnv):
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The scene (a fixed room is built once; generated scenes change every ``scene_resample_every``
         resets and on a seed) and the piece of furniture to use."""
+        if self._seeded_reset:  # the resample count restarts: a seeded reset fixes every episode after it
+            self._resets = 0
         if self.fixed_room is None and (self._seeded_reset or self._resets % self.scene_resample_every == 0):
             self._build_scene(rng)
         self._resets += 1
