@@ -15,7 +15,7 @@ agree (plain bool, integer and float types only), so no claimed size is ever all
 * ``skeleton_tree``: ``node_names`` (J,), ``parent_indices["arr"]`` (J,),
   ``local_translation["arr"]`` (J, 3), the bone offsets in the parent's frame.
 * ``fps``: a number or a 0-d array. A ``SkeletonState`` (one pose, no ``fps``) is read as a
-  one-frame clip at the ``fps`` passed in (30 by default).
+  one-frame clip at the ``fps`` passed in (30 by default); several frames without ``fps`` are refused.
 
 The AMP humanoid of these files has our 15 bodies under the same names, the same
 zero pose (upright, facing +x, arms down) and the same axes, so the conversion is
@@ -229,6 +229,9 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
     single = "fps" not in data
     if single and rotation.ndim == 2:
         rotation, root_translation = rotation[None], root_translation.reshape(1, -1)
+    if single and rotation.ndim == 3 and rotation.shape[0] > 1:  # its rate is unknown: never guess 30 fps
+        raise MotionFileError(f"{path}: {rotation.shape[0]} frames but no fps (a SkeletonMotion stores its fps; "
+                              "only a one-pose SkeletonState may leave it out)")
     if rotation.ndim != 3 or rotation.shape[1:] != (num_joints, 4):
         raise MotionFileError(f"{path}: rotation must be (T, {num_joints}, 4), got {rotation.shape}")
     if root_translation.shape != (rotation.shape[0], 3):
