@@ -46,8 +46,8 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, fk_position_error, joints_to_qpos,
-                                       make_clip, read_limited)
+from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, compose, fk_position_error,
+                                       joints_to_qpos, make_clip, read_limited)
 
 # numpy's type codes a poselib file uses: bool, integers, floats; objects for the outer container.
 _TYPE_CODE = re.compile(r"b1|[iu][1248]|f[248]|O8")
@@ -280,7 +280,7 @@ def source_positions(src: dict[str, Any]) -> np.ndarray:
             world.append(rot)
             pos[:, j] = src["root_translation"]
         else:
-            world.append(world[p] * rot if src["is_local"] else rot)
+            world.append(compose(world[p], rot) if src["is_local"] else rot)
             pos[:, j] = pos[:, p] + world[p].apply(offsets[j])
     return pos
 
@@ -318,7 +318,7 @@ def import_isaac_npy(
     quat = src["rotation"]
     rots = [Rotation.from_quat(quat[:, j]) for j in range(len(names))]
     if not src["is_local"]:  # world orientations -> relative to the parent
-        rots = [rots[j] if parents[j] < 0 else rots[parents[j]].inv() * rots[j] for j in range(len(names))]
+        rots = [rots[j] if parents[j] < 0 else compose(rots[parents[j]].inv(), rots[j]) for j in range(len(names))]
     local = {joint: rots[index[body]] for joint, body, _ in JOINTS}
     root_pos, root_rot = src["root_translation"], rots[index["pelvis"]]
 
