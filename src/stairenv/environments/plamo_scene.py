@@ -216,7 +216,7 @@ class PlaMoSceneEnv(PlaMoEnv):
                     if isinstance(error, PlanningError):
                         raise PlanningError(error.reason, message) from None
                     raise InstructionError(message) from None
-                if attempt == 9:
+                if attempt == 9 or isinstance(error, InstructionError):  # drawn instructions: as before
                     raise
         if self.speed_profile == "constant":
             self._plans = _constant_speed(self._plans, self.constant_speed)
