@@ -9,6 +9,7 @@ Examples::
     python baselines/evaluate.py --policy SAC:runs/sac/model.zip --env-kwarg pd_gains=stiff
     python baselines/evaluate.py --policy policy.npz --paper-heights --gait   # + gait columns
     python baselines/evaluate.py --policy policy.npz --paper-heights --num-envs 32   # 32 worlds side by side
+    python baselines/evaluate.py --policy policy.npz --push-speed 1.0   # robustness: a 1 m/s kick per episode
 
 A model path is loaded with ``stable_baselines3.PPO.load`` (``ALGO:path`` for another
 algorithm); a ``vecnormalize.pkl`` beside it normalises the observations.
@@ -55,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--num-envs", type=int, default=1,
                         help="run the episodes on this many worlds of the batched env side by side (physics on "
                              "every core); 1 = one episode after another (default: %(default)s)")
+    parser.add_argument("--push-speed", type=float, default=0.0, metavar="V",
+                        help="kick each episode's character once: V m/s of horizontal velocity in a random "
+                             "direction before a random step 1-6 s in, both drawn from the episode's seed "
+                             "(the same pushes for every policy; default: %(default)s, no push)")
     parser.add_argument("--compare-paper", action="store_true", help="also print the published numbers")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -79,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
             label=args.label,
             gait=args.gait,
             num_envs=args.num_envs,
+            push_speed=args.push_speed,
         )
     except ValueError as error:
         parser.error(str(error))

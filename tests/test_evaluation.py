@@ -285,3 +285,43 @@ def test_batched_evaluation_of_single_observation_policies():
     for bad in (0, -1, 2.5, True):
         with pytest.raises(ValueError, match="num_envs"):
             evaluate("zero", episodes=1, num_envs=bad, **FAST)
+
+
+def test_push_plan_and_kick():
+    from stairenv.evaluation.interlevel import PUSH_STEPS, apply_push, push_plan
+
+    assert push_plan(3, 0.0) is None
+    plans = [push_plan(seed, 1.0) for seed in range(200)]
+    assert plans == [push_plan(seed, 1.5) for seed in range(200)]  # the same step and direction at every speed
+    assert all(PUSH_STEPS[0] <= step < PUSH_STEPS[1] and -math.pi <= angle <= math.pi for step, angle in plans)
+    assert len({step for step, _ in plans}) > 50
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    before = env.data.qvel.copy()
+    apply_push(env.model, env.data, 1.5, math.pi / 2)
+    change = env.data.qvel - before
+    np.testing.assert_allclose(change[:3], [0.0, 1.5, 0.0], atol=1e-12)  # the root's world-frame velocity
+    assert not change[3:].any()
+
+
+def test_pushes_come_the_same_way_sequentially_and_batched():
+    kwargs = dict(episodes=4, seed=0, progress_bar=False, max_episode_steps=PUSH_TEST_STEPS)
+    from stairenv.pretrained import shipped_policy_path
+
+    policy = str(shipped_policy_path("InterLevel-v0"))  # stays up long enough for the pushes to come
+    calm = evaluate(policy, **kwargs)
+    pushed = evaluate(policy, push_speed=3.0, **kwargs)
+    batched = evaluate(policy, push_speed=3.0, num_envs=2, **kwargs)
+    assert [(e.push_step, e.push_angle) for e in batched.details] == [(e.push_step, e.push_angle)
+                                                                       for e in pushed.details]
+    came = [e for e in pushed.details if e.push_step is not None]
+    assert pushed.meta["push_speed"] == 3.0 and pushed.meta["pushed"] == len(came) >= 2
+    assert all(e.push_step is None for e in calm.details) and "push_speed" not in calm.meta
+    assert sum(e.fell for e in pushed.details) > sum(e.fell for e in calm.details)  # 3 m/s topples it
+    with pytest.raises(ValueError, match="push_speed"):
+        evaluate("zero", episodes=1, push_speed=-1.0, progress_bar=False)
+    with pytest.raises(ValueError, match="push_speed"):
+        evaluate("zero", episodes=1, push_speed=float("nan"), progress_bar=False)
+
+
+PUSH_TEST_STEPS = 200

@@ -450,3 +450,11 @@ def test_converter_survives_an_unexpected_exception(tmp_path, capsys, monkeypatc
     assert status == 1
     assert sorted(p.stem for p in (tmp_path / "out").glob("*.npz")) == ["a", "c"]
     assert "b.txt: RuntimeError: importer bug" in captured.err and "1 of 3 input(s) failed" in captured.err
+
+
+def test_several_frames_without_fps_are_refused(tmp_path):
+    """A SkeletonState-like file (no fps) holding several frames: its rate is unknown, never guessed as 30."""
+    motion = poselib_motion(frames=12)
+    del motion["fps"]
+    assert_refused(save_npy(tmp_path / "no_fps.npy", motion), "12 frames but no fps")
+    assert_refused(save_npy(tmp_path / "no_fps.npy", motion), "12 frames but no fps", fps=30)

@@ -123,3 +123,30 @@ def test_slalom_speed_profiles_and_scene_evaluation(tmp_path):
     assert "zero" in format_scene_rows([row])
     out = plot_planned_path({}, seed=1, path=tmp_path / "plan.png")
     assert out.stat().st_size > 10_000
+
+
+def test_keywords_that_would_fail_at_reset_fail_at_construction():
+    with pytest.raises(InstructionError, match=r"instructions 'fly to the moon': unknown locomotion verb 'fly'"):
+        gym.make("PlaMoScene-v0", instructions="fly to the moon")
+    with pytest.raises(InstructionError, match=r"instructions 'Walk to the moon': unknown landmark 'moon'"):
+        gym.make("PlaMoScene-v0", instructions="Walk to the moon")
+    with pytest.raises(InstructionError, match="instructions 'Walk to the tree'"):  # slalom: start and goal only
+        gym.make("PlaMoScene-v0", scene_kind="slalom", instructions="Walk to the tree")
+    with pytest.raises(ValueError, match=r"scene: 4 landmarks .* cannot fit in a scene of size \(2\.0, 2\.0\)"):
+        gym.make("PlaMoScene-v0", scene={"size": (2.0, 2.0)})
+    gym.make("PlaMoScene-v0", scene_kind="slalom", instructions="Run to the goal").reset(seed=0)
+
+
+def test_what_can_only_fail_at_reset_names_the_keyword():
+    env = gym.make("PlaMoScene-v0", scene={"size": (6.0, 6.0)})  # 4 landmarks 4 m apart: fits on paper only
+    with pytest.raises(RuntimeError, match=r"scene \(the keyword: size \(6\.0, 6\.0\), num_landmarks 4"):
+        env.reset(seed=0)
+    env = gym.make("PlaMoScene-v0", instructions="Walk to the tree")  # a known name this scene may not hold
+    for seed in range(20):
+        try:
+            env.reset(seed=seed)
+        except InstructionError as error:
+            assert str(error).startswith("instructions 'Walk to the tree' cannot be planned in this episode's scene")
+            break
+    else:
+        pytest.fail("no scene of 20 without a tree")

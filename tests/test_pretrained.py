@@ -12,7 +12,7 @@ import torch
 
 import stairenv  # noqa: F401
 from stairenv.evaluation.policies import load_policy
-from stairenv.pretrained import NumpyPolicy, PolicyFileError, load, load_file
+from stairenv.pretrained import NumpyPolicy, PolicyFileError, load, load_file, shipped_policy_path
 
 
 @pytest.fixture(scope="module")
@@ -168,3 +168,116 @@ def test_the_shipped_interlevel_policy_climbs_where_the_zero_policy_does_not():
     env.close()
     assert max(zero) == 0.0
     assert np.mean(shipped) >= 0.25, shipped
+
+
+def _shipped_arrays():
+    with np.load(shipped_policy_path("InterLevel-v0")) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _npy_bomb(path):
+    """A policy whose weight_0 header declares a (100000, 100000) float64 array (80 GB) in 64 real bytes."""
+    import io
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, value in _valid_arrays().items():
+            buffer = io.BytesIO()
+            if name == "weight_0":
+                npy.write_array_header_1_0(buffer, {"descr": "<f8", "fortran_order": False,
+                                                    "shape": (100_000, 100_000)})
+                buffer.write(bytes(64))
+            else:
+                np.save(buffer, value)
+            archive.writestr(f"{name}.npy", buffer.getvalue())
+    return path
+
+
+# each crafted file -> the field its PolicyFileError must name
+CRAFTED = {
+    "weight_1_removed": "bias_1",  # would load as one layer of 256 actions
+    "nan_clip": "obs_clip",
+    "nan_epsilon": "obs_epsilon",
+    "negative_epsilon_zero_var": "obs_epsilon",
+    "weights_1e300": "weight_0",
+    "scalar_mean": "obs_mean",
+    "clip_list": "obs_clip",
+    "clip_text": "obs_clip",
+    "text_weights": "weight_1",
+    "text_bias": "bias_0",
+    "complex_weights": "weight_0",
+    "header_bomb": "weight_0",
+    "layer_gap": "weight_2",
+    "config_array": "config",
+}
+
+
+@pytest.mark.parametrize("fault", sorted(CRAFTED))
+def test_crafted_policy_files_name_the_file_and_the_field(fault, tmp_path):
+    path = tmp_path / f"{fault}.npz"
+    arrays = _shipped_arrays()
+    if fault == "header_bomb":
+        _npy_bomb(path)
+    else:
+        if fault == "weight_1_removed":
+            del arrays["weight_1"]
+        elif fault == "nan_clip":
+            arrays["obs_clip"] = np.float64(np.nan)
+        elif fault == "nan_epsilon":
+            arrays["obs_epsilon"] = np.float64(np.nan)
+        elif fault == "negative_epsilon_zero_var":
+            arrays["obs_var"][3] = 0.0
+            arrays["obs_epsilon"] = np.float64(-1e-8)
+        elif fault == "weights_1e300":
+            arrays["weight_0"] = arrays["weight_0"] * 1e300
+        elif fault == "scalar_mean":
+            arrays["obs_mean"] = np.float64(0.0)
+        elif fault == "clip_list":
+            arrays["obs_clip"] = np.array([1.0, 2.0, 3.0])
+        elif fault == "clip_text":
+            arrays["obs_clip"] = np.array("ten")
+        elif fault == "text_weights":
+            arrays["weight_1"] = arrays["weight_1"].astype(str)
+        elif fault == "text_bias":
+            arrays["bias_0"] = arrays["bias_0"].astype(str)
+        elif fault == "complex_weights":
+            arrays["weight_0"] = arrays["weight_0"].astype(complex)
+        elif fault == "layer_gap":
+            del arrays["weight_1"], arrays["bias_1"]
+        elif fault == "config_array":
+            arrays["config"] = np.array(["{}", "{}"])
+        _write(path, **arrays)
+    with pytest.raises(PolicyFileError) as caught:
+        load_file(path)
+    assert str(path) in str(caught.value) and CRAFTED[fault] in str(caught.value), caught.value
+
+
+def test_zero_variance_with_a_positive_epsilon_and_an_unclipped_identity_map_load(tmp_path):
+    arrays = _shipped_arrays()
+    arrays["obs_var"][3] = 0.0  # a constant observation: VecNormalize's epsilon keeps the scale finite
+    policy = load_file(_write(tmp_path / "zero_var.npz", **arrays))
+    assert np.isfinite(policy(np.zeros(118))).all()
+    arrays.update(obs_mean=np.zeros(118), obs_var=np.ones(118), obs_clip=np.float64(np.inf),
+                  obs_epsilon=np.float64(0.0))  # from_sb3 without a normaliser
+    assert load_file(_write(tmp_path / "identity.npz", **arrays)).obs_clip == np.inf
+
+
+def test_policy_sizes_are_checked_against_the_env(tmp_path, monkeypatch):
+    from stairenv import pretrained
+
+    arrays = _shipped_arrays()
+    arrays["weight_2"] = np.zeros((1000, 256))  # a last layer of 1,000 outputs
+    arrays["bias_2"] = np.zeros(1000)
+    path = _write(tmp_path / "wide.npz", **arrays)
+    assert load_file(path).action_size == 1000  # a well-formed network on its own ...
+    env = gym.make("InterLevel-v0")
+    with pytest.raises(PolicyFileError, match=r"wide\.npz.*\(1000,\) actions"):  # ... not for this env
+        load_file(path, env)
+    monkeypatch.setattr(pretrained, "shipped_policy_path", lambda env_id: path)
+    with pytest.raises(PolicyFileError, match=r"wide\.npz.*weight_2.*\(28,\)"):
+        load("InterLevel-v0")
+    with pytest.raises(ValueError, match="wide.npz"):
+        load_policy(str(path), env)
+    env.close()

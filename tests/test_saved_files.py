@@ -74,8 +74,9 @@ def test_unreadable_amp_states_name_the_file(reference, tmp_path, content):
         whole = AMPStyleReward(reference, config=SMALL).save(tmp_path / "whole.pt").read_bytes()
         content = whole[: len(whole) // 2]
     path.write_bytes(content)
-    with pytest.raises(AMPStateError, match=r"amp_512_steps\.pt: cannot read as an AMP state"):
+    with pytest.raises(AMPStateError, match=r"amp_512_steps\.pt: cannot read as an AMP state") as caught:
         AMPStyleReward.load(path, reference)
+    assert "weights_only" not in str(caught.value)  # torch's advice to load unsafely is never passed on
 
 
 def test_other_torch_files_and_other_window_sizes_are_explained(reference, library, tmp_path):
@@ -181,3 +182,88 @@ def test_resume_refuses_a_crafted_amp_state(checkpoint, crafted, tmp_path, basel
 def test_fresh_discriminator_needs_resume(baseline_script):
     with pytest.raises(SystemExit, match="--fresh-discriminator only applies to --resume"):
         baseline_script("train_ppo").parse_args(["--fresh-discriminator"])
+
+
+class Calls:
+    """Unpickled, this would call ``function(*args)``: any callable a crafted file could name."""
+
+    def __init__(self, function, *args) -> None:
+        self.function, self.args = function, args
+
+    def __reduce__(self):
+        return (self.function, self.args)
+
+
+def _crafted_payloads(marker):
+    import builtins
+    import os
+    import subprocess
+
+    return {
+        "os_system": Calls(os.system, f"touch {marker}"),  # a module torch 2.13 blocks outright
+        "subprocess": Calls(subprocess.Popen, ["touch", str(marker)]),
+        "eval": Calls(builtins.eval, f"open({str(marker)!r}, 'w')"),
+        "exec": Calls(builtins.exec, f"open({str(marker)!r}, 'w')"),
+        "own_class": WritesAMarker(marker),  # a class of this test module
+    }
+
+
+@pytest.mark.parametrize("payload", ["os_system", "subprocess", "eval", "exec", "own_class"])
+def test_the_installed_torch_refusal_is_recognised_and_its_advice_never_passed_on(reference, tmp_path, payload):
+    """Whatever torch's weights-only unpickler says (its wording changed between 2.1 and 2.13), the file
+    is reported as refused, naming the object it asks for, and torch's advice to load it with
+    ``weights_only=False`` is not repeated."""
+    marker = tmp_path / "code_ran"
+    path = tmp_path / "crafted_amp.pt"
+    torch.save({"discriminator": _crafted_payloads(marker)[payload], "w_task": 0.5}, path)
+    with pytest.raises(AMPStateError) as caught:
+        AMPStyleReward.load(path, reference)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: refused: it asks to build the Python object "), message
+    assert "weights_only" not in message and "truncated" not in message, message
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("wording", [
+    # torch 2.1-2.3
+    "Weights only load failed. Re-running `torch.load` with `weights_only` set to `False` will likely succeed, "
+    "but it can result in arbitrary code execution.Do it only if you get the file from a trusted source. "
+    "WeightsUnpickler error: Unsupported global: GLOBAL posix.system was not an allowed global by default.",
+    # torch 2.4-2.12
+    "Weights only load failed. This file can still be loaded, to do so you have two options \n\t(1) Re-running "
+    "`torch.load` with `weights_only` set to `False` will likely succeed, but it can result in arbitrary code "
+    "execution. Do it only if you got the file from a trusted source.\n\t(2) Alternatively, to load with "
+    "`weights_only=True` please check the recommended steps in the following error message.\n\tWeightsUnpickler "
+    "error: Unsupported global: GLOBAL posix.system was not an allowed global by default. Please use "
+    "`torch.serialization.add_safe_globals([system])` to allowlist this global if you trust this class/function.",
+    # torch 2.13
+    "Weights only load failed. In PyTorch 2.6, we changed the default value of the `weights_only` argument in "
+    "`torch.load` from `False` to `True`. Re-running `torch.load` with `weights_only` set to `False` will likely "
+    "succeed, but it can result in arbitrary code execution. Do it only if you got the file from a trusted "
+    "source.\n\n\nTrying to load unsupported GLOBAL posix.system whose module posix is blocked.\n\n",
+])
+def test_refusals_in_every_torch_wording_are_recognised(reference, tmp_path, monkeypatch, wording):
+    import pickle
+
+    path = AMPStyleReward(reference, config=SMALL).save(tmp_path / "amp.pt")
+
+    def refuse(*args, **kwargs):
+        raise pickle.UnpicklingError(wording)
+
+    monkeypatch.setattr(torch, "load", refuse)
+    with pytest.raises(AMPStateError, match=r"amp\.pt: refused: it asks to build the Python object posix\.system,") \
+            as caught:
+        AMPStyleReward.load(path, reference)
+    assert "weights_only" not in str(caught.value)
+
+
+@pytest.mark.parametrize("entry, value", [("rounds", "many"), ("rounds", -1), ("rounds", 2.5), ("w_task", "x"),
+                                          ("w_style", float("nan")), ("update_interval", 0),
+                                          ("background_training", "yes"), ("scoring", 3), ("discriminator", [1])])
+def test_amp_state_entries_of_the_wrong_type_name_the_entry(reference, tmp_path, entry, value):
+    path = AMPStyleReward(reference, config=SMALL).save(tmp_path / "amp.pt")
+    state = torch.load(path, weights_only=True)
+    state[entry] = value
+    torch.save(state, path)
+    with pytest.raises(AMPStateError, match=rf"amp\.pt: entry '{entry}'"):
+        AMPStyleReward.load(path, reference)

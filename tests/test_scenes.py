@@ -674,3 +674,26 @@ def test_wrong_types_are_named():
         Scene(np.zeros((4, 4)), 0.1, walls=[Landmark("a", (0, 0), 1, (0, 0, 1))])
     with pytest.raises(TypeError, match="motion"):
         DynamicObstacle("ball", 0.2, motion=(0, 0, 0))
+
+
+def test_a_landmark_off_the_grid_is_refused_on_load(tmp_path):
+    good = tmp_path / "good.npz"
+    slalom_scene(num_walls=2).save(good)
+
+    def far_landmark(meta):
+        meta["landmarks"][0]["center"] = [1e6, 0.0]
+        return meta
+
+    def far_marker(meta):
+        meta["landmarks"][0]["display_position"] = [0.0, 0.0, 1e6]
+        return meta
+
+    for name, change, message in (("far.npz", far_landmark, "lies outside the scene's grid"),
+                                  ("marker.npz", far_marker, "display_position")):
+        _rewrite(good, tmp_path / name, change)
+        with pytest.raises(SceneFileError, match=f"{name}: landmark .*{message}"):
+            Scene.load(tmp_path / name)
+    for seed in range(5):  # generated scenes keep their landmarks on the grid
+        scene = generate_scene(SceneConfig(), np.random.default_rng(seed))
+        scene.save(tmp_path / "random.npz")
+        assert Scene.load(tmp_path / "random.npz") == scene

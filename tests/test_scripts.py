@@ -248,6 +248,7 @@ def test_bad_script_file_names_the_script(tmp_path):
     (b"\xff\xfe\x00 not utf-8", "not a JSON script file: 'utf-8' codec can't decode"),
     (b"[" * 100_000, "not a JSON script file"),  # nested too deeply for the parser
     (b"", "not a JSON script file: Expecting value"),
+    (b'{"id": ' + b"9" * 5000 + b"}", "not a JSON script file: Exceeds the limit"),  # a 5,000-digit number
 ])
 def test_corrupt_script_file_names_the_file(tmp_path, content, message):
     path = tmp_path / "corrupt.json"

@@ -286,3 +286,12 @@ def test_an_unbound_keyframe_is_named(monkeypatch):
     with pytest.raises(BindingError, match=r"keyframe 0 \(walk 'walks to the chair'\): the room has no item for "
                                            r"chair instance 1"):
         run_script(code_built(*second))
+
+
+@pytest.mark.parametrize("seed, error, message", [(-1, ValueError, r"seed must lie in \[0, "),
+                                                  (1.5, ValueError, "seed must be an integer"),
+                                                  ("7", TypeError, "seed must be an integer")])
+def test_run_script_names_a_bad_seed(seed, error, message):
+    script = load_database()[0]
+    with pytest.raises(error, match=message):
+        run_script(script, seed=seed, env_kwargs={"text_encoder": "hashing"})

@@ -315,3 +315,11 @@ def test_seated_start_rests_on_the_seat_even_at_a_table():
             _obs, info = env.set_task("sit", name)
             assert info["contact_error"] < task.SUCCESS_DISTANCE["sit"], (seed, name)
         assert env.skill == "getup"  # set_task leaves the episode skill alone
+
+
+@pytest.mark.parametrize("env_id", [i for i in stairenv.ENV_IDS if i.startswith("SIMS-")])
+def test_unknown_caption_styles_are_refused_at_construction(env_id):
+    with pytest.raises(ValueError, match=r"captions: unknown style\(s\) \['bogus_style'\]"):
+        gym.make(env_id, captions=(("bogus_style", "hello"),), **FAST)
+    with pytest.raises(ValueError, match="Happy"):  # styles are exact names
+        gym.make(env_id, captions=[("sad", "walks"), ("Happy", "hello")], **FAST)

@@ -77,22 +77,92 @@ class NumpyPolicy:
         return f"NumpyPolicy({' -> '.join(map(str, sizes))}, env={self.config.get('env_id')!r})"
 
 
-def load_file(path: str | os.PathLike) -> NumpyPolicy:
+def load_file(path: str | os.PathLike, env: Any | None = None) -> NumpyPolicy:
     """A policy from an ``.npz`` written by ``NumpyPolicy.save``; ``PolicyFileError`` naming the file
-    for anything else."""
+    and the field for anything else.
+
+    Every member's ``.npy`` header is read first: its dtype, and the bytes its shape declares must
+    match the member's real size, so nothing is allocated for a shape the file does not hold. With
+    ``env`` (an env or anything with ``observation_space`` and ``action_space``), the policy's
+    observation and action sizes must be the env's.
+    """
     path = Path(path)
+    arrays = _read_arrays(path)
+    policy = _policy_from_arrays(path, arrays)
+    if env is not None:
+        check_sizes(policy, env, path)
+    return policy
+
+
+def check_sizes(policy: NumpyPolicy, env: Any, path: str | os.PathLike = "policy") -> None:
+    """``PolicyFileError`` unless ``policy`` maps the env's observations to its actions."""
+    expected = (tuple(env.observation_space.shape), tuple(env.action_space.shape))
+    if ((policy.obs_size,), (policy.action_size,)) != expected:
+        raise PolicyFileError(f"{path}: the policy maps ({policy.obs_size},) observations (obs_mean, weight_0) to "
+                              f"({policy.action_size},) actions (weight_{len(policy.weights) - 1}); the env has "
+                              f"{expected[0]} and {expected[1]}")
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    from numpy.lib import format as npy
+
+    arrays: dict[str, np.ndarray] = {}
     try:
         with zipfile.ZipFile(path) as archive:
-            unpacked = sum(member.file_size for member in archive.infolist())
-        if unpacked > MAX_UNPACKED_BYTES:
-            raise PolicyFileError(f"{path}: unpacks to {unpacked} bytes, more than {MAX_UNPACKED_BYTES}")
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as err:
+            members = archive.infolist()
+            unpacked = sum(member.file_size for member in members)
+            if unpacked > MAX_UNPACKED_BYTES:
+                raise PolicyFileError(f"{path}: unpacks to {unpacked} bytes, more than {MAX_UNPACKED_BYTES}")
+            if len(members) > 4 * MAX_LAYERS + 8:
+                raise PolicyFileError(f"{path}: {len(members)} members, more than a policy file has")
+            for member in members:
+                name = member.filename[:-4] if member.filename.endswith(".npy") else member.filename
+                if not member.filename.endswith(".npy") or name in arrays:
+                    raise PolicyFileError(f"{path}: member {member.filename!r} is not one .npy array")
+                with archive.open(member) as fp:
+                    version = npy.read_magic(fp)
+                    if version not in ((1, 0), (2, 0)):
+                        raise PolicyFileError(f"{path}: {name}: .npy format version {version} is not read")
+                    reader = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+                    shape, fortran, dtype = reader(fp)
+                    if dtype.hasobject or dtype.kind not in "fiuUS" or dtype.subdtype is not None or dtype.names:
+                        raise PolicyFileError(f"{path}: {name} has dtype {dtype}, not numbers or text")
+                    declared = int(np.prod(shape, dtype=object)) * dtype.itemsize  # python ints: no overflow
+                    header = fp.tell()
+                    if declared != member.file_size - header:
+                        raise PolicyFileError(f"{path}: {name}: its header declares shape {shape} of {dtype} "
+                                              f"({declared} bytes) but the file holds {member.file_size - header}")
+                    data = fp.read(declared)
+                if len(data) != declared:
+                    raise PolicyFileError(f"{path}: {name} is truncated")
+                order = "F" if fortran else "C"
+                arrays[name] = np.frombuffer(data, dtype=dtype).reshape(shape, order=order).copy()
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, RuntimeError) as err:
         if isinstance(err, PolicyFileError):
             raise
         raise PolicyFileError(f"{path}: cannot read as a policy .npz ({type(err).__name__}: {err})") from err
-    return _policy_from_arrays(path, arrays)
+    return arrays
+
+
+def _numbers(path: Path, name: str, value: np.ndarray) -> np.ndarray:
+    if value.dtype.kind not in "fiu":
+        raise PolicyFileError(f"{path}: {name} has dtype {value.dtype}, not numbers")
+    return value.astype(np.float64)
+
+
+def _scalar(path: Path, name: str, value: np.ndarray) -> float:
+    if value.size != 1 or value.ndim > 1:
+        raise PolicyFileError(f"{path}: {name} must be one number, got shape {value.shape}")
+    number = float(_numbers(path, name, value).reshape(()))
+    if np.isnan(number):
+        raise PolicyFileError(f"{path}: {name} is NaN")
+    return number
+
+
+#: the largest normalised input the output bound assumes when ``obs_clip`` is infinite (no normaliser)
+UNCLIPPED_INPUT_BOUND = 1e6
+#: the largest value any layer may reach for inputs within the clip (far below float64's overflow)
+MAX_ACTIVATION_BOUND = 1e100
 
 
 def _policy_from_arrays(path: Path, arrays: dict[str, np.ndarray]) -> NumpyPolicy:
@@ -102,26 +172,68 @@ def _policy_from_arrays(path: Path, arrays: dict[str, np.ndarray]) -> NumpyPolic
     missing = [k for k in ("obs_mean", "obs_var", "obs_clip", "obs_epsilon") if k not in arrays]
     if missing or layers == 0 or layers > MAX_LAYERS:
         raise PolicyFileError(f"{path}: not a policy file (missing {missing or 'weight_0'}, or over {MAX_LAYERS} layers)")
-    weights = [arrays[f"weight_{i}"] for i in range(layers)]
-    biases = [arrays.get(f"bias_{i}") for i in range(layers)]
-    size = arrays["obs_mean"].shape
-    for i, (w, b) in enumerate(zip(weights, biases)):
+    known = {"obs_mean", "obs_var", "obs_clip", "obs_epsilon", "config"}
+    known |= {f"{kind}_{i}" for kind in ("weight", "bias") for i in range(layers)}
+    extra = sorted(set(arrays) - known)
+    if extra:  # a layer after a gap (weight_1 missing, weight_2 there), or a stray bias: not a chain of layers
+        raise PolicyFileError(f"{path}: {extra[0]} does not belong to the {layers} layer(s) weight_0.."
+                              f"weight_{layers - 1} (unknown or after a missing layer: {extra})")
+    mean = _numbers(path, "obs_mean", arrays["obs_mean"])
+    var = _numbers(path, "obs_var", arrays["obs_var"])
+    if mean.ndim != 1 or mean.size == 0 or var.shape != mean.shape:
+        raise PolicyFileError(f"{path}: obs_mean {mean.shape} and obs_var {var.shape} must be equal 1-D")
+    size = mean.shape
+    weights, biases = [], []
+    for i in range(layers):
         expected_in = size[0] if i == 0 else weights[i - 1].shape[0]
+        w = arrays[f"weight_{i}"]
+        b = arrays.get(f"bias_{i}")
         if (w.ndim != 2 or b is None or b.shape != (w.shape[0],) or w.shape[1] != expected_in
-                or max(w.shape) > MAX_WIDTH or w.dtype.kind != "f"):
+                or max(w.shape) > MAX_WIDTH or min(w.shape) == 0):
             raise PolicyFileError(f"{path}: layer {i} has shape {w.shape} (bias {None if b is None else b.shape}), "
                                   f"which does not follow {expected_in} inputs")
-    if len(size) != 1 or arrays["obs_var"].shape != size:
-        raise PolicyFileError(f"{path}: obs_mean {size} and obs_var {arrays['obs_var'].shape} must be equal 1-D")
-    values = [*weights, *biases, arrays["obs_mean"], arrays["obs_var"]]
-    if not all(np.isfinite(v).all() for v in values) or (arrays["obs_var"] < 0).any():
-        raise PolicyFileError(f"{path}: non-finite weights or statistics, or a negative variance")
-    try:
-        config = json.loads(str(arrays["config"])) if "config" in arrays else {}
-    except json.JSONDecodeError as err:
-        raise PolicyFileError(f"{path}: config is not JSON ({err})") from err
-    return NumpyPolicy(weights, biases, arrays["obs_mean"], arrays["obs_var"], float(arrays["obs_clip"]),
-                       float(arrays["obs_epsilon"]), config if isinstance(config, dict) else {})
+        if w.dtype.kind != "f":
+            raise PolicyFileError(f"{path}: weight_{i} has dtype {w.dtype}, not floats")
+        weights.append(w.astype(np.float64))
+        biases.append(_numbers(path, f"bias_{i}", b))
+    for name, v in [*((f"weight_{i}", w) for i, w in enumerate(weights)),
+                    *((f"bias_{i}", b) for i, b in enumerate(biases)), ("obs_mean", mean), ("obs_var", var)]:
+        if not np.isfinite(v).all():
+            raise PolicyFileError(f"{path}: {name}: non-finite weights or statistics")
+    if (var < 0).any():
+        raise PolicyFileError(f"{path}: obs_var: a negative variance")
+    clip = _scalar(path, "obs_clip", arrays["obs_clip"])
+    epsilon = _scalar(path, "obs_epsilon", arrays["obs_epsilon"])
+    if not clip > 0:
+        raise PolicyFileError(f"{path}: obs_clip is {clip}; it must be positive (inf: no clipping)")
+    if not (np.isfinite(epsilon) and epsilon >= 0):
+        raise PolicyFileError(f"{path}: obs_epsilon is {epsilon}; it must be finite and >= 0")
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        scale = 1.0 / np.sqrt(var + epsilon)
+    if not np.isfinite(scale).all():
+        raise PolicyFileError(f"{path}: obs_var + obs_epsilon is 0 (or too small) for observation(s) "
+                              f"{np.flatnonzero(~np.isfinite(scale))[:10].tolist()}: the normaliser divides by zero")
+    # every layer's values for inputs within the clip stay far from overflow (weights x 1e300 would make
+    # every action NaN): |x_{i+1}| <= max row sum |W_i| * |x_i| + max |b_i|
+    bound = min(clip, UNCLIPPED_INPUT_BOUND)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i, (w, b) in enumerate(zip(weights, biases)):
+            bound = float(np.abs(w).sum(axis=1).max()) * bound + float(np.abs(b).max())
+            if not bound <= MAX_ACTIVATION_BOUND:
+                raise PolicyFileError(f"{path}: weight_{i}, bias_{i}: layer {i}'s values may reach {bound:.3g} for "
+                                      f"normalised inputs within +-{min(clip, UNCLIPPED_INPUT_BOUND):g}, beyond "
+                                      f"{MAX_ACTIVATION_BOUND:g} (overflow would make actions NaN)")
+    config: Any = {}
+    if "config" in arrays:
+        raw = arrays["config"]
+        if raw.dtype.kind not in "US" or raw.ndim != 0:
+            raise PolicyFileError(f"{path}: config must be one JSON string, got {raw.dtype} of shape {raw.shape}")
+        try:
+            text = raw.item().decode("utf-8") if raw.dtype.kind == "S" else str(raw.item())
+            config = json.loads(text)
+        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
+            raise PolicyFileError(f"{path}: config is not JSON ({err})") from err
+    return NumpyPolicy(weights, biases, mean, var, clip, epsilon, config if isinstance(config, dict) else {})
 
 
 def shipped_policy_path(env_id: str) -> Path:
@@ -129,13 +241,25 @@ def shipped_policy_path(env_id: str) -> Path:
 
 
 def load(env_id: str) -> NumpyPolicy:
-    """The policy shipped with the package for ``env_id``."""
+    """The policy shipped with the package for ``env_id``, its sizes checked against the env's spaces."""
     path = shipped_policy_path(env_id)
     if not path.is_file():
         shipped = sorted(p.stem for p in path.parent.glob("*.npz")) if path.parent.is_dir() else []
         raise FileNotFoundError(f"no trained policy for {env_id!r} is shipped with stairenv (shipped: {shipped}); "
                                 "train one with baselines/train_ppo.py and export it with baselines/export_policy.py")
-    return load_file(path)
+    import gymnasium as gym
+
+    import stairenv  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id)
+    try:
+        policy = load_file(path, env)
+    finally:
+        env.close()
+    named = policy.config.get("env_id")
+    if named is not None and named != env_id:
+        raise PolicyFileError(f"{path}: config names env_id {named!r}, not {env_id!r}")
+    return policy
 
 
 def from_sb3(model: Any, obs_normalizer: Any | None = None, config: dict[str, Any] | None = None) -> NumpyPolicy:

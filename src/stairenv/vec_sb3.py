@@ -49,6 +49,7 @@ class SB3BatchedVecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async()")
         actions, self._actions = self._actions, None
+        self.venv.check_open()
         # ended worlds are reset inside the step, while the other worlds' physics runs
         obs, rewards, terminated, truncated, infos, finals = self.venv.step_worlds(actions, reset_ended=True)
         infos = [dict(info) for info in infos]

@@ -11,7 +11,8 @@ import numpy as np
 from stairenv.environments.base import Evaluation
 from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
-from stairenv.planning.errors import PlanningError
+from stairenv.planning.errors import InstructionError, PlanningError
+from stairenv.planning.instructions import parse_instructions
 from stairenv.planning.planner import Plan, Planner, plan_path
 from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
 from stairenv.planning.waypoints import Trajectory
@@ -52,6 +53,31 @@ def scene_config(scene: dict[str, Any] | None) -> SceneConfig:
     check_grid(("scene['size']", "scene['cell_size']"), config.size, config.cell_size,
                MAX_TERRAIN_CELLS, SCENE_BYTES_PER_CELL)
     return config
+
+
+def check_landmark_room(config: SceneConfig) -> None:
+    """``ValueError`` naming the ``scene`` keywords when ``num_landmarks`` discs ``landmark_separation``
+    apart cannot fit in ``size`` at all (generation would fail at every reset). A necessary condition
+    only: half-open squares of side ``separation / sqrt(2)`` each hold at most one centre."""
+    if config.landmark_separation <= 0.0:
+        return
+    side = config.landmark_separation / math.sqrt(2.0)
+    margin = max(config.landmark_radius - config.cell_size, 0.0)  # centres keep their disc in the scene
+    fits = 1
+    for extent in config.size:
+        fits *= max(math.ceil(max(extent - 2.0 * margin, 0.0) / side), 1)
+    if fits < config.num_landmarks:
+        raise ValueError(f"scene: {config.num_landmarks} landmarks (scene['num_landmarks']) "
+                         f"{config.landmark_separation:g} m apart (scene['landmark_separation']) cannot fit in a "
+                         f"scene of size {config.size} (scene['size']): at most {fits} do")
+
+
+def check_instructions(text: str, landmarks) -> None:
+    """``InstructionError`` naming the ``instructions`` keyword unless ``text`` parses with ``landmarks``."""
+    try:
+        parse_instructions(text, landmarks)
+    except InstructionError as error:
+        raise InstructionError(f"instructions {text!r}: {error}") from None
 
 
 def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float) -> task.PathSamples:
@@ -133,6 +159,10 @@ class PlaMoSceneEnv(PlaMoEnv):
         self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
         self.constant_speed = check_float("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
         self.scene_config = scene_config(scene)
+        check_landmark_room(self.scene_config)
+        if self.instructions is not None:  # unknown verbs and landmarks fail now, not at reset
+            check_instructions(self.instructions, ("start", "goal") if self.scene_kind == "slalom"
+                               else self.scene_config.landmark_names)
         self.scene_resample_every = check_int("scene_resample_every", scene_resample_every, 1, 10**9)
         self._resets = 0
         self.replan_horizon = check_float("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
@@ -160,6 +190,8 @@ class PlaMoSceneEnv(PlaMoEnv):
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The scene (kept between resets, see the class docstring) and the episode's planned route."""
+        if self._seeded_reset:  # the resample count restarts: a seeded reset fixes every episode after it
+            self._resets = 0
         if self.scene is None or (self.scene_kind == "random" and (
                 self._seeded_reset or self._resets % self.scene_resample_every == 0)):
             self._build_scene(rng)
@@ -177,8 +209,14 @@ class PlaMoSceneEnv(PlaMoEnv):
             try:
                 self._plans: list[Plan] = self._planner.route(text, start=start_xy)
                 break
-            except PlanningError:
-                if self.instructions is not None or attempt == 9:
+            except (PlanningError, InstructionError) as error:
+                if self.instructions is not None:  # the user's own: say which keyword and scene
+                    message = (f"instructions {self.instructions!r} cannot be planned in this episode's scene "
+                               f"(landmarks {list(self.scene.landmark_names)}): {error}")
+                    if isinstance(error, PlanningError):
+                        raise PlanningError(error.reason, message) from None
+                    raise InstructionError(message) from None
+                if attempt == 9 or isinstance(error, InstructionError):  # drawn instructions: as before
                     raise
         if self.speed_profile == "constant":
             self._plans = _constant_speed(self._plans, self.constant_speed)
@@ -226,7 +264,12 @@ class PlaMoSceneEnv(PlaMoEnv):
     def _build_scene(self, rng: np.random.Generator) -> None:
         """A new scene, compiled with the humanoid into a new model, and its planner."""
         self.close()
-        self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
+        try:
+            self.scene = generate_scene(self.scene_config, rng) if self.scene_kind == "random" else slalom_scene()
+        except RuntimeError as error:  # the generator gave up: name the keyword that asked for it
+            config = self.scene_config
+            raise RuntimeError(f"scene (the keyword: size {config.size}, num_landmarks {config.num_landmarks}, "
+                               f"landmark_separation {config.landmark_separation:g}): {error}") from None
         spec = load_humanoid_spec(self._pd_gains)
         self._scene_handles = add_scene_to_spec(spec, self.scene)
         self._compile(spec)

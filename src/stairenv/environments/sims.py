@@ -158,14 +158,19 @@ def check_text_encoder(text_encoder, text_dim) -> int:
 
 
 def check_captions(captions) -> tuple[tuple[str, str], ...]:
-    """``captions``: a non-empty list of (style, caption) pairs of non-empty strings."""
+    """``captions``: a non-empty list of (style, caption) pairs of non-empty strings, each style one of
+    SIMS' eight or "neutral" (``WALK_STYLES``)."""
     pairs = captions if isinstance(captions, Sequence) and not isinstance(captions, str) else None
     if pairs is None or not all(isinstance(p, Sequence) and not isinstance(p, str) and len(p) == 2 for p in pairs):
         raise TypeError(f"captions must be None or a list of (style, caption) pairs, got {captions!r:.80}")
     if not pairs:
         raise ValueError("captions must hold at least one (style, caption) pair")
-    return tuple((check_str("captions (style)", style), check_str("captions (caption)", text))
-                 for style, text in pairs)
+    checked = tuple((check_str("captions (style)", style), check_str("captions (caption)", text))
+                    for style, text in pairs)
+    unknown = sorted({style for style, _ in checked} - set(WALK_STYLES))
+    if unknown:  # an unknown style would be drawn silently, at the neutral speed, with no reference to match
+        raise ValueError(f"captions: unknown style(s) {unknown}; the styles are {sorted(WALK_STYLES)}")
+    return checked
 
 
 def seated_joint_angles() -> np.ndarray:
@@ -375,6 +380,8 @@ class SIMSEnv(HumanoidEnv):
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The scene (a fixed room is built once; generated scenes change every ``scene_resample_every``
         resets and on a seed) and the piece of furniture to use."""
+        if self._seeded_reset:  # the resample count restarts: a seeded reset fixes every episode after it
+            self._resets = 0
         if self.fixed_room is None and (self._seeded_reset or self._resets % self.scene_resample_every == 0):
             self._build_scene(rng)
         self._resets += 1

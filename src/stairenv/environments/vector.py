@@ -100,10 +100,16 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     # --- gymnasium.vector API -------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        self.check_open()
         seeds = self._seeds(seed)
         options = dict(options) if options else {}
         mask = options.pop("reset_mask", None)
-        worlds = range(self.num_envs) if mask is None else np.flatnonzero(np.asarray(mask, dtype=bool))
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
+                raise ValueError(f"reset_mask must be {self.num_envs} bools, one per world; got {mask.dtype} "
+                                 f"of shape {mask.shape}")
+        worlds = range(self.num_envs) if mask is None else np.flatnonzero(mask)
         if mask is not None and not self._was_reset:
             raise gym.error.ResetNeeded("reset() with a reset_mask needs a full reset() first")
         obs = self._obs_buffer() if mask is None else self._last_obs.copy()
@@ -116,6 +122,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     def reset_world(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None):
         """Reset world ``i`` alone (its episode count and autoreset flag too); its ``(obs, info)``."""
+        self.check_open()
         obs, info = self.envs[i].reset(seed=seed, options=options)
         self._elapsed[i] = 0
         self._autoreset[i] = False
@@ -123,6 +130,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         return obs, info
 
     def step(self, actions):
+        self.check_open()
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         obs, rewards, terminated, truncated, infos, finals = self.step_worlds(actions, reset_ended=same_step)
         for i, (final_obs, reset_info) in finals.items():    # SyncVectorEnv's SAME_STEP layout
@@ -218,15 +226,24 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         space = self.single_observation_space
         return np.zeros((self.num_envs, *space.shape), dtype=space.dtype)
 
+    def check_open(self) -> None:
+        """``gymnasium.error.ClosedEnvironmentError`` once ``close()`` has run: its worlds are gone."""
+        if self.closed:
+            raise gym.error.ClosedEnvironmentError(f"{type(self).__name__} is closed; make a new one")
+
     def _seeds(self, seed) -> list[int | None]:
         if seed is None:
             return [None] * self.num_envs
-        if isinstance(seed, (int, np.integer)):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
+        if isinstance(seed, np.ndarray) and seed.ndim == 0:
+            seed = seed.item()
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+            return [_seed(seed, "seed") + i for i in range(self.num_envs)]
+        if isinstance(seed, (str, bytes, dict)) or not hasattr(seed, "__iter__"):
+            raise TypeError(f"seed must be None, an integer or one seed per world ({self.num_envs}), got {seed!r:.80}")
+        seeds = list(np.asarray(seed).tolist() if isinstance(seed, np.ndarray) else seed)
         if len(seeds) != self.num_envs:
             raise ValueError(f"reset needs one seed per world ({self.num_envs}), got {len(seeds)}")
-        return seeds
+        return [None if s is None else _seed(s, f"seed[{i}]") for i, s in enumerate(seeds)]
 
     @property
     def amp_observation_space(self) -> gym.spaces.Box:
@@ -274,6 +291,15 @@ def _non_real_worlds(actions: np.ndarray) -> str:
 
     bad = [i for i, row in enumerate(actions.tolist()) if not all(real(value) for value in row)]
     return f" in world(s) {bad}" if bad else " in every world"
+
+
+def _seed(value, name: str) -> int:
+    """A seed as a non-negative Python int (numpy integers too); errors name the world's seed."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be None or an integer, got {value!r:.80}")
+    if value < 0:
+        raise ValueError(f"{name} must be >= 0, got {value}")
+    return int(value)
 
 
 def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:

@@ -99,6 +99,8 @@ class EpisodeResult:
     steps: int               # policy steps taken
     episode_return: float    # sum of rewards
     gait: GaitSummary | None = None  # the gait metrics (``evaluate(..., gait=True)``), else None
+    push_step: int | None = None  # the step before which the push came (``push_speed``), None if none came
+    push_angle: float | None = None  # its direction in the world's xy plane (rad)
 
 
 @dataclass(frozen=True)
@@ -249,6 +251,36 @@ GAIT_LAYOUT = replace(
 )
 
 
+# --- pushes -------------------------------------------------------------------------
+#: the steps (policy steps, 30 per second) between which an episode's push comes: 1 to 6 s in
+PUSH_STEPS: tuple[int, int] = (30, 180)
+#: the stream of the episode's push draws (its step and direction), apart from the env's own rng:
+#: every policy meets the same push in the same episode
+PUSH_STREAM = 0x9055
+
+
+def push_plan(seed: int, speed: float) -> tuple[int, float] | None:
+    """The push of the episode reset with ``seed``: (step, direction in rad), drawn from the episode's
+    seed alone (``PUSH_STREAM``); None without a push (``speed`` 0)."""
+    if speed <= 0.0:
+        return None
+    rng = np.random.default_rng([int(seed), PUSH_STREAM])
+    return int(rng.integers(*PUSH_STEPS)), float(rng.uniform(-math.pi, math.pi))
+
+
+def apply_push(model: Any, data: Any, speed: float, angle: float) -> None:
+    """A horizontal velocity kick: ``speed`` (m/s) added to the root's world-frame linear velocity in
+    direction ``angle`` (rad; the root's free joint: its first three DoFs are world-frame velocity)."""
+    import mujoco
+
+    from stairenv.humanoid import BODY_NAMES
+
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BODY_NAMES[0])
+    dof = model.jnt_dofadr[model.body_jntadr[body]]
+    data.qvel[dof] += speed * math.cos(angle)
+    data.qvel[dof + 1] += speed * math.sin(angle)
+
+
 # --- the evaluation loop --------------------------------------------------------
 def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
     bounds = [-math.inf, *edges, math.inf]
@@ -269,8 +301,10 @@ class _EpisodeTracker:
     sequential and the batched evaluation record)."""
 
     def __init__(self, index: int, seed: int, fixed_height: float | None, info: dict[str, Any],
-                 recorder: GaitRecorder | None = None, data: Any = None) -> None:
+                 recorder: GaitRecorder | None = None, data: Any = None, push_speed: float = 0.0) -> None:
         self.index, self.seed, self.fixed_height = index, seed, fixed_height
+        self.push_speed, self.push = push_speed, push_plan(seed, push_speed)
+        self.pushed = False
         self.recorder, self.data = recorder, data
         self.num_steps = int(info["stairs"]["num_steps"]) if recorder is not None else None
         self.step_height = float(info["stairs"]["step_height"])
@@ -281,6 +315,12 @@ class _EpisodeTracker:
         if recorder is not None:  # the env's MuJoCo state, read after the reset and every stable step
             recorder.reset()
             recorder.record(data)
+
+    def before_step(self, env: Any) -> None:
+        """The push, if this episode's comes before the step about to run (``env``: the unwrapped env)."""
+        if self.push is not None and not self.pushed and self.steps == self.push[0]:
+            apply_push(env.model, env.data, self.push_speed, self.push[1])
+            self.pushed = True
 
     def update(self, reward: float, terminated: bool, truncated: bool, info: dict[str, Any]) -> bool:
         """Record one step; True when it ended the episode."""
@@ -305,17 +345,19 @@ class _EpisodeTracker:
             progress=self.best, fell=self.fell, success=self.success, time=self.success_time,
             physics_unstable=self.unstable, truncated=self.truncated, steps=self.steps,
             episode_return=self.episode_return, gait=gait,
+            push_step=self.push[0] if self.pushed else None, push_angle=self.push[1] if self.pushed else None,
         )
 
 
 def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_height: float | None,
-                 recorder: GaitRecorder | None = None) -> EpisodeResult:
+                 recorder: GaitRecorder | None = None, push_speed: float = 0.0) -> EpisodeResult:
     if callable(getattr(policy, "reset", None)):
         policy.reset(seed)
     obs, info = env.reset(seed=seed)
     data = env.unwrapped.data if recorder is not None else None
-    tracker = _EpisodeTracker(index, seed, fixed_height, info, recorder, data)
+    tracker = _EpisodeTracker(index, seed, fixed_height, info, recorder, data, push_speed)
     while True:
+        tracker.before_step(env.unwrapped)
         obs, reward, terminated, truncated, info = env.step(np.asarray(policy(obs)))
         if tracker.update(reward, terminated, truncated, info):
             return tracker.result(env.unwrapped.dt if recorder is not None else None)
@@ -331,7 +373,7 @@ def _batch_actions(policy: Policy, obs: np.ndarray, action_shape: tuple[int, ...
 
 
 def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], fixed_height: float | None,
-                 gait: bool, on_result: Any) -> None:
+                 gait: bool, on_result: Any, push_speed: float = 0.0) -> None:
     """Run ``episodes`` ((index, seed) pairs) on the worlds of the batched env ``vec``: each world
     takes the next episode when its last one ends (reset with that episode's seed, as the sequential
     evaluation does); worlds left without an episode step on, unrecorded, until all are done."""
@@ -346,7 +388,7 @@ def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], 
     trackers: list[_EpisodeTracker | None] = [None] * n
 
     def start(k: int, index: int, seed: int, info: dict[str, Any]) -> None:
-        trackers[k] = _EpisodeTracker(index, seed, fixed_height, info, recorders[k], vec.envs[k].data)
+        trackers[k] = _EpisodeTracker(index, seed, fixed_height, info, recorders[k], vec.envs[k].data, push_speed)
 
     for k, (index, seed) in enumerate(first):    # the reset's info per world, as the single env gives it
         obs[k], info = vec.reset_world(k, seed=seed)
@@ -354,6 +396,9 @@ def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], 
     action_shape = vec.single_action_space.shape
     dt = vec.envs[0].dt
     while any(tracker is not None for tracker in trackers):
+        for k, tracker in enumerate(trackers):
+            if tracker is not None:
+                tracker.before_step(vec.envs[k])
         obs, rewards, terminated, truncated, infos, _ = vec.step_worlds(_batch_actions(policy, obs, action_shape))
         for k, tracker in enumerate(trackers):
             if tracker is None or not tracker.update(rewards[k], terminated[k], truncated[k], infos[k]):
@@ -379,6 +424,7 @@ def evaluate(
     height_bins: Sequence[float] | None = HEIGHT_BIN_EDGES,
     gait: bool = False,
     num_envs: int = 1,
+    push_speed: float = 0.0,
 ) -> EvaluationReport:
     """Run ``policy`` for ``episodes`` episodes (per step height) and compute the paper's metrics.
 
@@ -396,6 +442,7 @@ def evaluate(
     | height_bins | (0.075, 0.125, 0.175) | interior bin edges (m) grouping random heights; None or () for no bins |
     | gait | False | also record foot contacts and add the gait columns (:data:`GAIT_LAYOUT`) |
     | num_envs | 1 | worlds of the env's batched vector env that run the episodes side by side (physics on every core, the policy called on the batch); 1 = one env, episode after episode |
+    | push_speed | 0.0 | m/s in [0, 10]: each episode's character is kicked once, this horizontal speed added to its root in a random direction before a random step in ``PUSH_STEPS`` (1-6 s), both drawn from the episode's seed (``push_plan``: the same push for every policy); 0 = no push |
 
     If ``policy`` has a ``reset(seed)`` method it is called with each episode's seed
     before the episode (:class:`~stairenv.evaluation.policies.RandomPolicy` reseeds itself);
@@ -431,6 +478,10 @@ def evaluate(
         raise ValueError(f"max_episode_steps must be None or an integer >= 1, got {max_episode_steps!r}")
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if isinstance(push_speed, bool) or not isinstance(push_speed, (int, float, np.integer, np.floating)) or not (
+            0.0 <= float(push_speed) <= 10.0):
+        raise ValueError(f"push_speed must be a speed in [0, 10] m/s, got {push_speed!r}")
+    push_speed = float(push_speed)
     if not isinstance(policy, (str, os.PathLike)) and not callable(policy):
         raise ValueError(f"policy must be a callable (obs -> action) or a policy spec string, got {policy!r}")
     if env_id not in gym.registry:
@@ -505,11 +556,12 @@ def evaluate(
 
             try:
                 if batched:
-                    _run_batched(env, policy, [(i, seed + i) for i in range(episodes)], fixed, gait, done)
+                    _run_batched(env, policy, [(i, seed + i) for i in range(episodes)], fixed, gait, done,
+                                 push_speed)
                 else:
                     recorder = GaitRecorder(env.unwrapped.model) if gait else None
                     for i in range(episodes):
-                        done(_run_episode(env, policy, seed + i, i, fixed, recorder))
+                        done(_run_episode(env, policy, seed + i, i, fixed, recorder, push_speed))
             finally:
                 env.close()
             results.extend(sorted(group, key=lambda e: e.index))
@@ -532,6 +584,9 @@ def evaluate(
     meta = {"label": label, "env_id": env_id, "seed": int(seed), "episodes_per_group": int(episodes),
             "step_heights": heights, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
             "num_envs": int(num_envs) if batched else 1}
+    if push_speed > 0.0:
+        meta.update(push_speed=push_speed, push_steps=list(PUSH_STEPS),
+                    pushed=sum(e.push_step is not None for e in results))
     if gait:
         for row, (_, members) in zip(rows, grouped):
             row.update(gait_columns([e.gait for e in members], [e.success for e in members]))
@@ -548,5 +603,6 @@ def _stairenv_ids() -> tuple[str, ...]:
 
 __all__ = [
     "GAIT_LAYOUT", "HEIGHT_BIN_EDGES", "LAYOUT", "OVERALL", "PAPER_RESULTS", "PAPER_STEP_HEIGHTS", "PAPER_TRIALS", "ROW_FIELDS",
-    "EpisodeResult", "EvaluationReport", "GroupStats", "evaluate", "group_row", "paper_rows",
+    "PUSH_STEPS", "EpisodeResult", "EvaluationReport", "GroupStats", "apply_push", "evaluate", "group_row",
+    "paper_rows", "push_plan",
 ]

@@ -223,12 +223,7 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
 
 
 def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
-    policy = load_file(path)
-    expected = (env.observation_space.shape, env.action_space.shape)
-    if ((policy.obs_size,), (policy.action_size,)) != expected:
-        raise ValueError(f"policy {path!r} maps ({policy.obs_size},) observations to ({policy.action_size},) "
-                         f"actions; the env has {expected[0]} and {expected[1]}")
-    return policy
+    return load_file(path, env)  # PolicyFileError (a ValueError) naming the file unless the sizes are the env's
 
 
 def policy_label(policy: Any) -> str:

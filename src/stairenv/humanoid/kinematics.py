@@ -86,14 +86,49 @@ def foot_box_geoms() -> np.ndarray:
     return np.array(geoms)
 
 
+def _geom_frames(qpos: np.ndarray, geom_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, G, 3) world positions and (T, G, 9) orientations of the bare model's geoms ``geom_ids`` in
+    each frame of qpos (one FK pass)."""
+    ngeom = humanoid_model().ngeom
+    xpos = np.empty((qpos.shape[0], ngeom, 3))
+    xmat = np.empty((qpos.shape[0], ngeom, 9))
+    for t, data in enumerate(forward_kinematics(qpos)):  # whole arrays: a plain copy, no gather per frame
+        xpos[t] = data.geom_xpos
+        xmat[t] = data.geom_xmat
+    return xpos[:, geom_ids], xmat[:, geom_ids]
+
+
+def _lowest_z_frames(model: mujoco.MjModel, xpos: np.ndarray, xmat: np.ndarray, geom_ids: np.ndarray) -> np.ndarray:
+    """``humanoid_lowest_z`` of every frame at once (the same element-wise operations, so the same
+    bits): (T,) from the geoms' (T, G, 3) positions and (T, G, 9) orientations."""
+    kind = model.geom_type[geom_ids]
+    z, size = xpos[:, :, 2], model.geom_size[geom_ids]
+    r22 = np.abs(xmat[:, :, 8])
+    bottom = np.where(kind == _SPHERE, z - size[:, 0], z - r22 * size[:, 1] - size[:, 0])
+    for k in np.flatnonzero((kind != _SPHERE) & (kind != _CAPSULE)):
+        g = geom_ids[k]
+        if kind[k] == _BOX:
+            bottom[:, k] = z[:, k] - _row_dot(np.abs(xmat[:, k, 6:9]), model.geom_size[g])
+        else:
+            bottom[:, k] = z[:, k] - model.geom_rbound[g]
+    return np.fmin.reduce(bottom, axis=1, initial=np.inf)
+
+
+def _row_dot(rows: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """(T,) dot products of the rows of ``rows`` (T, 3) with ``vector`` (3,), each as ``row @ vector``
+    computes it: a stack of 1 x 3 by 3 x 1 products takes numpy's dot of two vectors, where a (T, 3) x (3,)
+    product (a matrix-vector kernel) rounds differently in the last bit."""
+    return (rows[:, None, :] @ vector[:, None])[:, 0, 0]
+
+
 def foot_sole_heights(qpos: np.ndarray) -> np.ndarray:
     """(T, 2) height of the lowest corner of the right and left foot box in each frame."""
     model = humanoid_model()
     geoms = foot_box_geoms()
+    xpos, xmat = _geom_frames(qpos, geoms)
     out = np.zeros((qpos.shape[0], 2))
-    for t, data in enumerate(forward_kinematics(qpos)):
-        for k in range(len(geoms)):
-            out[t, k] = humanoid_lowest_z(model, data, geoms[k:k + 1])
+    for k in range(len(geoms)):
+        out[:, k] = _lowest_z_frames(model, xpos[:, k:k + 1], xmat[:, k:k + 1], geoms[k:k + 1])
     return out
 
 
@@ -103,7 +138,8 @@ def lowest_body_point(qpos: np.ndarray, geom_ids: np.ndarray | None = None) -> n
     model = humanoid_model()
     if geom_ids is None:
         geom_ids = humanoid_geoms(model, HumanoidIndices.from_model(model))
-    out = np.full(qpos.shape[0], np.inf)
-    for t, data in enumerate(forward_kinematics(qpos)):
-        out[t] = humanoid_lowest_z(model, data, geom_ids)
-    return out
+    geom_ids = np.asarray(geom_ids, dtype=np.int64)
+    if qpos.shape[0] == 0:
+        return np.full(0, np.inf)
+    xpos, xmat = _geom_frames(qpos, geom_ids)
+    return _lowest_z_frames(model, xpos, xmat, geom_ids)

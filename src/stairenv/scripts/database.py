@@ -234,7 +234,7 @@ class ScriptFileError(ValueError):
 def _read_scripts(path: Path) -> list[Script]:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+    except (UnicodeDecodeError, RecursionError, ValueError) as e:  # ValueError: JSONDecodeError, huge numbers
         raise ScriptFileError(f"{path}: not a JSON script file: {e}") from e
     items = data if isinstance(data, list) else [data]
     out = []

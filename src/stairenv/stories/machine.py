@@ -63,7 +63,7 @@ import numpy as np
 
 from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
-from stairenv.validation import check_number
+from stairenv.validation import check_int, check_number
 
 if TYPE_CHECKING:
     from stairenv.environments.sims import SIMSEnv
@@ -598,6 +598,7 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
     from stairenv.environments.sims import SIMSEnv
     from stairenv.scripts.retrieval import bind_keyframes
 
+    seed = check_int("seed", seed, 0, 2**63 - 1)  # before any room is drawn with it
     _check_runnable(script)
     specs = policy_specs(policies if policies is not None else KINEMATIC)
     room, match = story_room(script, rooms, config=room_config, seed=seed)

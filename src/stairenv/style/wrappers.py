@@ -74,10 +74,108 @@ class AMPStateError(ValueError):
     """An AMP state file that cannot be read, or holds more than tensors and plain values."""
 
 
+#: torch's advice on a refused file (load it with ``weights_only=False``) is never passed on: the
+#: sentences of its messages that mention these are dropped
+_ADVICE = ("weights_only", "trusted source", "arbitrary code", "add_safe_globals", "safe_globals",
+           "documentation of torch.load", "pytorch.org")
+
+
 def _unpickler_complaint(err: Exception) -> str:
     """The reason in torch's weights-only error, without its advice to load unsafely."""
-    found = re.search(r"WeightsUnpickler error: (.*?)(?:\n\n|$)", str(err), re.DOTALL)
-    return " ".join((found[1] if found else str(err)).split())
+    text = str(err)
+    found = re.search(r"WeightsUnpickler error:\s*(.*?)(?:\n\n|$)", text, re.DOTALL)
+    if found:
+        text = found[1]
+    sentences = re.split(r"(?<=[.!?])\s+|\n+", text)
+    kept = [part for part in sentences if part.strip() and not any(a in part for a in _ADVICE)]
+    return " ".join(" ".join(kept).split()) or type(err).__name__
+
+
+def _pickle_globals(path: Path) -> list[str]:
+    """The globals (``module.name``) the pickle inside a torch zip file names, read with ``pickletools``
+    (opcodes only: nothing is built or run); [] where the file is no such zip."""
+    import pickletools
+    import zipfile
+
+    names: list[str] = []
+    try:
+        with zipfile.ZipFile(path) as archive:
+            member = next((m for m in archive.infolist() if m.filename.endswith("data.pkl")), None)
+            if member is None or member.file_size > 64 * 2**20:
+                return []
+            data = archive.read(member)
+        strings: list[str] = []
+        for opcode, arg, _ in pickletools.genops(data):
+            if opcode.name in ("GLOBAL", "INST"):
+                names.append(str(arg).replace(" ", "."))
+            elif opcode.name == "STACK_GLOBAL" and len(strings) >= 2:
+                names.append(f"{strings[-2]}.{strings[-1]}")
+            if isinstance(arg, str):
+                strings.append(arg)
+    except Exception:  # noqa: BLE001  (a truncated or foreign file: no names)
+        return names
+    return names
+
+
+#: a weights-only failure, across torch 2.1-2.13 ("Weights only load failed", "WeightsUnpickler error")
+_WEIGHTS_ONLY_FAILURE = re.compile(r"weights.only load failed|weightsunpickler", re.IGNORECASE)
+#: the global a refusal names: "Unsupported global: GLOBAL m.f was not an allowed global" (2.1-2.12),
+#: "Trying to load unsupported GLOBAL m.f whose module m is blocked" (2.13)
+_REFUSED_GLOBAL = re.compile(r"\bGLOBAL ([A-Za-z_][\w.]*)")
+#: globals a torch file legitimately names (torch's own rebuild functions and types)
+_TORCH_GLOBALS = ("torch.", "collections.OrderedDict", "builtins.set", "builtins.frozenset", "builtins.bytearray",
+                  "_codecs.encode")
+
+
+def _refused_global(err: Exception, path: Path) -> str | None:
+    """The Python object a weights-only refusal is about (from torch's message, else from the pickle's
+    own opcodes), None when ``err`` is no refusal (a truncated or foreign file)."""
+    if not isinstance(err, pickle.UnpicklingError) or not _WEIGHTS_ONLY_FAILURE.search(str(err)):
+        return None
+    named = _REFUSED_GLOBAL.search(str(err))
+    if named:
+        return named[1]
+    foreign = [name for name in _pickle_globals(path) if not name.startswith(_TORCH_GLOBALS)]
+    return foreign[0] if foreign else None
+
+
+#: the plain values of a saved AMP state: name -> (type, least value, whether a state must have it)
+_STATE_FIELDS = {
+    "w_task": (float, None, True), "w_style": (float, None, True), "update_interval": (int, 1, True),
+    "updates_per_round": (int, 1, True), "rounds": (int, 0, True), "replay_size": (int, 1, False),
+    "reference_num_frames": (int, 1, False), "reference_fps": (float, 0.0, False),
+    "reference_condition_dim": (int, 0, False), "background_training": (bool, None, False),
+}
+
+
+def _check_state(path: Path, state: dict) -> None:
+    """``AMPStateError`` naming the file and the entry for a plain value of the wrong type or range."""
+    for name, (kind, least, required) in _STATE_FIELDS.items():
+        if name not in state:
+            if required:
+                raise AMPStateError(f"{path}: not an AMP state (no {name!r} entry; written by AMPStyleReward.save?)")
+            continue
+        value = state[name]
+        if kind is bool:
+            ok = isinstance(value, bool)
+        elif kind is int:
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        else:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+        if not ok or (least is not None and value < least):
+            wanted = {bool: "a bool", int: "an integer", float: "a finite number"}[kind]
+            raise AMPStateError(f"{path}: entry {name!r} is {value!r:.60}; it must be {wanted}"
+                                + ("" if least is None else f" >= {least}"))
+    scoring = state.get("scoring")
+    if scoring is not None and not isinstance(scoring, str):
+        raise AMPStateError(f"{path}: entry 'scoring' is {scoring!r:.60}; it must be a string or None")
+    disc = state["discriminator"]
+    if not isinstance(disc, dict) or not all(k in disc for k in ("input_dim", "config", "model", "optimizer")):
+        raise AMPStateError(f"{path}: entry 'discriminator' is not a saved discriminator (input_dim, config, "
+                            "model, optimizer)")
+    dim = disc["input_dim"]
+    if not isinstance(dim, int) or isinstance(dim, bool) or dim < 1:
+        raise AMPStateError(f"{path}: entry 'discriminator' has input_dim {dim!r:.60}; it must be a positive integer")
 
 
 def read_amp_state(path: str | Path) -> dict:
@@ -88,10 +186,10 @@ def read_amp_state(path: str | Path) -> dict:
     try:
         state = torch.load(path, weights_only=True, map_location="cpu")
     except Exception as err:  # noqa: BLE001  (truncated or foreign files surface as many types)
-        refused = re.search(r"Unsupported global: GLOBAL (\S+)", str(err))
-        if isinstance(err, pickle.UnpicklingError) and refused:
+        refused = _refused_global(err, path)
+        if refused is not None:
             raise AMPStateError(
-                f"{path}: refused: it asks to build the Python object {refused[1]}, and AMP states hold only "
+                f"{path}: refused: it asks to build the Python object {refused}, and AMP states hold only "
                 "tensors and plain values (such a file could run code when opened; nothing from it was run); "
                 "it was not written by AMPStyleReward.save, or has been altered"
             ) from None
@@ -99,6 +197,7 @@ def read_amp_state(path: str | Path) -> dict:
                             f"({type(err).__name__}: {_unpickler_complaint(err)})") from None
     if not isinstance(state, dict) or "discriminator" not in state:
         raise AMPStateError(f"{path}: not an AMP state (no 'discriminator' entry; written by AMPStyleReward.save?)")
+    _check_state(path, state)
     return state
 
 

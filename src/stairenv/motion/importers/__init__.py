@@ -64,6 +64,7 @@ within a bound) are the shared checks; :func:`make_clip` applies both to every c
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
@@ -87,9 +88,12 @@ __all__ = [
     "MIN_FPS",
     "SUFFIXES",
     "MotionFileError",
+    "ball_joint_angles",
     "body_positions",
     "check_timing",
     "check_values",
+    "compose",
+    "euler_rotation",
     "fk_position_error",
     "foot_sole_heights",
     "ground_offset",
@@ -196,6 +200,50 @@ _BONES: dict[str, np.ndarray] = {
 }
 
 
+def _quat_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton products of (..., 4) x, y, z, w quaternions (broadcast): the rotation ``p`` after ``q``."""
+    px, py, pz, pw = np.moveaxis(p, -1, 0)
+    qx, qy, qz, qw = np.moveaxis(q, -1, 0)
+    return np.stack((pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw,
+                     pw * qw - px * qx - py * qy - pz * qz), axis=-1)
+
+
+def compose(*rotations: Rotation) -> Rotation:
+    """``r1 * r2 * ...`` (scipy's composition: ``r2`` applied first), on quaternion arrays: scipy 1.17
+    composes a few microseconds per rotation, which over long clips cost seconds per product."""
+    quat = rotations[0].as_quat()
+    for rotation in rotations[1:]:
+        quat = _quat_product(quat, rotation.as_quat())
+    return Rotation.from_quat(quat)
+
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def euler_rotation(seq: str, angles: np.ndarray, degrees: bool = False) -> Rotation:
+    """``Rotation.from_euler(seq, angles, degrees)`` for (T, len(seq)) angles (upper case: intrinsic
+    axes, lower case: extrinsic), built from the axis quaternions at once (scipy 1.17 takes ~5-10 us
+    a rotation). Equal to scipy's rotation to rounding (1e-15)."""
+    angles = np.asarray(angles, dtype=np.float64)
+    if degrees:
+        angles = np.deg2rad(angles)
+    half = 0.5 * angles
+    quats = []
+    for k, axis in enumerate(seq.lower()):
+        q = np.zeros((*angles.shape[:-1], 4))
+        q[..., _AXES[axis]] = np.sin(half[..., k])
+        q[..., 3] = np.cos(half[..., k])
+        quats.append(q)
+    if seq.islower():  # extrinsic: the first axis applies first
+        quats.reverse()
+    quat = quats[0]
+    for q in quats[1:]:
+        quat = _quat_product(quat, q)
+    return Rotation.from_quat(quat)
+
+
 @lru_cache(maxsize=1)
 def _dof_ranges() -> np.ndarray:
     return dof_ranges(humanoid_model())
@@ -255,23 +303,61 @@ def ball_joint_angles(
         for t in np.flatnonzero((v1 > 1e-12) & (v2 > 1e-12)):
             for k in range(2):
                 cands[t, k] = _fit_in_range(mats[t], cands[t, k], low, high, bone, bone_weight)
-    diff = Rotation.from_euler("XYZ", cands.reshape(-1, 3)).as_matrix().reshape(n, 2, 3, 3) - mats[:, None]
+    diff = euler_rotation("XYZ", cands.reshape(-1, 3)).as_matrix().reshape(n, 2, 3, 3) - mats[:, None]
     error = np.sum(diff ** 2, axis=(2, 3))
     if bone is not None:
         error += bone_weight ** 2 * np.sum((diff @ bone) ** 2, axis=2)
-    # Viterbi over the two candidates per frame.
-    cost = error[0].copy()
-    back = np.zeros((n, 2), dtype=int)
-    for t in range(1, n):
-        step = smoothness * np.sum((cands[t][None, :, :] - cands[t - 1][:, None, :]) ** 2, axis=2)
-        total = cost[:, None] + step  # (previous choice, current choice)
-        back[t] = np.argmin(total, axis=0)
-        cost = total[back[t], [0, 1]] + error[t]
-    choice = np.empty(n, dtype=int)
-    choice[-1] = int(np.argmin(cost))
-    for t in range(n - 1, 0, -1):
-        choice[t - 1] = back[t, choice[t]]
+    # Viterbi over the two candidates per frame: the transition costs of all frames at once
+    # (previous choice, current choice), then the compiled pass along the clip.
+    step = smoothness * np.sum((cands[1:, None, :, :] - cands[:-1, :, None, :]) ** 2, axis=3)
+    choice = _viterbi2(np.ascontiguousarray(error), np.ascontiguousarray(step))
     return cands[np.arange(n), choice], raw
+
+
+#: clips this long repay numba's first load (~1 s) with a compiled Viterbi pass (a process that has
+#: loaded numba already, an env's, takes it from 500 frames)
+COMPILED_VITERBI_FRAMES = 20_000
+
+
+def _first_min(a: float, b: float) -> int:
+    """``np.argmin([a, b])``: the first minimum, NaN counting as the minimum."""
+    if a != a:
+        return 0
+    if b != b or b < a:
+        return 1
+    return 0
+
+
+def _viterbi2(error: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """The cheapest choice per frame of two candidates: ``error`` (T, 2) per frame, ``step`` (T - 1, 2, 2)
+    from the previous frame's choice to this one's; ties and NaN go as ``np.argmin`` takes them. On
+    Python floats (the same double additions as arrays, without an array call per frame); clips of
+    ``COMPILED_VITERBI_FRAMES`` frames or more take the compiled ``kernels.viterbi2`` (the same operations,
+    the same choices)."""
+    n = error.shape[0]
+    if n >= COMPILED_VITERBI_FRAMES or (n >= 500 and "numba" in sys.modules):
+        from stairenv.motion.importers.kernels import viterbi2
+
+        return viterbi2(error, step)
+    errors, steps = error.tolist(), step.reshape(-1, 4).tolist()
+    back = [(0, 0)] * n
+    cost0, cost1 = errors[0]
+    for t in range(1, n):  # _first_min written out: a call per comparison cost more than the rest
+        s00, s01, s10, s11 = steps[t - 1]
+        e0, e1 = errors[t]
+        a, b = cost0 + s00, cost1 + s10
+        k0 = 0 if a != a else (1 if b != b or b < a else 0)
+        c, d = cost0 + s01, cost1 + s11
+        k1 = 0 if c != c else (1 if d != d or d < c else 0)
+        back[t] = (k0, k1)
+        cost0, cost1 = (a if k0 == 0 else b) + e0, (c if k1 == 0 else d) + e1
+    choice = np.empty(n, dtype=np.int64)
+    k = _first_min(cost0, cost1)
+    choice[n - 1] = k
+    for t in range(n - 1, 0, -1):
+        k = back[t][k]
+        choice[t - 1] = k
+    return choice
 
 
 def _fit_in_range(
@@ -288,7 +374,7 @@ def _fit_in_range(
     lo, hi = low + 1e-9, high - 1e-9
 
     def residual(e: np.ndarray) -> np.ndarray:
-        diff = Rotation.from_euler("XYZ", e).as_matrix() - target
+        diff = _xyz_matrix(e) - target
         if bone is None:
             return diff.ravel()
         return np.concatenate((diff.ravel(), bone_weight * (diff @ bone)))
@@ -297,6 +383,17 @@ def _fit_in_range(
     if np.sum(fit.fun ** 2) < np.sum(residual(start) ** 2):
         return np.clip(fit.x, low, high)
     return start
+
+
+def _xyz_matrix(e: np.ndarray) -> np.ndarray:
+    """The matrix of intrinsic XYZ Euler angles ``e`` (3,): Rx(e0) Ry(e1) Rz(e2), written out (a scipy
+    ``Rotation`` per call cost ~100x more inside the fit's hundreds of evaluations)."""
+    ca, sa = math.cos(e[0]), math.sin(e[0])
+    cb, sb = math.cos(e[1]), math.sin(e[1])
+    cc, sc = math.cos(e[2]), math.sin(e[2])
+    return np.array([[cb * cc, -cb * sc, sb],
+                     [ca * sc + sa * sb * cc, ca * cc - sa * sb * sc, -sa * cb],
+                     [sa * sc - ca * sb * cc, sa * cc + ca * sb * sc, ca * cb]])
 
 
 def hinge_twist_y(rot: Rotation) -> np.ndarray:

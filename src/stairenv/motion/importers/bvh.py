@@ -75,7 +75,7 @@ from scipy.spatial.transform import Rotation
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
 from stairenv.motion.importers import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
-                                       joints_to_qpos, make_clip, read_limited, snap_fps)
+                                       compose, euler_rotation, joints_to_qpos, make_clip, read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -283,18 +283,22 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
             f"{path}: 'Frames: {declared}' declared but {len(data_lines)} frame lines follow "
             f"(first extra at line {data_lines[declared][0]})"
         )
-    frames = np.empty((declared, channels))
+    tokens: list[str] = []
     for k, (line_no, line) in enumerate(data_lines):
         parts = line.split()
         if len(parts) != channels:
             raise MotionFileError(
                 f"{path}, line {line_no}: frame {k} has {len(parts)} values, the hierarchy declares {channels} channels"
             )
-        try:
-            frames[k] = [float(p) for p in parts]
-        except ValueError:
-            bad = next(p for p in parts if not _is_float(p))
-            raise MotionFileError(f"{path}, line {line_no}: frame {k}: {bad[:30]!r} is not a number") from None
+        tokens += parts
+    try:  # every value through float(), as before, but in one pass over the frames
+        frames = np.array(list(map(float, tokens)), dtype=np.float64).reshape(declared, channels)
+    except ValueError:
+        for k, (line_no, line) in enumerate(data_lines):
+            bad = next((p for p in line.split() if not _is_float(p)), None)
+            if bad is not None:
+                raise MotionFileError(f"{path}, line {line_no}: frame {k}: {bad[:30]!r} is not a number") from None
+        raise
     check_values(path, "frame values", frames)
     return BvhMotion(joints, frame_time, frames, path)
 
@@ -337,14 +341,14 @@ def forward_kinematics(motion: BvhMotion, frames: np.ndarray | None = None) -> t
             else:
                 angles.append(column)
                 order += _ROTATION_CHANNELS[c]
-        local = (Rotation.from_euler(order, np.stack(angles, axis=1), degrees=True) if order
+        local = (euler_rotation(order, np.stack(angles, axis=1), degrees=True) if order
                  else Rotation.identity(n))
         if joint.parent < 0:
             rotations.append(local)
             positions[:, j] = translation
         else:
             parent = rotations[joint.parent]
-            rotations.append(parent * local)
+            rotations.append(compose(parent, local))
             positions[:, j] = positions[:, joint.parent] + parent.apply(translation)
     return rotations, positions
 
@@ -547,7 +551,7 @@ def _flatten_foot(foot: Rotation, ankle: np.ndarray, fps: float,
     mean_up = up.mean(axis=0)
     mean_up /= np.linalg.norm(mean_up)
     delta = _min_rotation(np.array([0.0, 0.0, 1.0]), mean_up)
-    return foot * delta, float(np.degrees(delta.magnitude()))
+    return compose(foot, delta), float(np.degrees(delta.magnitude()))
 
 
 @dataclass
@@ -586,7 +590,7 @@ def _hinge_twist(upper: Rotation, lower: Rotation, min_range_deg: float = 10.0) 
     flexion a rotation about our hinge axis. None if the joint bends less than
     ``min_range_deg`` over the clip (no axis to measure).
     """
-    rotvec = (upper.inv() * lower).as_rotvec()
+    rotvec = compose(upper.inv(), lower).as_rotvec()
     angles = np.linalg.norm(rotvec, axis=1)
     if np.degrees(angles.max()) < min_range_deg:
         return None
@@ -633,7 +637,7 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
     align = rest_alignment(motion, skeleton)
     rotations, positions = forward_kinematics(motion, motion.frames[skip:])
     c = skeleton.to_z_up
-    world = {body: c * rotations[motion.index(joint)] * c.inv() * align[body]
+    world = {body: compose(c, rotations[motion.index(joint)], c.inv(), align[body])
              for body, joint in skeleton.bodies.items() if body != "pelvis"}
     left_hip = c.apply(positions[:, motion.index(skeleton.hips[0])])
     right_hip = c.apply(positions[:, motion.index(skeleton.hips[1])])
@@ -649,7 +653,7 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
             psi = _hinge_twist(world[upper], world[lower])
             if psi is not None:
                 twist = Rotation.from_rotvec([0.0, 0.0, psi])
-                world[upper], world[lower] = world[upper] * twist, world[lower] * twist
+                world[upper], world[lower] = compose(world[upper], twist), compose(world[lower], twist)
                 hinge_twist[lower] = round(math.degrees(psi), 3)
     calibration: dict[str, float] = {}
     if flat_feet:
@@ -660,7 +664,7 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
     local: dict[str, Rotation] = {}
     for joint, body, _ in JOINTS:
         parent = BODY_NAMES[PARENT_INDICES[BODY_NAMES.index(body)]]
-        local[joint] = world[parent].inv() * world[body]
+        local[joint] = compose(world[parent].inv(), world[body])
 
     root_pos = scale * 0.5 * (left_hip + right_hip)
     qpos, clamping = joints_to_qpos(root_pos, world["pelvis"], local)

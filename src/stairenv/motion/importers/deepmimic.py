@@ -54,8 +54,8 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_FPS, MIN_FPS, check_timing, check_values, fk_position_error, joints_to_qpos,
-                                       make_clip, read_limited, snap_fps)
+from stairenv.motion.importers import (MAX_FPS, MIN_FPS, check_timing, check_values, compose, fk_position_error,
+                                       joints_to_qpos, make_clip, read_limited, snap_fps)
 
 FRAME_SIZE = 44
 
@@ -175,7 +175,7 @@ def source_positions(fields: dict[str, np.ndarray], offsets: np.ndarray | None =
             local = Rotation.from_quat(value / np.linalg.norm(value, axis=1, keepdims=True), scalar_first=True)
         else:
             local = Rotation.from_rotvec(value * np.array([0.0, 0.0, 1.0]))
-        world.append(world[parent] * local)
+        world.append(compose(world[parent], local))
         pos[:, b] = pos[:, parent] + world[parent].apply(offsets_y_up[b])
     return c.apply(pos.reshape(-1, 3)).reshape(pos.shape)
 
@@ -214,13 +214,13 @@ def import_deepmimic(
     c = Y_UP_TO_Z_UP
     quality: dict[str, Any] = {}
     root_pos = c.apply(fields["root_position"])
-    root_rot = c * _quat_wxyz(path, fields, "root_rotation", quality) * c.inv()
+    root_rot = compose(c, _quat_wxyz(path, fields, "root_rotation", quality), c.inv())
     local: dict[str, Rotation] = {}
     for field, size, joint in LAYOUT:
         if joint is None:
             continue
         if size == 4:
-            local[joint] = c * _quat_wxyz(path, fields, field, quality) * c.inv()
+            local[joint] = compose(c, _quat_wxyz(path, fields, field, quality), c.inv())
         else:  # revolute about DeepMimic's z = our -y
             local[joint] = Rotation.from_euler("y", -fields[field])
 

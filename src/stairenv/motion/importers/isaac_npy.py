@@ -15,7 +15,7 @@ agree (plain bool, integer and float types only), so no claimed size is ever all
 * ``skeleton_tree``: ``node_names`` (J,), ``parent_indices["arr"]`` (J,),
   ``local_translation["arr"]`` (J, 3), the bone offsets in the parent's frame.
 * ``fps``: a number or a 0-d array. A ``SkeletonState`` (one pose, no ``fps``) is read as a
-  one-frame clip at the ``fps`` passed in (30 by default).
+  one-frame clip at the ``fps`` passed in (30 by default); several frames without ``fps`` are refused.
 
 The AMP humanoid of these files has our 15 bodies under the same names, the same
 zero pose (upright, facing +x, arms down) and the same axes, so the conversion is
@@ -46,8 +46,8 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, fk_position_error, joints_to_qpos,
-                                       make_clip, read_limited)
+from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, compose, fk_position_error,
+                                       joints_to_qpos, make_clip, read_limited)
 
 # numpy's type codes a poselib file uses: bool, integers, floats; objects for the outer container.
 _TYPE_CODE = re.compile(r"b1|[iu][1248]|f[248]|O8")
@@ -229,6 +229,9 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
     single = "fps" not in data
     if single and rotation.ndim == 2:
         rotation, root_translation = rotation[None], root_translation.reshape(1, -1)
+    if single and rotation.ndim == 3 and rotation.shape[0] > 1:  # its rate is unknown: never guess 30 fps
+        raise MotionFileError(f"{path}: {rotation.shape[0]} frames but no fps (a SkeletonMotion stores its fps; "
+                              "only a one-pose SkeletonState may leave it out)")
     if rotation.ndim != 3 or rotation.shape[1:] != (num_joints, 4):
         raise MotionFileError(f"{path}: rotation must be (T, {num_joints}, 4), got {rotation.shape}")
     if root_translation.shape != (rotation.shape[0], 3):
@@ -277,7 +280,7 @@ def source_positions(src: dict[str, Any]) -> np.ndarray:
             world.append(rot)
             pos[:, j] = src["root_translation"]
         else:
-            world.append(world[p] * rot if src["is_local"] else rot)
+            world.append(compose(world[p], rot) if src["is_local"] else rot)
             pos[:, j] = pos[:, p] + world[p].apply(offsets[j])
     return pos
 
@@ -315,7 +318,7 @@ def import_isaac_npy(
     quat = src["rotation"]
     rots = [Rotation.from_quat(quat[:, j]) for j in range(len(names))]
     if not src["is_local"]:  # world orientations -> relative to the parent
-        rots = [rots[j] if parents[j] < 0 else rots[parents[j]].inv() * rots[j] for j in range(len(names))]
+        rots = [rots[j] if parents[j] < 0 else compose(rots[parents[j]].inv(), rots[j]) for j in range(len(names))]
     local = {joint: rots[index[body]] for joint, body, _ in JOINTS}
     root_pos, root_rot = src["root_translation"], rots[index["pelvis"]]
 

@@ -332,7 +332,7 @@ class Scene:
                 f"{path}: scene file version {meta.get('version')!r}; this stairenv reads version {SCENE_FILE_VERSION}"
             )
         try:
-            return cls(
+            scene = cls(
                 heights=heights,
                 cell_size=meta["cell_size"],
                 origin=meta["origin"],
@@ -344,6 +344,16 @@ class Scene:
             )
         except (KeyError, TypeError, ValueError) as e:
             raise SceneFileError(f"{path}: invalid scene data: {e!r}") from e
+        x_min, x_max, y_min, y_max = scene.bounds
+        for lm in scene.landmarks:  # a landmark off the grid cannot be planned to: refuse it here, not at reset
+            (x, y), display = lm.center, lm.display_position
+            if not (x_min <= x <= x_max and y_min <= y <= y_max):
+                raise SceneFileError(f"{path}: landmark {lm.name!r} at ({x:g}, {y:g}) lies outside the scene's grid "
+                                     f"x [{x_min:g}, {x_max:g}], y [{y_min:g}, {y_max:g}]")
+            if max(abs(display[0] - x), abs(display[1] - y), abs(display[2])) > MAX_SCENE_HEIGHT:
+                raise SceneFileError(f"{path}: landmark {lm.name!r} has its display_position {display} more than "
+                                     f"{MAX_SCENE_HEIGHT:g} m from it (MAX_SCENE_HEIGHT)")
+        return scene
 
 
 def _check_declared(path: Any, npz: Any, key: str, ndim: int, kinds: str, limit: int, limit_name: str) -> None:

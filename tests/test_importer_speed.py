@@ -1,0 +1,106 @@
+"""The clip importer's vectorised pieces give what the per-frame code gave (#23, item 6): rotations as
+scipy's to rounding, the Viterbi choices and the lowest points bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from stairenv.humanoid.kinematics import forward_kinematics, humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.model import HumanoidIndices, humanoid_model
+from stairenv.motion.importers import (
+    ball_joint_angles,
+    compose,
+    euler_rotation,
+    foot_sole_heights,
+    lowest_body_point,
+)
+from stairenv.motion.importers.kernels import viterbi2
+
+
+@pytest.mark.parametrize("seq", ["XYZ", "ZYX", "ZXY", "xyz", "zyx", "zxy", "X", "zx", "YXZ"])
+def test_euler_rotation_is_scipys(seq):
+    angles = np.random.default_rng(len(seq)).uniform(-4.0, 4.0, (2000, len(seq)))
+    ours, theirs = euler_rotation(seq, angles), Rotation.from_euler(seq, angles)
+    np.testing.assert_allclose(ours.as_quat(), theirs.as_quat(), atol=1e-15, rtol=0)  # the same sign too
+    np.testing.assert_allclose(euler_rotation(seq, np.degrees(angles), degrees=True).as_matrix(),
+                               theirs.as_matrix(), atol=1e-14, rtol=0)
+
+
+def test_compose_is_scipys_product():
+    a, b, c = Rotation.random(500, rng=1), Rotation.random(500, rng=2), Rotation.random(rng=3)
+    np.testing.assert_allclose(compose(c, a, c.inv(), b).as_quat(), (c * a * c.inv() * b).as_quat(), atol=1e-15)
+    np.testing.assert_allclose(compose(a, c).as_quat(), (a * c).as_quat(), atol=1e-15)
+    assert compose(c, c.inv()).single
+
+
+def _reference_viterbi(error: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """The per-frame numpy pass the importer ran before (ties and NaN as np.argmin takes them)."""
+    n = len(error)
+    cost, back = error[0].copy(), np.zeros((n, 2), dtype=int)
+    for t in range(1, n):
+        total = cost[:, None] + step[t - 1]
+        back[t] = np.argmin(total, axis=0)
+        cost = total[back[t], [0, 1]] + error[t]
+    choice = np.empty(n, dtype=int)
+    choice[-1] = int(np.argmin(cost))
+    for t in range(n - 1, 0, -1):
+        choice[t - 1] = back[t, choice[t]]
+    return choice
+
+
+def test_compiled_viterbi_chooses_as_the_per_frame_pass():
+    rng = np.random.default_rng(0)
+    for trial in range(300):  # coarse values: many ties; some NaN
+        n = int(rng.integers(1, 80))
+        error = rng.integers(0, 3, (n, 2)) * 0.5
+        step = rng.integers(0, 3, (max(n - 1, 0), 2, 2)) * 0.25
+        if trial % 3 == 0 and n > 2:
+            error[rng.integers(n), rng.integers(2)] = np.nan
+        if trial % 5 == 0 and n > 2:
+            step[rng.integers(n - 1), rng.integers(2), rng.integers(2)] = np.nan
+        np.testing.assert_array_equal(viterbi2(error, step), _reference_viterbi(error, step))
+
+
+def test_ball_joint_angles_choose_as_before():
+    """A shoulder swinging through the gimbal region and out of reach: the branch choice of the
+    vectorised transition costs and the Python pass equals the per-frame pass's."""
+    t = np.linspace(0.0, 12.0, 700)
+    rot = Rotation.from_rotvec(np.column_stack((1.8 * np.sin(t), 1.7 * np.cos(0.7 * t), 0.9 * np.sin(1.3 * t))))
+    low, high = np.radians([-90.0, -90.0, -60.0]), np.radians([90.0, 60.0, 120.0])
+    angles, raw = ball_joint_angles(rot, low, high, np.array([0.0, 0.0, -1.0]), fit=False)
+    # the candidates and errors as the importer builds them, then the old pass
+    e1 = rot.as_euler("XYZ")
+    e2 = e1 + np.array([np.pi, 0.0, np.pi])
+    e2[:, 1] = np.pi - e1[:, 1]
+    centre = 0.5 * (low + high)
+    e1, e2 = (centre + np.mod(e - centre + np.pi, 2.0 * np.pi) - np.pi for e in (e1, e2))
+    cands = np.stack((np.clip(e1, low, high), np.clip(e2, low, high)), axis=1)
+    assert {tuple(row) for row in angles} <= {tuple(c) for c in cands.reshape(-1, 3)}
+    mats = rot.as_matrix()
+    diff = Rotation.from_euler("XYZ", cands.reshape(-1, 3)).as_matrix().reshape(-1, 2, 3, 3) - mats[:, None]
+    error = np.sum(diff ** 2, axis=(2, 3)) + 9.0 * np.sum((diff @ np.array([0.0, 0.0, -1.0])) ** 2, axis=2)
+    step = 0.05 * np.sum((cands[1:, None] - cands[:-1, :, None]) ** 2, axis=3)
+    choice = _reference_viterbi(error, step)
+    np.testing.assert_array_equal(angles, cands[np.arange(len(t)), choice])
+    assert len(set(choice.tolist())) == 2  # both branches are used
+
+
+def test_lowest_points_are_the_per_frame_values_bit_for_bit():
+    model = humanoid_model()
+    rng = np.random.default_rng(3)
+    qpos = np.zeros((400, model.nq))
+    qpos[:, 2] = 1.0
+    quat = rng.normal(size=(400, 4))
+    qpos[:, 3:7] = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+    qpos[:, 7:] = rng.normal(0.0, 1.0, (400, model.nq - 7))
+    geoms = humanoid_geoms(model, HumanoidIndices.from_model(model))
+    expected = np.array([humanoid_lowest_z(model, data, geoms) for data in forward_kinematics(qpos)])
+    np.testing.assert_array_equal(lowest_body_point(qpos), expected)
+    from stairenv.humanoid.kinematics import foot_box_geoms
+
+    feet = foot_box_geoms()
+    soles = np.array([[humanoid_lowest_z(model, data, feet[k:k + 1]) for k in range(2)]
+                      for data in forward_kinematics(qpos)])
+    np.testing.assert_array_equal(foot_sole_heights(qpos), soles)
