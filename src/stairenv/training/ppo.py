@@ -238,7 +238,6 @@ class Trainer:
         if config.torch_threads is not None:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        self.rng = np.random.default_rng(config.seed)
         self.venv = venv if venv is not None else make_env(config)
         obs_size = self.venv.single_observation_space.shape[0]
         action_size = self.venv.single_action_space.shape[0]
@@ -447,7 +446,7 @@ class Trainer:
             "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
             "obs_rms": self.normalizer.obs_rms.state(), "ret_rms": self.normalizer.ret_rms.state(),
             "style": style, "curriculum_level": self.curriculum_levels(),
-            "torch_rng": torch.get_rng_state(), "rng": self.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
         }
 
     def save(self, path: Path, replay: bool = False) -> Path:
@@ -494,7 +493,6 @@ class Trainer:
             self.steps, self.iterations = int(state["steps"]), int(state["iterations"])
             self.learning_rate = float(state["learning_rate"])
             torch.set_rng_state(state["torch_rng"])
-            self.rng.bit_generator.state = state["rng"]
 
 
     def load_replay(self, path: Path, state: dict[str, Any]) -> bool:
