@@ -426,11 +426,12 @@ def train_lean(args: argparse.Namespace) -> Path:
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
     trainer = Trainer(config, build_style(config, reference))
     if resume is not None:
-        trainer.load_state(resume)
         try:
+            trainer.load_state(resume)
             replay = trainer.load_replay(args.resume, resume)
-        except CheckpointError as err:
-            raise SystemExit(f"--resume: {err}") from None
+        except (CheckpointError, RuntimeError, ValueError, KeyError) as err:
+            raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
+                             "text-conditioned run needs --amp-text-condition again") from None
         note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
         print(f"resumed from {args.resume} at {trainer.steps} steps{note}")
     elif init is not None:
