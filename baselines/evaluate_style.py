@@ -10,12 +10,14 @@ Examples::
 The style reward logged during training comes from a discriminator that keeps
 training against the policy, so it is a moving yardstick. This script holds the
 yardstick still: every checkpoint (``checkpoints/ppo_<n>_steps.zip`` and
-``final_model.zip``, each with its own VecNormalize statistics) runs the same
+``final_model.zip``, each with its own VecNormalize statistics; or a lean run's
+``checkpoints/checkpoint_<n>.pt`` and ``final_policy.npz``) runs the same
 seeded episodes (deterministic actions), and every step's ``info["amp_obs"]`` is
 measured by
 
 - ``style``: the mean style reward of ONE discriminator (``--discriminator``;
-  default: the run's ``amp.pt``, else its newest checkpoint's ``amp_<n>_steps.pt``);
+  default: the run's ``amp.pt``, else its newest checkpoint's ``amp_<n>_steps.pt``; for a
+  lean run the discriminator in ``final_checkpoint.pt``, else in its newest checkpoint);
 - ``ref_dist``: the mean distance to the nearest reference window, in reference
   standard deviations per number (``stairenv.style.metrics``; no discriminator);
 
@@ -56,24 +58,50 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def checkpoints(run: Path) -> list[tuple[int | None, Path]]:
-    """(steps, model) of every checkpoint by steps, then final_model.zip (steps None)."""
+    """(steps, model) of every checkpoint by steps, then the final policy (steps None): an SB3 run's
+    ``ppo_<n>_steps.zip`` and ``final_model.zip``, a lean run's ``checkpoint_<n>.pt`` and ``final_policy.npz``."""
     found = []
     for path in (run / "checkpoints").glob("*_steps.zip"):
         match = re.fullmatch(r".*_(\d+)_steps", path.stem)
         if match and "vecnormalize" not in path.stem:
             found.append((int(match[1]), path))
+    for path in (run / "checkpoints").glob("checkpoint_*.pt"):
+        if match := re.fullmatch(r"checkpoint_(\d+)", path.stem):
+            found.append((int(match[1]), path))
     found.sort()
-    if (run / "final_model.zip").is_file():
-        found.append((None, run / "final_model.zip"))
+    for final in ("final_model.zip", "final_policy.npz"):
+        if (run / final).is_file():
+            found.append((None, run / final))
     return found
 
 
 def newest_discriminator(run: Path) -> Path | None:
-    if (run / "amp.pt").is_file():
-        return run / "amp.pt"
-    states = [(int(m[1]), p) for p in (run / "checkpoints").glob("amp_*_steps.pt")
-              if (m := re.fullmatch(r"amp_(\d+)_steps", p.stem))]
+    """An SB3 run's ``amp.pt`` or newest ``amp_<n>_steps.pt``; a lean run's ``final_checkpoint.pt`` or
+    newest ``checkpoint_<n>.pt`` (the discriminator is inside)."""
+    for final in ("amp.pt", "final_checkpoint.pt"):
+        if (run / final).is_file():
+            return run / final
+    states = [(int(m[1] or m[2]), p) for p in (run / "checkpoints").glob("*.pt")
+              if (m := re.fullmatch(r"amp_(\d+)_steps|checkpoint_(\d+)", p.stem))]
     return max(states)[1] if states else None
+
+
+def read_discriminator(path: Path) -> dict:
+    """The discriminator's saved state as ``AMPStyleReward.save`` writes it, from an AMP state file or a
+    lean checkpoint (both read without running code from them); ``ValueError`` naming the file."""
+    from stairenv.style.features import AMP_FEATURE_SIZE
+    from stairenv.style.wrappers import read_amp_state
+    from stairenv.training import read_checkpoint
+
+    if re.fullmatch(r"checkpoint_\d+|final_checkpoint", path.stem):
+        state = read_checkpoint(path)
+        if state.get("style") is None:
+            raise ValueError(f"{path}: a run without AMP holds no discriminator")
+        frames = int(state["config"]["amp_history"])
+        disc = state["style"]["discriminator"]
+        return {"discriminator": disc, "reference_num_frames": frames, "reference_condition_dim":
+                int(disc["input_dim"]) - frames * AMP_FEATURE_SIZE}
+    return read_amp_state(path)
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
@@ -88,7 +116,11 @@ def main(argv: list[str] | None = None) -> list[dict]:
     from stairenv.motion.rsi import load_reference_library
     from stairenv.style.metrics import nearest_reference_distance, rollout_windows
     from stairenv.style.reference import ReferenceWindows, text_conditions
-    from stairenv.style.wrappers import AMPStateError, AMPStyleReward, read_amp_state
+    from stairenv.pretrained import check_sizes
+    from stairenv.style.discriminator import AMPDiscriminator
+    from stairenv.style.wrappers import AMPStyleReward
+    from stairenv.training import read_checkpoint
+    from stairenv.training.ppo import policy_from_checkpoint
 
     if args.episodes < 1 or args.every < 1:
         parser.error("--episodes and --every must be >= 1")
@@ -96,7 +128,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
         parser.error(f"no run folder {str(args.run)!r}")
     models = checkpoints(args.run)[::-1][::args.every][::-1]  # keep the newest, thin out older ones
     if not models:
-        parser.error(f"no checkpoints/ppo_<n>_steps.zip or final_model.zip in {str(args.run)!r}")
+        parser.error(f"no checkpoints/ppo_<n>_steps.zip, checkpoints/checkpoint_<n>.pt, final_model.zip or "
+                     f"final_policy.npz in {str(args.run)!r}")
     env_id = args.env or args.run.parent.name
     if env_id not in gym.registry:
         parser.error(f"env {env_id!r} (from the run folder) is not registered: give --env")
@@ -104,11 +137,11 @@ def main(argv: list[str] | None = None) -> list[dict]:
         parser.error(f"--discriminator: no such file {str(args.discriminator)!r}")
     disc_path = args.discriminator or newest_discriminator(args.run)
     if disc_path is None:
-        parser.error(f"no discriminator state in {str(args.run)!r} (amp.pt or checkpoints/amp_<n>_steps.pt): "
-                     "give --discriminator")
+        parser.error(f"no discriminator state in {str(args.run)!r} (amp.pt, checkpoints/amp_<n>_steps.pt or a "
+                     "lean run's checkpoint): give --discriminator")
     try:
-        saved = read_amp_state(disc_path)  # tensors and plain values only: opening it runs nothing
-    except AMPStateError as err:
+        saved = read_discriminator(disc_path)  # tensors and plain values only: opening it runs nothing
+    except ValueError as err:  # AMPStateError and CheckpointError among them
         parser.error(str(err))
 
     env_kwargs = {"init": "default", "amp_history": int(saved["reference_num_frames"]), **dict(args.env_kwarg)}
@@ -123,12 +156,16 @@ def main(argv: list[str] | None = None) -> list[dict]:
     reference = ReferenceWindows(library, num_frames=env_kwargs["amp_history"], fps=1.0 / probe.dt,
                                  conditions=conditions)
     probe.close()
-    style = AMPStyleReward.load(disc_path, reference, train=False)
+    style = AMPStyleReward(reference, discriminator=AMPDiscriminator.from_state(saved["discriminator"]), train=False)
 
     env = gym.make(env_id, **env_kwargs)
     rows = []
     for steps, model in [(None, spec) for spec in args.baselines] + models:
-        policy = load_policy(str(model), env, seed=args.seed)
+        if isinstance(model, Path) and model.suffix == ".pt":    # a lean run's checkpoint
+            policy = policy_from_checkpoint(read_checkpoint(model))
+            check_sizes(policy, env, model)
+        else:
+            policy = load_policy(str(model), env, seed=args.seed)
         windows, conds, lengths = rollout_windows(policy, env, args.episodes, seed=args.seed,
                                                   max_steps=args.max_episode_steps)
         rewards = style.disc.reward(style.agent_inputs(list(windows), conds))

@@ -75,3 +75,28 @@ def test_checkpoints_are_ranked_with_their_own_normalisers(tmp_path, baseline_sc
     assert (tmp_path / "style.csv").read_text().startswith("checkpoint,steps,")
     with pytest.raises(SystemExit):
         evaluate_style.main([str(tmp_path / "nowhere")])
+
+
+def test_a_lean_runs_checkpoints_are_ranked(tmp_path, baseline_script):
+    """evaluate_style.py reads a lean-trainer run: checkpoint_<n>.pt and final_policy.npz as policies,
+    the discriminator inside its newest checkpoint."""
+    from stairenv.style.wrappers import default_reference
+    from stairenv.training import TrainConfig, Trainer, build_style, make_env
+
+    run = tmp_path / "InterLevel-v0" / "seed0"
+    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=1, total_steps=32,
+                         checkpoint_every=16, disc_hidden=(16,), disc_replay_size=64, disc_update_interval=16,
+                         disc_batch_size=8)
+    venv = make_env(config)
+    trainer = Trainer(config, build_style(config, default_reference(venv)), venv)
+    trainer.learn(checkpoint_dir=run / "checkpoints")
+    trainer.policy().save(run / "final_policy.npz")
+    trainer.close()
+    evaluate_style = baseline_script("evaluate_style")
+    assert evaluate_style.newest_discriminator(run) == run / "checkpoints" / "checkpoint_32.pt"
+    rows = evaluate_style.main([str(run), "--episodes", "1", "--max-episode-steps", "4", "--baselines", "zero"])
+    assert [r["checkpoint"] for r in rows] == ["zero", "checkpoint_16.pt", "checkpoint_32.pt", "final_policy.npz"]
+    assert [r["steps"] for r in rows] == [None, 16, 32, None]
+    assert rows[2]["style"] == rows[3]["style"]    # the last checkpoint and the final policy act alike
+    for row in rows:
+        assert 0.0 <= row["style"] <= 1.0 and row["episode_length"] == 4.0

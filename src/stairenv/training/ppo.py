@@ -517,6 +517,19 @@ class Trainer:
         return True
 
 
+def policy_from_checkpoint(state: dict[str, Any]) -> NumpyPolicy:
+    """The deterministic policy of a checkpoint's state (``read_checkpoint``), as ``Trainer.policy``
+    gives it, without building the env."""
+    model, config = state["model"], state["config"]
+    hidden = [key for key in model if key.startswith("policy_net.") and key.endswith(".weight")]
+    keys = sorted(hidden, key=lambda key: int(key.split(".")[1])) + ["action_mean.weight"]
+    weights = [model[key].numpy().astype(np.float64) for key in keys]
+    biases = [model[key.removesuffix("weight") + "bias"].numpy().astype(np.float64) for key in keys]
+    return NumpyPolicy(weights, biases, state["obs_rms"]["mean"].numpy(), state["obs_rms"]["var"].numpy(),
+                       float(config["clip_obs"]), Normalizer.EPSILON,
+                       {"env_id": config["env_id"], "steps": int(state["steps"]), "training": config})
+
+
 def replay_beside(checkpoint: Path, steps: int) -> Path:
     return Path(checkpoint).with_name(f"replay_{steps}.npy")
 
