@@ -411,7 +411,8 @@ def train_lean(args: argparse.Namespace) -> Path:
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
         config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
-        args.env, args.amp_history, args.style = config.env_id, config.amp_history, config.style
+        args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
+                                                                   config.reference)
         env_kwargs = dict(config.env_kwargs)
     else:
         env_kwargs = run_env_kwargs(args)
