@@ -426,9 +426,7 @@ class Trainer:
     # --- checkpoints ----------------------------------------------------------------------------------
     def policy(self) -> NumpyPolicy:
         """The deterministic policy as ``stairenv.pretrained`` stores it."""
-        return self.model.as_numpy(self.normalizer, self.config.clip_obs,
-                                   {"env_id": self.config.env_id, "steps": self.steps,
-                                    "training": self.config.as_dict()})
+        return self.model.as_numpy(self.normalizer, self.config.clip_obs, policy_config(self.config, self.steps))
 
     def state(self) -> dict[str, Any]:
         style = None
@@ -517,17 +515,21 @@ class Trainer:
         return True
 
 
+def policy_config(config: TrainConfig, steps: int) -> dict[str, Any]:
+    """What an exported policy records of its run (``NumpyPolicy.config``)."""
+    return {"env_id": config.env_id, "steps": int(steps), "training": config.as_dict()}
+
+
 def policy_from_checkpoint(state: dict[str, Any]) -> NumpyPolicy:
     """The deterministic policy of a checkpoint's state (``read_checkpoint``), as ``Trainer.policy``
-    gives it, without building the env."""
-    model, config = state["model"], state["config"]
-    hidden = [key for key in model if key.startswith("policy_net.") and key.endswith(".weight")]
-    keys = sorted(hidden, key=lambda key: int(key.split(".")[1])) + ["action_mean.weight"]
-    weights = [model[key].numpy().astype(np.float64) for key in keys]
-    biases = [model[key.removesuffix("weight") + "bias"].numpy().astype(np.float64) for key in keys]
-    return NumpyPolicy(weights, biases, state["obs_rms"]["mean"].numpy(), state["obs_rms"]["var"].numpy(),
-                       float(config["clip_obs"]), Normalizer.EPSILON,
-                       {"env_id": config["env_id"], "steps": int(state["steps"]), "training": config})
+    gave it, without building the env."""
+    config, weights = TrainConfig.from_dict(state["config"]), state["model"]
+    obs_size, action_size = weights["policy_net.0.weight"].shape[1], weights["action_mean.weight"].shape[0]
+    model = ActorCritic(obs_size, action_size, config.hidden, config.log_std_init)
+    model.load_state_dict(weights)
+    normalizer = Normalizer(obs_size, 1, config.gamma, config.clip_obs, config.clip_reward)
+    normalizer.obs_rms.load(state["obs_rms"])
+    return model.as_numpy(normalizer, config.clip_obs, policy_config(config, state["steps"]))
 
 
 def replay_beside(checkpoint: Path, steps: int) -> Path:
