@@ -445,6 +445,13 @@ class HumanoidEnv(gym.Env):
         """(from, to, rgba) segments drawn over the frame."""
         return ()
 
+    def set_camera(self, elevation: float, distance: float) -> None:
+        """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
+        pelvis, now and after later camera rebuilds (a SIMS scene rebuild restores the scene's default)."""
+        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
+        if self._camera is not None:
+            self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
+
     def render(self):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")

@@ -522,13 +522,6 @@ class SIMSEnv(HumanoidEnv):
         low, high = self.model.jnt_range[self.model.dof_jntid[self._idx.qvel_joints]].T.copy()
         return low, high
 
-    def set_camera(self, elevation: float, distance: float) -> None:
-        """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
-        pelvis, now and after later camera rebuilds (a scene rebuild restores the scene's default)."""
-        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
-        if self._camera is not None:
-            self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
-
     def planning_grid(self, body_radius: float | None = None) -> PlanningGrid:
         """The scene's floor as a ``stairenv.planning`` grid for a character of ``body_radius`` (m):
         ``blocked`` where it cannot stand, flat ground, open sky. A room: its free space
