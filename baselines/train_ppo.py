@@ -103,6 +103,7 @@ from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.tasks import curriculum
 from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
 from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
@@ -300,7 +301,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
-                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below")
+                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below",
+                 "interaction_start_fraction", "start_distance_levels")
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:
@@ -567,7 +569,7 @@ def main(argv: list[str] | None = None) -> Path:
     callbacks.append(EpisodeStatsCallback())
     if args.adaptive_kl is not None:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
-    if env_kwargs.get("step_height_levels"):
+    if any(env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
         callbacks.append(CurriculumCallback(save_freq, run_dir / "checkpoints"))
         saved = curriculum_state_beside(checkpoint) if checkpoint is not None else None
         if saved is not None:
