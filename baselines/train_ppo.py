@@ -49,8 +49,10 @@ policy. ``--resume`` continues a run exactly (the checkpoint's own settings and 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
-when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
-(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels
+when ``stairs_start_fraction`` starts others on the staircase; the lean trainer also leaves SIMS' episodes
+started at the furniture by ``interaction_start_fraction`` out of them). With a step-height curriculum
+(``--env-kwarg step_height_levels=N``) or SIMS' start-distance curriculum (``start_distance_levels=N``)
+the worlds' mean level as ``curriculum/level``, the levels
 saved beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and
 ``--init-from``. The final evaluation leaves the training aids (``TRAINING_AIDS``) out.
 

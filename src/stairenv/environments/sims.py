@@ -59,6 +59,8 @@ NEAR_START_SKILLS = ("sit", "lie", "reach")
 #: many of its frames are tried before the episode starts as the others do.
 START_PENETRATION = 0.01
 START_TRIES = 4
+#: Turns (rad) from facing the reach target from the piece's outside tried for a reach start, nearest first.
+REACH_TURNS = (0.0, *(sign * k * math.pi / 8 for k in range(1, 8) for sign in (1.0, -1.0)), math.pi)
 _DOF = {name: k for k, name in enumerate(DOF_NAMES)}
 CONTACT_NAMES = task.CONTACT_JOINTS
 
@@ -264,7 +266,8 @@ class SIMSEnv(HumanoidEnv):
       time: sit, standing right in front of the seat with the back to it, sitting down, seated (the
       clip's seat edge on the piece's front edge, its seat height the piece's); lie, that on the edge
       of the bed or sofa and then lying down on it, the head ending on the pillow; reach, standing
-      0.45-0.75 m from the goal's target (drawn first), reaching to it and holding it there. A frame
+      0.45-0.75 m from the goal's target (drawn first; facing it from the piece's outside, else turned
+      round it), reaching to it and holding it there. A frame
       that would press more than ``START_PENETRATION`` into the furniture or the floor is redrawn
       (``START_TRIES`` frames, then the episode starts as the others do); ``info["interaction_start"]``
       (present only with the aid) tells which.
@@ -481,7 +484,10 @@ class SIMSEnv(HumanoidEnv):
         if self._interaction_start:
             if self._place_interaction_start(rng, target):
                 return True
-            self._interaction_start = False   # no frame fits this piece: a start as the others
+            # no frame fits this piece: a start as the others, from the state reset left (the frames
+            # tried wrote joint angles and velocities)
+            self._interaction_start = False
+            mujoco.mj_resetData(self.model, self.data)
         self._start = self._random_start(rng, target, self.episode_start_distance())
         heading = float(rng.uniform(-math.pi, math.pi))
         reference = self._reference_pose(rng)
@@ -776,8 +782,8 @@ class SIMSEnv(HumanoidEnv):
         return qpos, qvel, math.atan2(facing[1], facing[0]), placed.to_world(origin_local[None])[0]
 
     def _place_reach_start(self, rng: np.random.Generator, goal: task.ContactGoal) -> bool:
-        """Stand 0.45-0.75 m from the reach target, facing it from the piece's outside (turned up to
-        67.5 deg either way where that side is blocked), in a frame of a reach made for it."""
+        """Stand 0.45-0.75 m from the reach target, facing it from the piece's outside (turned by up to
+        180 deg, nearest first, where that side is blocked), in a frame of a reach made for it."""
         hand = CONTACT_NAMES[goal.primary].removesuffix("_hand")
         target = goal.root_target
         out = target[:2] - self._target.position
@@ -790,7 +796,7 @@ class SIMSEnv(HumanoidEnv):
             if frames is None:
                 continue
             qpos, qvel, _ = frames
-            for turn in (0.0, 0.39, -0.39, 0.79, -0.79, 1.18, -1.18):
+            for turn in REACH_TURNS:
                 yaw = base + turn
                 c, s = math.cos(yaw), math.sin(yaw)
                 origin = np.array([target[0] - (c * ahead - s * side), target[1] - (s * ahead + c * side), 0.0])

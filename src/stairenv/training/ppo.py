@@ -415,7 +415,7 @@ class Trainer:
             self.style.close()
         self.venv.close()
 
-    # --- the curriculum (InterLevel's step_height_levels) ----------------------------------------------
+    # --- the curriculum (InterLevel's step_height_levels, SIMS' start_distance_levels) -------------------
     def curriculum_levels(self) -> list[int | None]:
         if not any(self.config.env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
             return []
