@@ -49,8 +49,10 @@ policy. ``--resume`` continues a run exactly (the checkpoint's own settings and 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
-when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
-(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels
+when ``stairs_start_fraction`` starts others on the staircase; the lean trainer also leaves SIMS' episodes
+started at the furniture by ``interaction_start_fraction`` out of them). With a step-height curriculum
+(``--env-kwarg step_height_levels=N``) or SIMS' start-distance curriculum (``start_distance_levels=N``)
+the worlds' mean level as ``curriculum/level``, the levels
 saved beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and
 ``--init-from``. The final evaluation leaves the training aids (``TRAINING_AIDS``) out.
 
@@ -103,6 +105,7 @@ from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.tasks import curriculum
 from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
 from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
@@ -300,7 +303,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
-                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below")
+                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below",
+                 "interaction_start_fraction", "start_distance_levels")
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:
@@ -567,7 +571,7 @@ def main(argv: list[str] | None = None) -> Path:
     callbacks.append(EpisodeStatsCallback())
     if args.adaptive_kl is not None:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
-    if env_kwargs.get("step_height_levels"):
+    if any(env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
         callbacks.append(CurriculumCallback(save_freq, run_dir / "checkpoints"))
         saved = curriculum_state_beside(checkpoint) if checkpoint is not None else None
         if saved is not None:

@@ -39,6 +39,7 @@ from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, plain_config
 from stairenv.style.wrappers import AMPStyleReward
+from stairenv.tasks import curriculum
 from stairenv.training.config import TrainConfig
 
 #: the task's results logged at each episode's end (InterLevel's; other families log what they report)
@@ -203,7 +204,9 @@ class EpisodeLog:
             self._add("episode/task_return", self.task_return[i])
             self._add("episode/length", self.length[i])
             info = infos[i]
-            groups = ("episode",) if info.get("stairs_start") else ("episode", "episode_floor_start")
+            # starts on the stairs or at the furniture (training aids) are not the evaluation's
+            aided = info.get("stairs_start") or info.get("interaction_start")
+            groups = ("episode",) if aided else ("episode", "episode_floor_start")
             for key in EPISODE_KEYS:
                 if key in info:
                     for group in groups:
@@ -412,9 +415,9 @@ class Trainer:
             self.style.close()
         self.venv.close()
 
-    # --- the curriculum (InterLevel's step_height_levels) ----------------------------------------------
+    # --- the curriculum (InterLevel's step_height_levels, SIMS' start_distance_levels) -------------------
     def curriculum_levels(self) -> list[int | None]:
-        if not self.config.env_kwargs.get("step_height_levels"):
+        if not any(self.config.env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
             return []
         return list(self.venv.get_attr("curriculum_level"))
 
@@ -484,7 +487,10 @@ class Trainer:
                 self.style.pending = int(state["style"]["pending"])
                 self.style.rng.bit_generator.state = state["style"]["rng"]
                 disc.noise_generator.set_state(state["style"]["noise_rng"])
-        if state.get("curriculum_level") and self.config.env_kwargs.get("step_height_levels"):
+        saved_kwargs = (state.get("config") or {}).get("env_kwargs") or {}
+        same_curriculum = [k for k in curriculum.LEVEL_KEYWORDS if self.config.env_kwargs.get(k)] == [
+            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]
+        if state.get("curriculum_level") and self.curriculum_levels() and same_curriculum:
             self.set_curriculum_levels(state["curriculum_level"])    # when both runs have a curriculum
         if not weights_only:
             self._resumed = True
