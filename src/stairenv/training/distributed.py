@@ -69,9 +69,11 @@ class DataParallel(Local):
     """This rank's place in a data-parallel run and the collectives over ``group`` (a gloo group:
     the lean trainer's tensors live on the CPU)."""
 
-    def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None) -> None:
+    def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None,
+                 owns_process_group: bool = False) -> None:
         self.rank, self.world_size, self.local_rank, self.device = rank, world_size, local_rank, device
         self.group = group
+        self.owns_process_group = owns_process_group
 
     @classmethod
     def from_environment(cls, device: str = "cpu") -> "DataParallel | None":
@@ -84,11 +86,12 @@ class DataParallel(Local):
         on_gpu = torch.device(device).type == "cuda"
         if on_gpu:
             torch.cuda.set_device(local_rank)
-        if not dist.is_initialized():
+        owns = not dist.is_initialized()    # else the caller's process group, which close() leaves open
+        if owns:
             dist.init_process_group(backend="nccl" if on_gpu else "gloo")
         group = dist.new_group(backend="gloo") if on_gpu else None
         return cls(dist.get_rank(), dist.get_world_size(), local_rank,
-                   torch.device("cuda", local_rank) if on_gpu else torch.device("cpu"), group)
+                   torch.device("cuda", local_rank) if on_gpu else torch.device("cpu"), group, owns)
 
     def for_thread(self) -> "DataParallel":
         """The same ranks over a group of their own, for collectives issued from another thread (the
@@ -98,7 +101,8 @@ class DataParallel(Local):
         return DataParallel(self.rank, self.world_size, self.local_rank, self.device, dist.new_group(backend="gloo"))
 
     def close(self) -> None:
-        if dist.is_initialized():
+        """Leave the run (when ``from_environment`` joined it)."""
+        if self.owns_process_group and dist.is_initialized():
             dist.destroy_process_group()
 
     # --- statistics over every rank's batch -----------------------------------------------------------
