@@ -11,6 +11,7 @@
     python baselines/train_ppo.py --init-from checkpoints/InterLevel-v0/ppo_3200000_steps.zip   # from an SB3 run
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
     python baselines/train_ppo.py --trainer sb3 ...       # Stable-Baselines3 PPO instead (ppo_<n>_steps.zip)
+    torchrun --nproc-per-node 2 baselines/train_ppo.py --n-envs 64 ...   # data-parallel: 2 ranks x 64 worlds
 
 Two trainers run the same algorithm with the same flags. ``--trainer lean`` (the default):
 ``stairenv.training``, PPO + AMP written for the batched env's arrays (the loop is
@@ -19,6 +20,12 @@ checkpoint, one ``checkpoint_<n>.pt`` holding policy, optimiser, normalisers, di
 levels, step counter and generators, read without running code, ``replay_<n>.npy`` beside the latest;
 ``--resume`` continues exactly; ``final_policy.npz`` is the numpy policy ``stairenv.pretrained`` loads).
 ``--trainer sb3``: Stable-Baselines3 PPO with VecNormalize and the AMP wrapper (the files below).
+Under ``torchrun`` (``--nproc-per-node P``, ``--nnodes N --rdzv-backend c10d --rdzv-endpoint HOST:PORT``
+across machines) the lean trainer runs data-parallel (``stairenv.training.distributed``): each rank its
+own ``--n-envs`` worlds (world j of rank r seeded as world ``r x n_envs + j`` of the run), gradients
+averaged, statistics merged, ``--timesteps`` counting every rank's steps, rank 0 printing, logging,
+checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count (exact with the same);
+``--device cuda``: each rank on ``cuda:LOCAL_RANK``, nccl beside gloo.
 ``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU

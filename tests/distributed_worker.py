@@ -54,7 +54,8 @@ def first_update(num_envs: int, parallel=LOCAL) -> dict:
 
 def disc_batches(ranks: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(0)
-    return rng.normal(1.0, 2.0, (2, ranks * DISC.batch_size, 12)), rng.normal(0.0, 1.0, (2, ranks * DISC.batch_size, 12))
+    shape = (2, ranks * DISC.batch_size, 12)    # two batches of reference and agent windows
+    return rng.normal(1.0, 2.0, shape), rng.normal(0.0, 1.0, shape)
 
 
 def disc_updates(ranks: int, parallel=None) -> dict:

@@ -77,13 +77,14 @@ class DataParallel(Local):
 
     @classmethod
     def from_environment(cls, device: str = "cpu") -> "DataParallel | None":
-        """Join the run torchrun started this process in (None without torchrun's ``WORLD_SIZE``).
+        """Join the run torchrun started this process in (None without torchrun's ``WORLD_SIZE``, or with
+        one process: that is a plain run, computing exactly what ``python`` alone would).
         Backend: nccl with ``device="cuda"`` (this rank takes ``cuda:LOCAL_RANK``), else gloo; the
         collectives of CPU tensors (all of the lean trainer's, today) go through a gloo group either way."""
-        if "WORLD_SIZE" not in os.environ:
+        if int(os.environ.get("WORLD_SIZE", "1")) < 2:
             return None
         local_rank = int(os.environ.get("LOCAL_RANK", 0))
-        on_gpu = torch.device(device).type == "cuda"
+        on_gpu = str(device).startswith("cuda")
         if on_gpu:
             torch.cuda.set_device(local_rank)
         owns = not dist.is_initialized()    # else the caller's process group, which close() leaves open
@@ -152,10 +153,12 @@ class DataParallel(Local):
             offset += g.numel()
 
     def broadcast(self, module: torch.nn.Module) -> None:
-        """Rank 0's parameters and buffers on every rank."""
+        """Rank 0's parameters and buffers on every rank (written in place through ``detach()``, which
+        shares their version counters: caches keyed on them, such as the discriminator's scoring plan,
+        see the change)."""
         with torch.no_grad():
             for tensor in [*module.parameters(), *module.buffers()]:
-                dist.broadcast(tensor.data, src=0, group=self.group)
+                dist.broadcast(tensor.detach(), src=0, group=self.group)
 
     def same_everywhere(self, tensors: Iterable[torch.Tensor]) -> bool:
         """Whether ``tensors`` hold the same numbers on every rank (compared by two float64 sums)."""
