@@ -109,6 +109,7 @@ __all__ = [
     "GaitTiming",
     "LegGeometry",
     "climb_stairs",
+    "crouch_walk",
     "default_stair_step_time",
     "default_step_length",
     "leg_geometry",
@@ -594,6 +595,8 @@ class _Style:
     arm_swing: float = 0.55         # shoulder y (rad) per metre of foot lead
     elbow: float = 0.25             # elbow flexion (rad) with the arm hanging
     obliquity: float = 0.05         # pelvic drop towards the swinging leg (rad)
+    arm_pitch: float = 0.0          # shoulder y (rad) added to the swing: > 0 carries the arms back
+    deep_flexion: bool = False      # hips flexed to 90 degrees and beyond (leg_ik's deep_flexion)
 
 
 def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, style: _Style,
@@ -648,7 +651,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         shin_pitch = np.zeros((len(times), 2))
         for side, name in zip((RIGHT, LEFT), ("right", "left")):
             foot_rot = plan.foot_rotation(feet.pitch[:, side])
-            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side)
+            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side,
+                                      deep_flexion=style.deep_flexion)
             joints[:, dof_index(f"{name}_hip_x"):dof_index(f"{name}_hip_z") + 1] = hip
             joints[:, dof_index(f"{name}_knee")] = knee
             joints[:, dof_index(f"{name}_ankle_x"):dof_index(f"{name}_ankle_z") + 1] = ankle
@@ -676,6 +680,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     for name, sign in (("right", 1.0), ("left", -1.0)):
         swing_forward = sign * style.arm_swing * left_lead
         joints[:, dof_index(f"{name}_shoulder_y")] = -swing_forward
+        if style.arm_pitch:  # (only when set: the other clips keep their exact bits)
+            joints[:, dof_index(f"{name}_shoulder_y")] += style.arm_pitch
         # The arm swings slightly out (abduction) the further it leaves the hanging pose, and
         # turns inward as it swings forward.
         out = np.sqrt(swing_forward**2 + 0.05**2) - 0.05  # smooth |swing|
@@ -856,7 +862,8 @@ def styled_walk(style: str | WalkStyle, duration: float = 4.0, fps: float = 30.0
 
 def _walk_clip(speed: float, step_length: float | None, duration: float, fps: float, step_width: float,
                swing_height: float, timing: GaitTiming, lead_foot: str, name: str | None, posture: _Style,
-               *, text: str, style: str) -> MotionClip:
+               *, text: str, style: str, nominal_height: float = _WALK_PELVIS_HEIGHT,
+               generator: str = "walk", extra: dict | None = None) -> MotionClip:
     speed = _check_number("speed", speed, 0.0, 3.0)
     fps = _check_number("fps", fps, 0.0, 1000.0)
     step_length = default_step_length(speed) if step_length is None else _check_number(
@@ -883,7 +890,7 @@ def _walk_clip(speed: float, step_length: float | None, duration: float, fps: fl
     times = start + np.arange(-pad_frames, num_frames + pad_frames) / fps
     qpos, contact = _synthesise(
         plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=posture,
-        on_stairs=None, nominal_height=_WALK_PELVIS_HEIGHT, monotone=None, level_reference=None,
+        on_stairs=None, nominal_height=nominal_height, monotone=None, level_reference=None,
         clearance=_Clearance(edge=swing_height, horizontal=0.0, min_lift=swing_height),
     )
     # The frames are periodic up to spline round-off far from the padded ends: make the seam exact.
@@ -894,9 +901,49 @@ def _walk_clip(speed: float, step_length: float | None, duration: float, fps: fl
                   **asdict(timing))
     return MotionClip(
         qpos, fps, name or f"walk_{speed:.2f}mps", loop=True, source=SOURCE,
-        meta=clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text=text, skill="walk",
-                       style=style),
+        meta=clip_meta(generator, {**params, **(extra or {})}, contact, cycle_frames=frames_per_cycle, text=text,
+                       skill="walk", style=style),
     )
+
+
+#: Crouch-walk gait: the trailing heel rises early (half a step before the other foot lands), so that
+#: the shin leaning far over a flat foot stays within the ankle's 55 degrees of dorsiflexion.
+CROUCH_TIMING = GaitTiming(heel_off=0.5, push_off_angle=0.6)
+
+
+def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.5, duration: float = 4.0,
+                fps: float = 30.0, step_length: float | None = None, step_width: float = 0.22,
+                swing_height: float = 0.06, gaze: float | None = None, arm_pitch: float | None = None,
+                elbow: float = 0.6, pelvis_share: float = 0.7, timing: GaitTiming = CROUCH_TIMING,
+                lead_foot: str = "right", name: str | None = None) -> MotionClip:
+    """A crouched walk (knees deeply bent, trunk leaning forward, head low) along +x, looping.
+
+    The gait of :func:`walk` with the pelvis held at most ``pelvis_height`` (m) above the
+    floor (the legs bend to reach it) and the trunk pitched forward by ``lean`` (rad;
+    ``pelvis_share`` of it at the pelvis, the rest at the abdomen). The head looks ``gaze`` rad
+    below level (default ``lean - 0.4``: the neck lifts the head 0.4 rad); the arms
+    are carried ``arm_pitch`` rad at the shoulders (< 0 forward; default ``-0.8 * lean``) with the
+    elbows bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk. Steps are ``0.25 + 0.15 * speed`` m long by default. With the defaults (pelvis
+    0.6 m, the trunk nearly horizontal) the head centre is about 0.81 m above the floor, PlaMo's
+    crouch-walk (``stairenv.planning.locomotion``). Every joint stays in range (``ValueError``
+    otherwise); ``meta["skill"]`` is "walk" and ``meta["style"]`` "crouch".
+    """
+    pelvis_height = _check_number("pelvis_height", pelvis_height, 0.35, _WALK_PELVIS_HEIGHT)
+    lean = _check_number("lean", lean, 0.0, 1.5, low_open=False)
+    step_length = 0.25 + 0.15 * speed if step_length is None else step_length
+    gaze = lean - 0.4 if gaze is None else _check_number("gaze", gaze, -0.3, 1.3, low_open=False)
+    arm_pitch = -0.8 * lean if arm_pitch is None else _check_number(
+        "arm_pitch", arm_pitch, -1.5, 1.0, low_open=False)
+    elbow = _check_number("elbow", elbow, 0.0, 1.5, low_open=False)
+    pelvis_share = _check_number("pelvis_share", pelvis_share, 0.0, 1.0, low_open=False)
+    posture = _Style(walk_lean=lean, stairs_lean=lean, walk_gaze=gaze, stairs_gaze=gaze, arm_swing=0.35,
+                     elbow=elbow, obliquity=0.03, arm_pitch=arm_pitch, pelvis_share=pelvis_share,
+                     deep_flexion=True)
+    return _walk_clip(speed, step_length, duration, fps, step_width, swing_height, timing, lead_foot,
+                      name or f"crouch_walk_{speed:.2f}mps", posture, text="crouch-walks, knees bent and head low",
+                      style="crouch", nominal_height=pelvis_height, generator="crouch_walk",
+                      extra=dict(pelvis_height=pelvis_height, lean=lean, gaze=gaze, arm_pitch=arm_pitch,
+                                 elbow=elbow, pelvis_share=pelvis_share))
 
 
 def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach_steps: int = 2,
