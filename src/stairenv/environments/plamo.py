@@ -75,10 +75,13 @@ class PlaMoEnv(HumanoidEnv):
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
-    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose, as InterLevel |
+    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose as InterLevel; None: builtin:plamo |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
+
+    #: PlaMo's reference motion (AMP and reference-state starts): all four locomotion types
+    DEFAULT_REFERENCE_MOTION = "builtin:plamo"
 
     def __init__(
         self,

@@ -921,12 +921,15 @@ def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.
     The gait of :func:`walk` with the pelvis held at most ``pelvis_height`` (m) above the
     floor (the legs bend to reach it) and the trunk pitched forward by ``lean`` (rad;
     ``pelvis_share`` of it at the pelvis, the rest at the abdomen). The head looks ``gaze`` rad
-    below level (default ``lean - 0.4``: the neck lifts the head 0.4 rad); the arms
-    are carried ``arm_pitch`` rad at the shoulders (< 0 forward; default ``-0.8 * lean``) with the
-    elbows bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk. Steps are ``0.25 + 0.15 * speed`` m long by default. With the defaults (pelvis
-    0.6 m, the trunk nearly horizontal) the head centre is about 0.81 m above the floor, PlaMo's
-    crouch-walk (``stairenv.planning.locomotion``). Every joint stays in range (``ValueError``
-    otherwise); ``meta["skill"]`` is "walk" and ``meta["style"]`` "crouch".
+    below level (default ``lean - 0.4``: the neck lifts the head 0.4 rad); the arms are carried
+    ``arm_pitch`` rad at the shoulders (< 0 forward; default ``-0.8 * lean``) with the elbows
+    bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk. Steps are
+    ``0.25 + 0.15 * speed`` m long by default; the trailing heel rises early
+    (:data:`CROUCH_TIMING`). Hips flex past 90 degrees (``leg_ik``'s ``deep_flexion``). With the
+    defaults (pelvis 0.6 m, the trunk nearly horizontal) the head centre is about 0.81 m above
+    the floor, PlaMo's crouch-walk (``stairenv.planning.locomotion``), at every speed from 0.5 to
+    1.5 m/s. Every joint stays in range (``ValueError`` otherwise); ``meta["skill"]`` is "walk"
+    and ``meta["style"]`` "crouch".
     """
     pelvis_height = _check_number("pelvis_height", pelvis_height, 0.35, _WALK_PELVIS_HEIGHT)
     lean = _check_number("lean", lean, 0.0, 1.5, low_open=False)
