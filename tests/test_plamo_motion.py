@@ -164,3 +164,46 @@ def test_rebuilding_from_the_raw_files_gives_the_shipped_clips(clips):
         clip = plamo_set.convert(recipe, MOTIONS)
         np.testing.assert_allclose(clip.qpos, by_name[recipe.name].qpos, atol=1e-9)
         assert clip.meta["locomotion"] == by_name[recipe.name].meta["locomotion"]
+
+
+def test_nearest_locomotion():
+    from stairenv.planning.locomotion import nearest_locomotion
+
+    assert nearest_locomotion(0.45, 0.3) == "crawl"
+    assert nearest_locomotion(0.9, 1.0) == "crouch-walk"
+    assert nearest_locomotion(1.3, 1.0) == "walk" and nearest_locomotion(1.3, 0.1) == "walk"
+    assert nearest_locomotion(1.4, 3.0) == "run" and nearest_locomotion(1.4, 4.5) == "sprint"
+    assert nearest_locomotion(1.4, 4.5, LOCOMOTION_TYPES) == "run"  # no sprint clip: the nearest there is
+    with pytest.raises(ValueError):
+        nearest_locomotion(1.0, 1.0, ())
+
+
+def test_matched_starts_begin_in_the_paths_opening_locomotion():
+    import gymnasium as gym
+
+    import stairenv  # noqa: F401
+    from stairenv.planning.locomotion import nearest_locomotion
+
+    errors = {}
+    for matched in (True, False):
+        env = gym.make("PlaMo-v0", init="reference", matched_starts=matched).unwrapped
+        try:
+            errors[matched] = []
+            for seed in range(12):
+                env.reset(seed=seed)
+                head, _ = env._head()
+                errors[matched].append(abs(head[2] - env.path.points[0, 2]))
+                if matched:
+                    kind = nearest_locomotion(env.path.head[0], env.path.speed[0], LOCOMOTION_TYPES)
+                    heights = [c.meta["head_height"] for c in env._starts_by_locomotion[kind].clips]
+                    assert {c.meta["locomotion"] for c in env._starts_by_locomotion[kind].clips} == {kind}
+                    # the start's head is within the range of that type's clips (placed on the terrain)
+                    assert min(heights) - 0.25 < head[2] - env.ground_height(head[None, :2])[0] < max(heights) + 0.25
+        finally:
+            env.close()
+    assert np.mean(errors[True]) < 0.6 * np.mean(errors[False])
+    # nothing to match without reference starts, or with clips that carry no locomotion label
+    assert gym.make("PlaMo-v0").unwrapped._starts_by_locomotion is None
+    unlabelled = gym.make("PlaMo-v0", init="reference", reference_motion="builtin:stairs").unwrapped
+    assert unlabelled._starts_by_locomotion is None
+    unlabelled.reset(seed=0)
