@@ -155,6 +155,47 @@ def test_crouch_walk_synthesis_holds_the_head_low_in_range():
         joints = clip.qpos[:, 7:]
         assert np.all(joints >= ranges[:, 0] - 1e-9) and np.all(joints <= ranges[:, 1] + 1e-9)
         assert np.linalg.norm(clip.qpos[-1, :2] - clip.qpos[0, :2]) / clip.duration == pytest.approx(speed, rel=0.02)
+        assert _deepest_self_contact(clip) > -1e-3      # the arms clear the knees
+        assert _com_ahead_of_front_toe(clip).max() < 0.0  # the leaning trunk does not tip it over its toes
+
+
+def _deepest_self_contact(clip: MotionClip) -> float:
+    """Most negative distance of a contact between two of the character's geoms over the clip (m)."""
+    import mujoco
+
+    from stairenv.humanoid import humanoid_model
+
+    model = humanoid_model()
+    data = mujoco.MjData(model)
+    deepest = 0.0
+    for q in clip.qpos:
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        for contact in data.contact[:data.ncon]:
+            if model.geom_bodyid[contact.geom1] and model.geom_bodyid[contact.geom2]:  # not the floor
+                deepest = min(deepest, contact.dist)
+    return deepest
+
+
+def _com_ahead_of_front_toe(clip: MotionClip) -> np.ndarray:
+    """(T,) how far (m) the centre of mass is ahead of the foremost toe, along the direction walked."""
+    import mujoco
+
+    from stairenv.humanoid import humanoid_model
+    from stairenv.humanoid.kinematics import foot_box_geoms
+
+    model = humanoid_model()
+    data = mujoco.MjData(model)
+    forward = clip.qpos[-1, :2] - clip.qpos[0, :2]
+    forward /= np.linalg.norm(forward)
+    out = []
+    for q in clip.qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        toes = [data.geom_xpos[g, :2] @ forward + model.geom_size[g, 0] for g in foot_box_geoms()]
+        out.append(data.subtree_com[1, :2] @ forward - max(toes))
+    return np.array(out)
 
 
 @pytest.mark.skipif(not (MOTIONS / "DeepMimic").is_dir(), reason="raw motion files (../shared/motions) absent")

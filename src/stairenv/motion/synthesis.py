@@ -597,6 +597,8 @@ class _Style:
     obliquity: float = 0.05         # pelvic drop towards the swinging leg (rad)
     arm_pitch: float = 0.0          # shoulder y (rad) added to the swing: > 0 carries the arms back
     deep_flexion: bool = False      # hips flexed to 90 degrees and beyond (leg_ik's deep_flexion)
+    pelvis_forward: float = 0.0     # m the pelvis is carried ahead of (< 0: behind) its place between the feet
+    arm_abduction: float = 0.0      # rad of shoulder abduction added (arms held out, clear of the legs)
 
 
 def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, style: _Style,
@@ -626,6 +628,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     pelvis_pitch = style.pelvis_share * lean
     abdomen_pitch = lean - pelvis_pitch
     pelvis_xy = _pelvis_horizontal(plan, times)
+    if style.pelvis_forward:  # (only when set: the other clips keep their exact bits)
+        pelvis_xy[:, 0] += plan.facing * style.pelvis_forward
     radius = max(1, int(round(_HEIGHT_SMOOTHING * fps)))
 
     swing_pitch: dict[int, np.ndarray] | None = None
@@ -686,6 +690,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         # turns inward as it swings forward.
         out = np.sqrt(swing_forward**2 + 0.05**2) - 0.05  # smooth |swing|
         joints[:, dof_index(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
+        if style.arm_abduction:  # (only when set: the other clips keep their exact bits)
+            joints[:, dof_index(f"{name}_shoulder_x")] -= sign * style.arm_abduction
         joints[:, dof_index(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
         forward = 0.5 * (swing_forward + np.sqrt(swing_forward**2 + 0.05**2))  # smooth max(0, .)
         joints[:, dof_index(f"{name}_elbow")] = -(style.elbow + _ELBOW_SWING_GAIN * forward)
@@ -914,8 +920,8 @@ CROUCH_TIMING = GaitTiming(heel_off=0.5, push_off_angle=0.6)
 def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.5, duration: float = 4.0,
                 fps: float = 30.0, step_length: float | None = None, step_width: float = 0.22,
                 swing_height: float = 0.06, gaze: float | None = None, arm_pitch: float | None = None,
-                elbow: float = 0.6, pelvis_share: float = 0.7, timing: GaitTiming = CROUCH_TIMING,
-                lead_foot: str = "right", name: str | None = None) -> MotionClip:
+                elbow: float = 0.6, arm_abduction: float = 0.2, pelvis_share: float = 0.7, pelvis_back: float = 0.15,
+                timing: GaitTiming = CROUCH_TIMING, lead_foot: str = "right", name: str | None = None) -> MotionClip:
     """A crouched walk (knees deeply bent, trunk leaning forward, head low) along +x, looping.
 
     The gait of :func:`walk` with the pelvis held at most ``pelvis_height`` (m) above the
@@ -923,9 +929,13 @@ def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.
     ``pelvis_share`` of it at the pelvis, the rest at the abdomen). The head looks ``gaze`` rad
     below level (default ``lean - 0.4``: the neck lifts the head 0.4 rad); the arms are carried
     ``arm_pitch`` rad at the shoulders (< 0 forward; default ``-0.8 * lean``) with the elbows
-    bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk. Steps are
+    bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk, held out by
+    ``arm_abduction`` rad more than in a walk so that they clear the knees (self-collision). Steps are
     ``0.25 + 0.15 * speed`` m long by default; the trailing heel rises early
-    (:data:`CROUCH_TIMING`). Hips flex past 90 degrees (``leg_ik``'s ``deep_flexion``). With the
+    (:data:`CROUCH_TIMING`). Hips flex past 90 degrees (``leg_ik``'s ``deep_flexion``). The pelvis
+    is carried ``pelvis_back`` m behind its place between the feet, so that the leaning trunk keeps
+    the centre of mass behind the front toe (without it the CoM passes the toe by up to 10 cm in a
+    third of the frames; mocap walks never pass it). With the
     defaults (pelvis 0.6 m, the trunk nearly horizontal) the head centre is about 0.81 m above
     the floor, PlaMo's crouch-walk (``stairenv.planning.locomotion``), at every speed from 0.5 to
     1.5 m/s. Every joint stays in range (``ValueError`` otherwise); ``meta["skill"]`` is "walk"
@@ -938,15 +948,18 @@ def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.
     arm_pitch = -0.8 * lean if arm_pitch is None else _check_number(
         "arm_pitch", arm_pitch, -1.5, 1.0, low_open=False)
     elbow = _check_number("elbow", elbow, 0.0, 1.5, low_open=False)
+    arm_abduction = _check_number("arm_abduction", arm_abduction, 0.0, 0.8, low_open=False)
     pelvis_share = _check_number("pelvis_share", pelvis_share, 0.0, 1.0, low_open=False)
+    pelvis_back = _check_number("pelvis_back", pelvis_back, -0.1, 0.3, low_open=False)
     posture = _Style(walk_lean=lean, stairs_lean=lean, walk_gaze=gaze, stairs_gaze=gaze, arm_swing=0.35,
                      elbow=elbow, obliquity=0.03, arm_pitch=arm_pitch, pelvis_share=pelvis_share,
-                     deep_flexion=True)
+                     deep_flexion=True, pelvis_forward=-pelvis_back, arm_abduction=arm_abduction)
     return _walk_clip(speed, step_length, duration, fps, step_width, swing_height, timing, lead_foot,
                       name or f"crouch_walk_{speed:.2f}mps", posture, text="crouch-walks, knees bent and head low",
                       style="crouch", nominal_height=pelvis_height, generator="crouch_walk",
                       extra=dict(pelvis_height=pelvis_height, lean=lean, gaze=gaze, arm_pitch=arm_pitch,
-                                 elbow=elbow, pelvis_share=pelvis_share))
+                                 elbow=elbow, arm_abduction=arm_abduction, pelvis_share=pelvis_share,
+                                 pelvis_back=pelvis_back))
 
 
 def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach_steps: int = 2,
