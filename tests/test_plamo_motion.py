@@ -30,7 +30,7 @@ def test_the_set_ships_inside_the_package_and_is_small(clips):
     assert DATA_DIR.is_dir() and DATA_DIR.is_relative_to(Path(plamo_set.__file__).resolve().parent)
     files = sorted(DATA_DIR.glob("*.npz"))
     assert [f.stem for f in files] == sorted(c.name for c in clips)
-    assert {c.name for c in clips} == {r.name for r in CONVERTED} | {name for name, _ in SYNTHESISED}
+    assert {c.name for c in clips} == {r.name for r in CONVERTED} | {entry[0] for entry in SYNTHESISED}
     assert sum(f.stat().st_size for f in files) < 2_000_000
     for clip in clips:  # loaded from the package: no path of this machine (../shared) recorded
         assert not Path(clip.source).is_absolute() and "shared" not in clip.source
@@ -51,7 +51,7 @@ def test_the_builtin_set_loads_with_every_locomotion_type_weighted_equally(clips
     assert qpos.shape == (16, 35) and qvel.shape == (16, 34) and np.isfinite(qvel).all()
 
 
-@pytest.mark.parametrize("name", [r.name for r in CONVERTED] + [n for n, _ in SYNTHESISED])
+@pytest.mark.parametrize("name", [r.name for r in CONVERTED] + [entry[0] for entry in SYNTHESISED])
 def test_labels_match_the_measured_motion(clips, name):
     clip = next(c for c in clips if c.name == name)
     meta = clip.meta
@@ -248,3 +248,18 @@ def test_matched_starts_begin_in_the_paths_opening_locomotion():
     unlabelled = gym.make("PlaMo-v0", init="reference", reference_motion="builtin:stairs").unwrapped
     assert unlabelled._starts_by_locomotion is None
     unlabelled.reset(seed=0)
+
+
+def test_speed_change_ramps_the_speed_and_keeps_the_posture():
+    from stairenv.motion.synthesis import speed_change
+
+    for crouch, (v0, v1) in ((False, (0.3, 1.5)), (True, (1.4, 0.4))):
+        clip = speed_change(v0, v1, ramp_steps=4, steady_steps=1, crouch=crouch)
+        speed = np.linalg.norm(np.diff(clip.qpos[:, :2], axis=0), axis=1) * clip.fps
+        assert speed[:8].mean() == pytest.approx(v0, abs=0.05) and speed[-8:].mean() == pytest.approx(v1, abs=0.05)
+        heads = head_heights(clip.qpos)
+        assert (0.75 < heads.mean() < 0.87) if crouch else (1.4 < heads.mean() < 1.55)
+        assert not clip.loop and clip.meta["skill"] == "walk"
+        assert _deepest_self_contact(clip) > -1e-3 and _com_ahead_of_front_toe(clip).max() < 0.0
+    with pytest.raises(ValueError, match="speed_from"):
+        speed_change(0.0, 1.0)

@@ -7,7 +7,9 @@ crouch-walking (~0.8 m), walking and running (upright). The built-in set covers 
   DeepMimic (MIT) walk, jog, run, crawl and stealthy walk; IsaacGymEnvs (BSD-3) walk and run
   (:data:`CONVERTED`);
 * synthesised crouch-walks (``stairenv.motion.synthesis.crouch_walk``), since no clip holds
-  the head anywhere near 0.8 m (the stealthy walk's is ~1.3 m) (:data:`SYNTHESISED`).
+  the head anywhere near 0.8 m (the stealthy walk's is ~1.2 m), and walks and crouch-walks that
+  speed up and slow down (``synthesis.speed_change``: starts and stops from and to a slow walk)
+  (:data:`SYNTHESISED`). No clip turns: neither the sources nor the synthesis have turns.
 
 Every clip's ``meta`` carries ``locomotion`` (a planner name), ``head_height`` (mean height of
 the head centre over the clip, m; ``head_height_range`` min and max), ``speed`` (net
@@ -77,12 +79,17 @@ CONVERTED: tuple[Converted, ...] = (
               note="played 1.5 times faster (frame rate 45 fps), a second crawling speed"),
 )
 
-#: synthesised crouch-walks: (name, keyword arguments of ``synthesis.crouch_walk``)
-SYNTHESISED: tuple[tuple[str, dict[str, Any]], ...] = (
-    ("crouch_walk_0.5mps", dict(speed=0.5, lead_foot="right")),
-    ("crouch_walk_1.0mps", dict(speed=1.0, lead_foot="left")),
-    ("crouch_walk_1.5mps", dict(speed=1.5, lead_foot="right")),
-    ("crouch_walk_high_1.0mps", dict(speed=1.0, lean=1.3, lead_foot="right")),
+#: synthesised clips: (name, locomotion, ``stairenv.motion.synthesis`` function, its keyword arguments)
+SYNTHESISED: tuple[tuple[str, str, str, dict[str, Any]], ...] = (
+    ("crouch_walk_0.5mps", "crouch-walk", "crouch_walk", dict(speed=0.5, lead_foot="right")),
+    ("crouch_walk_1.0mps", "crouch-walk", "crouch_walk", dict(speed=1.0, lead_foot="left")),
+    ("crouch_walk_1.5mps", "crouch-walk", "crouch_walk", dict(speed=1.5, lead_foot="right")),
+    ("crouch_walk_high_1.0mps", "crouch-walk", "crouch_walk", dict(speed=1.0, lean=1.3, lead_foot="right")),
+    ("crouch_walk_speed_up", "crouch-walk", "speed_change", dict(speed_from=0.4, speed_to=1.4, crouch=True)),
+    ("crouch_walk_slow_down", "crouch-walk", "speed_change",
+     dict(speed_from=1.4, speed_to=0.4, crouch=True, lead_foot="left")),
+    ("walk_speed_up", "walk", "speed_change", dict(speed_from=0.3, speed_to=1.5)),
+    ("walk_slow_down", "walk", "speed_change", dict(speed_from=1.5, speed_to=0.3, lead_foot="left")),
 )
 
 
@@ -181,16 +188,16 @@ def convert(recipe: Converted, motions_dir: str | Path) -> MotionClip:
     return label_clip(out, recipe.locomotion)
 
 
-def synthesise(name: str, kwargs: dict[str, Any]) -> MotionClip:
-    from stairenv.motion.synthesis import crouch_walk
+def synthesise(name: str, locomotion: str, function: str, kwargs: dict[str, Any]) -> MotionClip:
+    from stairenv.motion import synthesis
 
-    clip = crouch_walk(name=name, **kwargs)
-    return label_clip(clip, "crouch-walk", licence="stairenv (synthesised)")
+    clip = getattr(synthesis, function)(name=name, **kwargs)
+    return label_clip(clip, locomotion, licence="stairenv (synthesised)")
 
 
 def build_clips(motions_dir: str | Path) -> list[MotionClip]:
     """Every clip of the set, converted from ``motions_dir`` (the raw files) and synthesised."""
-    return [convert(recipe, motions_dir) for recipe in CONVERTED] + [synthesise(n, k) for n, k in SYNTHESISED]
+    return [convert(recipe, motions_dir) for recipe in CONVERTED] + [synthesise(*entry) for entry in SYNTHESISED]
 
 
 def plamo_weights(clips: Sequence[MotionClip]) -> np.ndarray:

@@ -109,12 +109,14 @@ __all__ = [
     "GaitTiming",
     "LegGeometry",
     "climb_stairs",
+    "crouch_step_length",
     "crouch_walk",
     "default_stair_step_time",
     "default_step_length",
     "leg_geometry",
     "reference_set",
     "save_reference_set",
+    "speed_change",
     "walk",
 ]
 
@@ -943,7 +945,7 @@ def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.
     """
     pelvis_height = _check_number("pelvis_height", pelvis_height, 0.35, _WALK_PELVIS_HEIGHT)
     lean = _check_number("lean", lean, 0.0, 1.5, low_open=False)
-    step_length = 0.25 + 0.15 * speed if step_length is None else step_length
+    step_length = crouch_step_length(speed) if step_length is None else step_length
     gaze = lean - 0.4 if gaze is None else _check_number("gaze", gaze, -0.3, 1.3, low_open=False)
     arm_pitch = -0.8 * lean if arm_pitch is None else _check_number(
         "arm_pitch", arm_pitch, -1.5, 1.0, low_open=False)
@@ -951,15 +953,90 @@ def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.
     arm_abduction = _check_number("arm_abduction", arm_abduction, 0.0, 0.8, low_open=False)
     pelvis_share = _check_number("pelvis_share", pelvis_share, 0.0, 1.0, low_open=False)
     pelvis_back = _check_number("pelvis_back", pelvis_back, -0.1, 0.3, low_open=False)
-    posture = _Style(walk_lean=lean, stairs_lean=lean, walk_gaze=gaze, stairs_gaze=gaze, arm_swing=0.35,
-                     elbow=elbow, obliquity=0.03, arm_pitch=arm_pitch, pelvis_share=pelvis_share,
-                     deep_flexion=True, pelvis_forward=-pelvis_back, arm_abduction=arm_abduction)
+    posture = _crouch_style(lean, gaze, arm_pitch, elbow, arm_abduction, pelvis_share, pelvis_back)
     return _walk_clip(speed, step_length, duration, fps, step_width, swing_height, timing, lead_foot,
                       name or f"crouch_walk_{speed:.2f}mps", posture, text="crouch-walks, knees bent and head low",
                       style="crouch", nominal_height=pelvis_height, generator="crouch_walk",
                       extra=dict(pelvis_height=pelvis_height, lean=lean, gaze=gaze, arm_pitch=arm_pitch,
                                  elbow=elbow, arm_abduction=arm_abduction, pelvis_share=pelvis_share,
                                  pelvis_back=pelvis_back))
+
+
+def _crouch_style(lean: float, gaze: float, arm_pitch: float, elbow: float, arm_abduction: float,
+                  pelvis_share: float, pelvis_back: float) -> _Style:
+    return _Style(walk_lean=lean, stairs_lean=lean, walk_gaze=gaze, stairs_gaze=gaze, arm_swing=0.35,
+                  elbow=elbow, obliquity=0.03, arm_pitch=arm_pitch, pelvis_share=pelvis_share,
+                  deep_flexion=True, pelvis_forward=-pelvis_back, arm_abduction=arm_abduction)
+
+
+def crouch_step_length(speed: np.ndarray | float) -> np.ndarray | float:
+    """Step length (m) of :func:`crouch_walk` at ``speed`` (m/s): 0.25 m + 0.15 s * speed."""
+    return 0.25 + 0.15 * speed
+
+
+def speed_change(speed_from: float, speed_to: float, ramp_steps: int = 6, steady_steps: int = 2,
+                 crouch: bool = False, fps: float = 30.0, lead_foot: str = "right",
+                 name: str | None = None) -> MotionClip:
+    """A straight walk (or crouch-walk) that speeds up or slows down: ``steady_steps`` steps at
+    ``speed_from`` (m/s), ``ramp_steps`` steps over which the speed changes smoothly (quintic in
+    the step count) to ``speed_to``, ``steady_steps`` steps at ``speed_to``; not looping.
+
+    The step length follows the speed (:func:`default_step_length`, or :func:`crouch_step_length`
+    with ``crouch``), each step lasting its length over its speed, so the cadence changes with it.
+    Speeds are 0.2-3 m/s: a walk cannot start from or come to a standstill here (every step swings
+    a foot), so a start is a change from a slow walk, a stop one to it. ``crouch`` takes
+    :func:`crouch_walk`'s posture and gait (default parameters: head ~0.81 m). ``meta["skill"]``
+    is "walk"; ``meta["parameters"]`` holds both speeds.
+    """
+    speed_from = _check_number("speed_from", speed_from, 0.2, 3.0, low_open=False)
+    speed_to = _check_number("speed_to", speed_to, 0.2, 3.0, low_open=False)
+    ramp_steps = _check_count("ramp_steps", ramp_steps, 1, 50)
+    steady_steps = _check_count("steady_steps", steady_steps, 0, 50)
+    fps = _check_number("fps", fps, 0.0, 1000.0)
+    if not isinstance(crouch, bool):
+        raise TypeError(f"crouch must be a bool, got {type(crouch).__name__}")
+    lead = _side(lead_foot)
+    if crouch:
+        lean = 1.5
+        posture = _crouch_style(lean, lean - 0.4, -0.8 * lean, 0.6, 0.2, 0.7, 0.15)
+        nominal, timing, step_width, swing_height = 0.6, CROUCH_TIMING, 0.22, 0.06
+        step_of = crouch_step_length
+    else:
+        posture, nominal, timing, step_width, swing_height = _Style(), _WALK_PELVIS_HEIGHT, GaitTiming(), 0.16, 0.05
+        step_of = np.vectorize(default_step_length)
+    pad_steps = 8
+    before = pad_steps + steady_steps
+    n_steps = 2 * before + ramp_steps  # step intervals; footsteps are one more
+    share = smoothstep((np.arange(n_steps) - before + 0.5) / ramp_steps)
+    speeds = speed_from + share * (speed_to - speed_from)
+    lengths = np.asarray(step_of(speeds), dtype=float)
+    durations = lengths / speeds
+    xs = np.concatenate(([0.0], np.cumsum(lengths)))
+    xs -= xs[pad_steps]
+    plan = _GaitPlan.build(
+        xs, np.zeros(n_steps + 1), (lead + pad_steps) % 2, step_width, durations,
+        timing.double_support, timing.heel_off, timing.push_off_angle, 1.0, _Terrain.flat(),
+    )
+    start = plan.mid_double_support(pad_steps)
+    end = plan.mid_double_support(n_steps - pad_steps)
+    num_frames = int(math.floor((end - start) * fps + 1e-9)) + 1
+    pad_frames = int(round(1.5 * fps))
+    times = start + np.arange(-pad_frames, num_frames + pad_frames) / fps
+    qpos, contact = _synthesise(
+        plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=posture,
+        on_stairs=None, nominal_height=nominal, monotone=None, level_reference=None,
+        clearance=_Clearance(edge=swing_height, horizontal=0.0, min_lift=swing_height),
+    )
+    kind = "crouch_walk" if crouch else "walk"
+    params = dict(speed_from=speed_from, speed_to=speed_to, ramp_steps=ramp_steps, steady_steps=steady_steps,
+                  crouch=crouch, fps=fps, step_width=step_width, swing_height=swing_height, lead_foot=lead_foot,
+                  **asdict(timing))
+    verb = "speeds up" if speed_to > speed_from else "slows down"
+    return MotionClip(
+        qpos, fps, name or f"{kind}_{speed_from:.1f}_to_{speed_to:.1f}mps", loop=False, source=SOURCE,
+        meta=clip_meta("speed_change", params, contact, skill="walk", style="crouch" if crouch else "neutral",
+                       text=f"{'crouch-walks' if crouch else 'walks'} and {verb}"),
+    )
 
 
 def climb_stairs(step_height: float, step_depth: float, num_steps: int, approach_steps: int = 2,
