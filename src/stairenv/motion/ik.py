@@ -134,9 +134,8 @@ def leg_ik(pelvis_pos: np.ndarray, pelvis_rot: Rotation, ankle: np.ndarray, foot
     hip_angles, ankle_angles = _hip_angles(hip_rot), ankle_rot.as_euler("XYZ")
     # Near 90 degrees of flexion the hip's x and z hinges line up (gimbal): the exact angles of a
     # rotation there can lie far outside the hip's range while an in-range set turns the thigh
-    # almost the same way. Those frames get the nearest in-range
-    # angles, and the ankle is solved again under the thigh they give, so the foot keeps its
-    # orientation.
+    # almost the same way. Those frames get the nearest in-range angles, and the ankle is solved
+    # again under the thigh they give, so the foot keeps its orientation.
     dofs = slice(dof_index(f"{_SIDE_NAMES[side]}_hip_x"), dof_index(f"{_SIDE_NAMES[side]}_hip_z") + 1)
     low, high = geo.dof_low[dofs], geo.dof_high[dofs]
     out = np.flatnonzero(np.any((hip_angles < low - _HIP_FIT_TOLERANCE) | (hip_angles > high + _HIP_FIT_TOLERANCE),
