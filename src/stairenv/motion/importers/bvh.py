@@ -74,7 +74,7 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
+from stairenv.motion.importers.common import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
                                        compose, euler_rotation, joints_to_qpos, make_clip, read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}

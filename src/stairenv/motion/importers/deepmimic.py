@@ -54,7 +54,7 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_FPS, MIN_FPS, check_timing, check_values, compose, fk_position_error,
+from stairenv.motion.importers.common import (MAX_FPS, MIN_FPS, check_timing, check_values, compose, fk_position_error,
                                        joints_to_qpos, make_clip, read_limited, snap_fps)
 
 FRAME_SIZE = 44

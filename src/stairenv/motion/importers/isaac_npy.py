@@ -46,7 +46,7 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers import (MAX_JOINTS, check_timing, check_values, compose, fk_position_error,
+from stairenv.motion.importers.common import (MAX_JOINTS, check_timing, check_values, compose, fk_position_error,
                                        joints_to_qpos, make_clip, read_limited)
 
 # numpy's type codes a poselib file uses: bool, integers, floats; objects for the outer container.

@@ -11,7 +11,7 @@ from stairenv.numba_jit import jit
 def viterbi2(error: np.ndarray, step: np.ndarray) -> np.ndarray:
     """The cheapest choice per frame of two candidates: ``error`` (T, 2) per frame, ``step`` (T - 1, 2, 2)
     from the previous frame's choice to this one's; ties and NaN go as ``np.argmin`` takes them (the
-    same double operations, in the same order, as ``importers._viterbi2``)."""
+    same double operations, in the same order, as ``importers.common._viterbi2``)."""
     n = error.shape[0]
     back = np.zeros((n, 2), dtype=np.int64)
     cost0, cost1 = error[0, 0], error[0, 1]
