@@ -11,7 +11,6 @@ import torch
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation.policies import SpacesEnv
 from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows
@@ -108,7 +107,7 @@ FAST = ["--trainer", "sb3", "--n-envs", "1", "--vec-env", "dummy", "--timesteps"
 def statistics_for(env_id: str, path) -> None:
     """VecNormalize statistics as a run of ``env_id`` saves them."""
     probe = gym.make(env_id)
-    VecNormalize(DummyVecEnv([lambda: SpacesEnv(probe.observation_space, probe.action_space)])).save(str(path))
+    VecNormalize(DummyVecEnv([lambda: probe])).save(str(path))  # built, never stepped
     probe.close()
 
 

@@ -159,7 +159,7 @@ def record(
     from tqdm.auto import tqdm
 
     import stairenv  # noqa: F401  (registers the envs, picks EGL without a display)
-    from stairenv.evaluation.policies import load_policy
+    from stairenv.policy_loading import load_policy
 
     if seconds is not None and not (isinstance(seconds, (int, float)) and np.isfinite(seconds)
                                     and 0 < seconds <= 600):

@@ -1,6 +1,14 @@
-"""Policies as callables ``obs -> action``: the built-in "zero" and "random" ones, Stable-Baselines3
-models with the observation normalisation saved beside them, and exported numpy policies
-(:func:`load_policy`)."""
+"""Policy loading, one home for the package: a policy spec -> a callable ``obs -> action``
+(:func:`load_policy`), and a policy's name in reports and printouts (:func:`policy_label`).
+
+Specs: the built-in "zero" and "random", Stable-Baselines3 models (``path.zip``, ``ALGO:path``)
+with the observation normalisation saved beside them, and exported numpy policies (``.npz``).
+:data:`KINEMATIC` names the stories' stand-in, which the story runner binds to its env.
+
+This module sits below ``stories``, ``evaluation`` and ``training`` (it imports only
+``stairenv.pretrained`` and, when a model is loaded, Stable-Baselines3), so each of them
+loads and names policies the same way without importing the others.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +27,11 @@ Policy = Callable[[np.ndarray], Any]
 
 #: Policy specs understood by :func:`load_policy` besides a model path.
 BUILTIN_POLICIES: tuple[str, ...] = ("random", "zero")
+#: Policy spec of the stories' kinematic stand-in (``stairenv.stories.KinematicStandIn``): not
+#: loaded here; :class:`~stairenv.stories.machine.StoryRunner` builds one for its env.
+KINEMATIC = "kinematic"
+#: What :func:`policy_label` (detailed) calls the stand-in, so that no result hides it.
+STAND_IN_LABEL = "kinematic stand-in (NOT physics-based: writes qpos)"
 
 
 class ZeroPolicy:
@@ -77,20 +90,6 @@ class SB3Policy:
     def __repr__(self) -> str:
         norm = ", normalised obs" if self.obs_normalizer is not None else ""
         return f"SB3Policy({type(self.model).__name__}: {self.path}{norm})"
-
-
-class SpacesEnv(gym.Env):
-    """A stand-in env with given spaces, only for ``VecNormalize.load``."""
-
-    def __init__(self, observation_space: gym.Space, action_space: gym.Space) -> None:
-        self.observation_space, self.action_space = observation_space, action_space
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
-        return self.observation_space.sample(), {}
-
-    def step(self, action):
-        return self.observation_space.sample(), 0.0, True, False, {}
 
 
 def _policy_spec_error(spec: Any, reason: str) -> ValueError:
@@ -210,13 +209,12 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     normalizer = None
     stats = normalizer_beside(model_path)
     if stats is not None:
-        from stable_baselines3.common.vec_env import DummyVecEnv
-
+        # Left unattached to an env (``venv`` None): ``SB3Policy`` calls only ``normalize_obs``,
+        # which reads the statistics alone; the shape check below is the one ``set_venv`` makes.
         normalizer = read_normalizer(stats)
         if normalizer.observation_space.shape != expected:
             raise ValueError(f"VecNormalize statistics {str(stats)!r} are for observations of shape "
                              f"{normalizer.observation_space.shape}, the env gives {expected}")
-        normalizer.set_venv(DummyVecEnv([lambda: SpacesEnv(env.observation_space, env.action_space)]))
         normalizer.training = False
         normalizer.norm_reward = False
     return SB3Policy(model, normalizer, str(model_path))
@@ -226,14 +224,29 @@ def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
     return load_file(path, env)  # PolicyFileError (a ValueError) naming the file unless the sizes are the env's
 
 
-def policy_label(policy: Any) -> str:
-    """A short name for a policy: a spec string as given, a callable by its name or type."""
+def policy_label(policy: Any, *, detailed: bool = False) -> str:
+    """A policy's name for reports and printouts.
+
+    | policy | label | ``detailed`` label |
+    |---|---|---|
+    | a spec string or path | itself | itself; :data:`KINEMATIC` -> :data:`STAND_IN_LABEL` |
+    | a stand-in with ``physics_based = False`` | its ``__name__`` or type name | :data:`STAND_IN_LABEL` |
+    | another object | its ``__name__`` or type name | its ``repr`` if its class defines one, else its type name |
+
+    Report labels use the short form; the story runner and the scripts' printouts the detailed one.
+    """
     if isinstance(policy, (str, os.PathLike)):
+        if detailed and isinstance(policy, str) and policy == KINEMATIC:
+            return STAND_IN_LABEL
         return os.fspath(policy)
-    return getattr(policy, "__name__", None) or type(policy).__name__
+    if not detailed:
+        return getattr(policy, "__name__", None) or type(policy).__name__
+    if getattr(policy, "physics_based", True) is False:
+        return STAND_IN_LABEL
+    return repr(policy) if type(policy).__repr__ is not object.__repr__ else type(policy).__name__
 
 
 __all__ = [
-    "BUILTIN_POLICIES", "Policy", "RandomPolicy", "SB3Policy", "SpacesEnv", "ZeroPolicy", "load_policy",
-    "normalizer_beside", "policy_label", "read_normalizer",
+    "BUILTIN_POLICIES", "KINEMATIC", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy", "ZeroPolicy",
+    "load_policy", "normalizer_beside", "policy_label", "read_normalizer",
 ]

@@ -6,7 +6,7 @@
 | ``interlevel`` | InterLevel Tables 1-3: progress, early termination, completion time on stairs |
 | ``plamo`` | PlaMo Table 2 tracking errors, scene episodes, the slalom test |
 | ``sims`` | SIMS Table 1 (skills) and Table 2 (scripts through the state machine) |
-| ``policies`` | :func:`load_policy`: "zero", "random" or a Stable-Baselines3 model as ``obs -> action`` |
+| ``policies`` | the old home of :func:`load_policy` (now :mod:`stairenv.policy_loading`), re-exported |
 | ``cli`` | command-line helpers (``--env-kwarg key=value``) |
 
 Each paper module has ``evaluate(policy, env_id, episodes, seed, env_kwargs, max_episode_steps,
@@ -21,8 +21,8 @@ from collections.abc import Callable
 import gymnasium as gym
 from gymnasium.envs.registration import load_env_creator
 
-from stairenv.evaluation.policies import load_policy
 from stairenv.evaluation.report import Report
+from stairenv.policy_loading import load_policy
 
 #: The evaluation module of each env family; an env belongs to the family of the
 #: ``stairenv.environments`` module that defines its class (or a base class).

@@ -38,8 +38,8 @@ import gymnasium as gym
 import numpy as np
 
 from stairenv.evaluation.gait import GAIT_FIELDS, GaitRecorder, GaitSummary, gait_columns, summarize
-from stairenv.evaluation.policies import Policy, load_policy, policy_label
 from stairenv.evaluation.report import Column, Layout, Report
+from stairenv.policy_loading import Policy, load_policy, policy_label
 from stairenv.world.stairs import PAPER_TEST_HEIGHTS
 
 #: Group name of the results over all episodes.
@@ -445,7 +445,7 @@ def evaluate(
     | push_speed | 0.0 | m/s in [0, 10]: each episode's character is kicked once, this horizontal speed added to its root in a random direction before a random step in ``PUSH_STEPS`` (1-6 s), both drawn from the episode's seed (``push_plan``: the same push for every policy); 0 = no push |
 
     If ``policy`` has a ``reset(seed)`` method it is called with each episode's seed
-    before the episode (:class:`~stairenv.evaluation.policies.RandomPolicy` reseeds itself);
+    before the episode (:class:`~stairenv.policy_loading.RandomPolicy` reseeds itself);
     such a policy is always run one episode at a time.
 
     With ``num_envs`` > 1 the same episodes (same seeds, same staircases) run on the worlds of

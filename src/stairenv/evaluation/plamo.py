@@ -22,8 +22,8 @@ import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation.policies import load_policy, policy_label
 from stairenv.evaluation.report import Column, Layout, Report
+from stairenv.policy_loading import load_policy, policy_label
 
 TERRAINS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
 LOCOMOTIONS: tuple[str, ...] = ("crawl", "crouch-walk", "walk", "run")
@@ -138,7 +138,7 @@ def evaluate(
     locomotions: Sequence[str] = LOCOMOTIONS,
 ) -> Report:
     """PlaMo Table 2: :func:`tracking_errors` of ``policy`` (a callable or a spec for
-    :func:`~stairenv.evaluation.policies.load_policy`) as a report."""
+    :func:`~stairenv.policy_loading.load_policy`) as a report."""
     label = label or policy_label(policy)
     if isinstance(policy, (str, os.PathLike)):
         probe = gym.make(env_id, **(env_kwargs or {}))

@@ -19,7 +19,7 @@ Both give a :class:`~stairenv.evaluation.report.Report` with rows of the columns
 (``table`` is "skills" or "scripts", ``group`` the skill or difficulty), written as CSV / JSON and
 printed with the published numbers (:data:`PAPER_RESULTS`) beside ours on request; :func:`evaluate`
 is Table 1 for the skill of one env. Policies are
-specs for :func:`stairenv.evaluation.policies.load_policy` ("zero", "random", an SB3 .zip) or
+specs for :func:`stairenv.policy_loading.load_policy` ("zero", "random", an SB3 .zip) or
 callables, one for all skills or one per skill; ``"kinematic"`` is the state machine's
 stand-in that writes qpos (not physics-based: it tests the pipeline, it is not a result).
 
@@ -41,11 +41,11 @@ import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.evaluation.policies import load_policy, policy_label
 from stairenv.evaluation.report import Column, Layout, Report, write_reports
 from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
+from stairenv.policy_loading import load_policy, policy_label
 from stairenv.scripts.database import DIFFICULTIES
-from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings, describe_policy
+from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings
 
 #: The registered env of each skill (Table 1).
 SKILL_ENV_IDS: dict[str, str] = {
@@ -128,13 +128,12 @@ def _per_skill(policy: PolicySpec | Mapping[str, PolicySpec], skills: Sequence[s
 
 
 def _label(policies: Mapping[str, PolicySpec]) -> str:
-    names = {describe_policy(p) if isinstance(p, str) and p == KINEMATIC else policy_label(p)
-             for p in policies.values()}
+    names = {policy_label(p, detailed=isinstance(p, str)) for p in policies.values()}
     return names.pop() if len(names) == 1 else "per-skill policies"
 
 
 def _policy_names(policies: Mapping[str, PolicySpec]) -> dict[str, str]:
-    return {s: describe_policy(p) if isinstance(p, str) else policy_label(p) for s, p in policies.items()}
+    return {s: policy_label(p, detailed=isinstance(p, str)) for s, p in policies.items()}
 
 
 # --- Table 1 -------------------------------------------------------------------------------------

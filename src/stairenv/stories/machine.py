@@ -61,6 +61,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from stairenv.policy_loading import load_policy, policy_label
 from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
 from stairenv.validation import check_int, check_number
@@ -198,12 +199,9 @@ class StoryResult:
 
 # --- policies --------------------------------------------------------------------------------
 def describe_policy(policy: Any) -> str:
-    """A short human-readable name; the stand-in says that it is not physics-based."""
-    if isinstance(policy, KinematicStandIn) or policy == KINEMATIC:
-        return "kinematic stand-in (NOT physics-based: writes qpos)"
-    if isinstance(policy, (str, os.PathLike)):
-        return os.fspath(policy)
-    return repr(policy) if type(policy).__repr__ is not object.__repr__ else type(policy).__name__
+    """A short human-readable name; the stand-in says that it is not physics-based. The old name of
+    ``policy_label(policy, detailed=True)`` (:func:`stairenv.policy_loading.policy_label`)."""
+    return policy_label(policy, detailed=True)
 
 
 def as_policy(policy: Any, env: SIMSEnv) -> Policy:
@@ -226,13 +224,11 @@ def as_policy(policy: Any, env: SIMSEnv) -> Policy:
 def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | None = 0) -> dict[str, Any]:
     """Resolve policy specs for every skill: a single spec for all, or skill -> spec.
 
-    Strings go through :func:`stairenv.evaluation.load_policy` ("zero", "random", an SB3 .zip,
+    Strings go through :func:`stairenv.policy_loading.load_policy` ("zero", "random", an SB3 .zip,
     ``ALGO:path``) with ``env`` giving the spaces; :data:`KINEMATIC` stays as it is (the
     runner binds a stand-in to its own env); callables and models pass through. Skills not
     in a mapping are left out.
     """
-    from stairenv.evaluation import load_policy
-
     out: dict[str, Any] = {}
     loaded: dict[str, Any] = {}
     for skill, spec in policy_specs(specs).items():

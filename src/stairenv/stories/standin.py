@@ -26,6 +26,7 @@ from stairenv.humanoid import DOF_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.planning.astar import astar
 from stairenv.planning.costmap import Costmap, build_costmap
 from stairenv.planning.errors import PlanningError
+from stairenv.policy_loading import KINEMATIC
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import sims as task
 from stairenv.validation import check_number
@@ -33,9 +34,9 @@ from stairenv.validation import check_number
 if TYPE_CHECKING:
     from stairenv.environments.sims import SIMSEnv
 
-#: Policy value that makes :class:`~stairenv.stories.machine.StoryRunner` build a
+#: :data:`KINEMATIC` (defined in :mod:`stairenv.policy_loading`, with the other policy specs) is the
+#: policy value that makes :class:`~stairenv.stories.machine.StoryRunner` build a
 #: :class:`KinematicStandIn` for its env.
-KINEMATIC = "kinematic"
 
 _DOF = {name: k for k, name in enumerate(DOF_NAMES)}
 
@@ -137,6 +138,9 @@ class KinematicStandIn:
     Use it to test the state machine and to make demo videos, never as a result about control.
     One instance serves one env (several skills may share it).
     """
+
+    #: Read by :func:`stairenv.policy_loading.policy_label`: the label says it is not physics-based.
+    physics_based = False
 
     def __init__(self, env: SIMSEnv, speed: float = 1.0, blend_seconds: float = 0.6, turn_rate: float = 4.0,
                  near: float = 0.6, reach_clearance: float = 0.12) -> None:

@@ -39,7 +39,7 @@ def state_from_sb3(checkpoint: Path, statistics: Path, amp_state: Path | None) -
     SB3 PPO ``.zip``, its VecNormalize ``.pkl`` and, with AMP, its AMP state ``.pt``."""
     from stable_baselines3 import PPO
 
-    from stairenv.evaluation.policies import read_normalizer
+    from stairenv.policy_loading import read_normalizer
 
     model = PPO.load(str(checkpoint), device="cpu")
     weights = {_rename(k): v.detach().clone() for k, v in model.policy.state_dict().items()}

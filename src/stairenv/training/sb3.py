@@ -17,7 +17,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.utils import ConstantSchedule
 from stable_baselines3.common.vec_env import VecNormalize
 
-from stairenv.evaluation.policies import normalizer_beside
+from stairenv.policy_loading import normalizer_beside
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStateError, AMPStyleReward
 
