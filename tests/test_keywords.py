@@ -1,21 +1,41 @@
 """Every env keyword is checked at construction, with its type: a bad value raises TypeError or
-ValueError naming the keyword (issue #13, item 6), and nothing else ever escapes a constructor."""
+ValueError naming the keyword (issue #13, item 6), nothing else ever escapes a constructor, and
+a valid value is accepted (issue #26, item 6: the check can fail both ways)."""
 
 from __future__ import annotations
 
 import importlib
 import inspect
+import math
+import numbers
 import re
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pytest
 
-from stairenv.environments.interlevel import InterLevelEnv
-from stairenv.environments.plamo import MAX_TERRAIN_CELLS, PlaMoEnv
-from stairenv.environments.plamo_scene import PlaMoSceneEnv
-from stairenv.environments.sims import SIMSEnv
+from stairenv.environments.base import INITS
+from stairenv.environments.interlevel import REWARDS, STAIRS_RANGES, InterLevelEnv
+from stairenv.environments.plamo import MAX_TERRAIN_CELLS, PATH_GENERATORS, PlaMoEnv
+from stairenv.environments.plamo_scene import SCENE_KINDS, SPEED_PROFILES, PlaMoSceneEnv
+from stairenv.environments.sims import (
+    GETUP_FROM,
+    MAX_TEXT_DIM,
+    NEAR_START_SKILLS,
+    SCENES,
+    TEXT_ENCODERS,
+    SIMSEnv,
+    host_families,
+    skill_captions,
+)
+from stairenv.humanoid import PD_GAINS
+from stairenv.planning.locomotion import LOCOMOTIONS
 from stairenv.registration import load_presets
+from stairenv.tasks.curriculum import DEMOTE_BELOW
+from stairenv.tasks.sims import SKILLS
 from stairenv.validation import check_bool, check_grid, check_int, check_pair
+from stairenv.world.terrain import TERRAIN_KINDS
 
 FAST_SIMS = {"text_encoder": "hashing"}
 
@@ -196,9 +216,197 @@ def test_valid_values_of_other_types_still_work():
     env.close()
 
 
-# --- wrong types for every keyword of every registered id --------------------------------------
-WRONG_VALUES = ["garbage", 2.5, -1, True, None, [1, 2, 3], {"key": 1}, object(), float("nan"),
-                np.array([1.0, 2.0])]
+# --- every keyword of every registered id: wrong values refused, valid ones accepted ---------------
+# What each keyword takes. The constructors check their keywords in code (``check_float(name, value,
+# low, high)`` and the like), with no table to read, so the table is here: the range each keyword
+# is checked against, and where another keyword narrows it under the presets' defaults, that
+# narrower range (said beside it). Every value a check tries is decided by the kind: valid values
+# must be accepted, and every other value refused with a TypeError or ValueError naming the keyword.
+def _real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+@dataclass(frozen=True)
+class Number:
+    """A finite real (not a bool), in [low, high] ((low, high] with ``low_open``); integral with ``integer``
+    (an integral float such as 4.0 too)."""
+
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    integer: bool = False
+
+    def valid(self, value) -> bool:
+        if not _real(value) or not math.isfinite(value) or (self.integer and not float(value).is_integer()):
+            return False
+        return (self.low < value if self.low_open else self.low <= value) and value <= self.high
+
+    def probes(self) -> list:
+        """Each finite bound (as a numpy scalar or an integral float) and a step beyond it."""
+        step = 1 if self.integer else 0.01
+        out = [np.bool_(True)]
+        if math.isfinite(self.low):
+            out += [float(self.low), self.low - step] + ([self.low + 0.5] if self.integer else [])
+        if math.isfinite(self.high):
+            out += [np.int64(self.high) if self.integer else np.float64(self.high), self.high + step]
+        return out
+
+
+@dataclass(frozen=True)
+class Pair:
+    """A (min, max) list, tuple or 1-D array of two reals, low <= min <= max <= high (integers with ``integer``)."""
+
+    low: float
+    high: float
+    integer: bool = False
+
+    def valid(self, value) -> bool:
+        if isinstance(value, np.ndarray) and value.ndim != 1:
+            return False
+        if not isinstance(value, (list, tuple, np.ndarray)) or len(value) != 2 or not all(map(_real, value)):
+            return False
+        number = Number(self.low, self.high, integer=self.integer)
+        return number.valid(value[0]) and number.valid(value[1]) and value[0] <= value[1]
+
+    def probes(self) -> list:
+        step = 1 if self.integer else 0.01
+        return [(self.low, self.high), np.array([self.low, self.low], dtype=float),
+                (self.high, self.low), (self.low - step, self.high), (self.low, self.high + step),
+                (self.low, self.high, self.high), (self.low,), (True, self.high)]
+
+
+@dataclass(frozen=True)
+class Numbers:
+    """A non-empty list, tuple or 1-D array of reals in [low, high]."""
+
+    low: float
+    high: float
+
+    def valid(self, value) -> bool:
+        if isinstance(value, np.ndarray) and value.ndim != 1:
+            return False
+        return (isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0
+                and all(Number(self.low, self.high).valid(v) for v in value))
+
+    def probes(self) -> list:
+        return [[self.low], (self.low, self.high, self.high), np.array([self.high]), [], [self.high + 0.01]]
+
+
+@dataclass(frozen=True)
+class Bool:
+    def valid(self, value) -> bool:
+        return isinstance(value, (bool, np.bool_))
+
+    def probes(self) -> list:
+        return [np.bool_(False), "True"]
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One of ``choices`` (a str)."""
+
+    choices: tuple[str, ...]
+
+    def valid(self, value) -> bool:
+        return isinstance(value, str) and value in self.choices
+
+    def probes(self) -> list:
+        return [*self.choices, self.choices[0].upper() + "?", ""]
+
+
+@dataclass(frozen=True)
+class Examples:
+    """A structured value (a mapping, a path, a text, objects): the generic probes are all wrong
+    for it; ``examples`` are valid ones."""
+
+    examples: tuple = ()
+
+    def valid(self, value) -> bool:
+        return any(value is example for example in self.examples)
+
+    def probes(self) -> list:
+        return list(self.examples)
+
+
+@dataclass(frozen=True)
+class Optional:
+    """None, or a value of ``kind``."""
+
+    kind: Any
+
+    def valid(self, value) -> bool:
+        return value is None or self.kind.valid(value)
+
+    def probes(self) -> list:
+        return [None, *self.kind.probes()]
+
+
+UNIT = Number(0.0, 1.0)
+COMMON_KINDS = {  # the humanoid keywords every env takes (environments/base.py)
+    "pd_gains": Choice(tuple(PD_GAINS)), "frame_skip": Number(1, 100, integer=True),
+    "amp_history": Number(1, 100, integer=True), "width": Number(16, 4096, integer=True),
+    "height": Number(16, 4096, integer=True),
+    "render_mode": Optional(Choice(("rgb_array",))),  # "human" would open a window: left out
+    "init": Choice(INITS), "hybrid_fraction": UNIT, "reference_motion": Optional(Examples()),
+}
+KINDS = {
+    InterLevelEnv: {
+        "reward": Choice(REWARDS), "progress_scaling": Bool(),
+        "w_location": Number(0.0), "w_facing": Number(0.0), "w_velocity": Number(0.0),
+        "sigma_before": Number(0.0, low_open=True), "sigma_after": Number(0.0, low_open=True),
+        "sigma_across": Number(0.0, low_open=True), "w_scale": Optional(Number(0.0)),
+        "target_speed": Number(0.0, 10.0), "success_reward": Number(), "failure_reward": Number(),
+        "success_radius": Number(0.0, 10.0, low_open=True), "terminate_on_success": Bool(),
+        "termination_height": UNIT,
+        # checked in [0, 10]; the character must start 0.5 m clear of the stairs (stairs_distance >= 2.0)
+        "start_radius": Number(0.0, 1.5),
+        "random_start_heading": Bool(),
+        "step_height": Pair(*STAIRS_RANGES["step_height"]),
+        "step_height_set": Optional(Numbers(*STAIRS_RANGES["step_height"])),
+        "step_depth": Pair(*STAIRS_RANGES["step_depth"]), "step_width": Pair(*STAIRS_RANGES["step_width"]),
+        "num_steps": Pair(1, 30, integer=True), "landing_depth": Number(1.0, 10.0),
+        # checked in [0.5, 20]; its min must be start_radius + 0.5 = 1.5 or more
+        "stairs_distance": Pair(1.5, STAIRS_RANGES["stairs_distance"][1]),
+        "stairs_yaw": Pair(*STAIRS_RANGES["stairs_yaw"]), "reset_noise_scale": UNIT,
+        "stairs_start_fraction": UNIT, "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)),
+        "stall_distance": Number(0.0, 100.0), "step_height_levels": Number(0, 100, integer=True),
+        "curriculum_promote_at": Optional(Number(DEMOTE_BELOW, 1.0)),  # at least curriculum_demote_below
+        "curriculum_demote_below": UNIT,
+    },
+    PlaMoEnv: {
+        "terrain": Choice(TERRAIN_KINDS), "locomotion": Optional(Choice(tuple(LOCOMOTIONS))),
+        "path_generator": Choice(PATH_GENERATORS), "episode_seconds": Number(1.0, 600.0),
+        "terrain_size": Number(2.0, 200.0), "terrain_cell_size": Number(0.01, 1.0),
+        "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
+        "max_xy_error": Number(0.0, 100.0, low_open=True), "min_head_height": UNIT, "matched_starts": Bool(),
+    },
+    PlaMoSceneEnv: {
+        "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),
+        "scene_kind": Choice(SCENE_KINDS), "scene_resample_every": Number(1, 10**9, integer=True),
+        "speed_profile": Choice(SPEED_PROFILES), "constant_speed": Number(0.0, 10.0, low_open=True),
+        "replan_horizon": Number(0.0, 10.0, low_open=True), "replan_every": Number(0.0, 10.0, low_open=True),
+        "success_radius": Number(0.0, 10.0, low_open=True), "max_xy_error": Number(0.0, 100.0, low_open=True),
+        "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
+    },
+    SIMSEnv: {
+        "skill": Choice(SKILLS), "scene": Choice(SCENES), "room": Optional(Examples()),
+        "families": lambda s: Optional(Examples((list(host_families(s["skill"], s["getup_from"])),))),
+        "scene_resample_every": Number(1, 10**9, integer=True), "details": Bool(), "text_conditioned": Bool(),
+        "text_encoder": Choice(TEXT_ENCODERS), "text_dim": Number(8, MAX_TEXT_DIM, integer=True),  # hashing
+        "captions": lambda s: Optional(Examples((list(skill_captions(s["skill"])),))),
+        "start_distance": Pair(0.0, 50.0), "walk_distance": Pair(0.0, 50.0), "target_speed": Pair(0.0, 10.0),
+        "speed_from_style": Bool(), "getup_from": Choice(GETUP_FROM),
+        "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
+        "fall_height": Number(0.0, 1.5), "terminate_on_success": Bool(),
+        # only the near-start skills take near starts, and levels only in object scenes
+        "interaction_start_fraction": lambda s: UNIT if s["skill"] in NEAR_START_SKILLS else Number(0.0, 0.0),
+        "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in NEAR_START_SKILLS
+                                                  and s["scene"] == "object" else 0, integer=True),
+    },
+}
+# Tried on every keyword: wrong for most, valid for some (True for a bool, None for an optional, ...).
+VALUES = ["garbage", 2.5, -1, True, None, [1, 2, 3], {"key": 1}, object(), float("nan"), np.array([1.0, 2.0]),
+          float("inf"), np.zeros((2, 2))]
 
 
 def _entry_point(path: str):
@@ -206,23 +414,59 @@ def _entry_point(path: str):
     return getattr(importlib.import_module(module), name)
 
 
-def _fuzz_cases():
+def _keywords(cls) -> dict[str, inspect.Parameter]:
+    return {k: p for k, p in inspect.signature(cls.__init__).parameters.items() if k != "self"}
+
+
+def _kind(cls, keyword: str, settings: dict):
+    kind = KINDS[cls].get(keyword) or COMMON_KINDS[keyword]
+    return kind(settings) if callable(kind) and not hasattr(kind, "valid") else kind
+
+
+def _cases():
+    """(class, preset kwargs, keyword, edges) for every keyword of every id. ``edges``: also try the
+    kind's own values (the bounds and just beyond, every choice); a class's keyword's range does not
+    change with the preset, so that is done on the first id of each class, and on every id where the
+    preset sets the keyword or the kind depends on the preset."""
+    seen = set()
     for env_id, preset in sorted(load_presets().items()):
         cls = _entry_point(preset["entry_point"])
-        for keyword in inspect.signature(cls.__init__).parameters:
-            if keyword != "self":
-                for k, value in enumerate(WRONG_VALUES):
-                    yield pytest.param(cls, preset["kwargs"], keyword, value, id=f"{env_id}-{keyword}-{k}")
+        for keyword in _keywords(cls):
+            kind = KINDS[cls].get(keyword) or COMMON_KINDS[keyword]
+            edges = (cls, keyword) not in seen or keyword in preset["kwargs"] or not hasattr(kind, "valid")
+            seen.add((cls, keyword))
+            yield pytest.param(cls, preset["kwargs"], keyword, edges, id=f"{env_id}-{keyword}")
 
 
-@pytest.mark.parametrize("cls, preset_kwargs, keyword, value", list(_fuzz_cases()))
-def test_wrong_types_raise_naming_the_keyword(cls, preset_kwargs, keyword, value):
-    kwargs = {**preset_kwargs, keyword: value}
-    if cls is SIMSEnv and keyword != "text_encoder":
-        kwargs.setdefault("text_encoder", "hashing")  # no MiniLM needed to check the others
-    try:
-        env = cls(**kwargs)
-    except (TypeError, ValueError) as error:
-        assert names_keyword(error, keyword), f"{type(error).__name__}: {error}"
-    else:
-        env.close()
+def test_every_keyword_has_a_kind_and_none_only_where_the_signature_allows_it():
+    for cls in KINDS:
+        for keyword, parameter in _keywords(cls).items():
+            settings = {k: p.default for k, p in _keywords(cls).items()}
+            kind = _kind(cls, keyword, settings)
+            takes_none = "None" in str(parameter.annotation) or parameter.default is None
+            assert isinstance(kind, Optional) == takes_none, f"{cls.__name__}.{keyword}: {kind}"
+            assert kind.valid(parameter.default), f"{cls.__name__}.{keyword}: default {parameter.default!r}"
+
+
+@pytest.mark.parametrize("cls, preset_kwargs, keyword, edges", list(_cases()))
+def test_keyword_refuses_wrong_values_and_accepts_valid_ones(cls, preset_kwargs, keyword, edges):
+    """Every value in turn, all failures reported together."""
+    settings = {**{k: p.default for k, p in _keywords(cls).items()}, **preset_kwargs}
+    kind = _kind(cls, keyword, settings)
+    failures = []
+    for value in VALUES + (kind.probes() if edges else []):
+        kwargs = {**preset_kwargs, keyword: value}
+        if cls is SIMSEnv and keyword != "text_encoder":
+            kwargs.setdefault("text_encoder", "hashing")  # no MiniLM needed to check the others
+        try:
+            env = cls(**kwargs)
+        except (TypeError, ValueError) as error:
+            if kind.valid(value):
+                failures.append(f"refused valid {value!r}: {type(error).__name__}: {error}")
+            elif not names_keyword(error, keyword):
+                failures.append(f"refused {value!r} without naming {keyword}: {type(error).__name__}: {error}")
+        else:
+            env.close()
+            if not kind.valid(value):
+                failures.append(f"accepted wrong {value!r}")
+    assert not failures, f"{keyword} ({kind}):\n" + "\n".join(failures)
