@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import stairenv  # noqa: F401
 from stairenv.environments.plamo import PlaMoEnv
+from stairenv.humanoid import HumanoidIndices
 from stairenv.tasks import plamo as task
 from stairenv.world.terrain import HeightfieldSlot, bilinear_height, terrain_heights
 
@@ -39,12 +40,13 @@ def test_observation_layout_on_flat_ground():
     obs, _ = env.reset(seed=1)
     s = env.observation_structure
     assert [v.stop - v.start for v in s.values()] == [113, 256, 30]
-    root = env.data.xpos[env._idx.pelvis_id]
+    pelvis = HumanoidIndices.from_model(env.model).pelvis_id
+    root = env.data.xpos[pelvis]
     np.testing.assert_allclose(obs[s["heightmap"]], -root[2])  # flat: every sample is the floor
     assert obs[0] == pytest.approx(root[2])  # root height above the (zero) terrain
     head, _ = env._head()
     first = env.path.at(0.5) - head
-    yaw = math.atan2(env.data.xmat[env._idx.pelvis_id][3], env.data.xmat[env._idx.pelvis_id][0])
+    yaw = math.atan2(env.data.xmat[pelvis][3], env.data.xmat[pelvis][0])
     c, sn = math.cos(yaw), math.sin(yaw)
     np.testing.assert_allclose(obs[s["path"]][:3], [c * first[0] + sn * first[1], -sn * first[0] + c * first[1],
                                                     first[2]], atol=1e-9)

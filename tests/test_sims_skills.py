@@ -12,13 +12,18 @@ from gymnasium.utils.env_checker import check_env
 
 import stairenv  # noqa: F401
 from stairenv.environments.sims import SIMSEnv
-from stairenv.humanoid import STANDING_ROOT_HEIGHT
+from stairenv.humanoid import STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.tasks import sims as task
 from stairenv.world.furniture import PlacedFurniture, make_furniture
 from stairenv.world.rooms import RoomConfig, generate_room
 
 SKILL_IDS = ["SIMS-Walk-v0", "SIMS-Sit-v0", "SIMS-Lie-v0", "SIMS-Reach-v0", "SIMS-GetUp-v0"]
 FAST = {"text_encoder": "hashing"}
+
+
+def indices(env) -> HumanoidIndices:
+    """The humanoid's ids in the env's model (public: the env keeps the same in a private field)."""
+    return HumanoidIndices.from_model(env.model)
 
 
 # --- rewards by hand -------------------------------------------------------------------------
@@ -191,8 +196,8 @@ def test_observation_layout_and_text():
     goal = obs[s["goal_positions"]].reshape(15, 3)
     assert np.all(goal[mask == 0] == 0)
     # the pelvis goal offset has the length of target minus root
-    root = env.data.xpos[env._idx.pelvis_id]
-    targets = env.goal.targets(env.data.xpos[env._idx.body_ids])
+    root = env.data.xpos[indices(env).pelvis_id]
+    targets = env.goal.targets(env.data.xpos[indices(env).body_ids])
     assert np.linalg.norm(goal[0]) == pytest.approx(np.linalg.norm(targets[0] - root))
     z = obs[s["text"]]
     assert np.linalg.norm(z) == pytest.approx(1.0, abs=1e-5)
@@ -220,7 +225,7 @@ def test_heightmap_sees_the_furniture():
     env = SIMSEnv(skill="sit", families=("bed",), start_distance=(1.4, 1.6), **FAST)
     obs, _ = env.reset(seed=0)
     hm = obs[env.observation_structure["heightmap"]]
-    root_z = env.data.xpos[env._idx.pelvis_id][2]
+    root_z = env.data.xpos[indices(env).pelvis_id][2]
     assert hm.min() == pytest.approx(-root_z)          # floor somewhere
     assert hm.max() > -root_z + 0.3                   # the bed within 1 m
 
@@ -229,13 +234,13 @@ def test_getup_starts_on_the_furniture_and_holding_still_keeps_it_there():
     env = SIMSEnv(skill="getup", families=("chair",), getup_from="sit", **FAST)
     _obs, info = env.reset(seed=2)
     seat = env.furniture["chair"].contact_surface("seat")
-    pelvis = env.data.xpos[env._idx.pelvis_id].copy()
+    pelvis = env.data.xpos[indices(env).pelvis_id].copy()
     assert 0.05 < pelvis[2] - seat.center[2] < 0.2
-    hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
+    hold = (env.data.qpos[indices(env).qpos_joints] - env._ctrl_offset) / env._ctrl_scale
     for _ in range(60):
         _obs, _reward, terminated, _truncated, info = env.step(hold)
     assert not terminated and not info["success"]
-    assert np.linalg.norm(env.data.xpos[env._idx.pelvis_id] - pelvis) < 0.1
+    assert np.linalg.norm(env.data.xpos[indices(env).pelvis_id] - pelvis) < 0.1
 
 
 def test_success_flag_when_the_pelvis_is_on_the_seat():
@@ -244,7 +249,7 @@ def test_success_flag_when_the_pelvis_is_on_the_seat():
     env.place_on(env.furniture["stool"], "sit")
     _obs, info = env.set_task("sit", "stool")
     assert info["success"] and info["contact_error"] < 0.2
-    hold = (env.data.qpos[env._idx.qpos_joints] - env._ctrl_offset) / env._ctrl_scale
+    hold = (env.data.qpos[indices(env).qpos_joints] - env._ctrl_offset) / env._ctrl_scale
     _obs, _reward, _terminated, _truncated, info = env.step(hold)
     assert info["success"] and info["success_once"]
     assert info["reward_near"] > 0.6 * math.exp(-10 * 0.2 ** 2)
