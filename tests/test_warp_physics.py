@@ -52,6 +52,25 @@ def test_physics_threads_sizes_the_pool():
         batched(1, physics="gpu")
 
 
+def test_a_replicated_env_equals_a_freshly_built_one():
+    """``replicate`` (how a device back-end's batched env makes its worlds): its own model and data, and
+    the same episodes as an env built anew."""
+    from stairenv.environments.interlevel import InterLevelEnv
+    first = InterLevelEnv()
+    clone, fresh = first.replicate(), InterLevelEnv()
+    assert clone.model is not first.model and clone.data is not first.data
+    rng = np.random.default_rng(0)
+    for env in (clone, fresh):
+        env.reset(seed=5)
+    first.reset(seed=99)    # the original going on does not touch its copy
+    for _ in range(20):
+        action = rng.uniform(-1, 1, 28)
+        got, want = clone.step(action), fresh.step(action)
+        first.step(action)
+        np.testing.assert_array_equal(got[0], want[0])
+        assert got[1:4] == want[1:4]
+
+
 # --- with MuJoCo Warp (on its CPU device here) ------------------------------------------------------
 warp_only = pytest.mark.skipif(not __import__("importlib").util.find_spec("mujoco_warp"),
                                reason="mujoco_warp is not installed (pip install 'stairenv[gpu]')")
