@@ -20,8 +20,10 @@ Measured, each size in its own try (a failure is recorded and the next size runs
   warm-up iteration, env steps/s end to end (collect + update) and the collect alone. The policy runs on
   the CPU: the trainer has no device option yet (``policy_device`` in the JSON says so).
 
-Each measurement stops at its time budget (``--budget`` seconds of timed steps), so the whole run is
-bounded: about 5 minutes on an H100 with the defaults. Output: a table on stdout (flushed line by line)
+Each measurement stops at its time budget (``--budget`` seconds of timed steps) and none starts after
+``--deadline`` seconds, so the whole run is bounded (about 5-6 minutes with the defaults, most of it
+building 13,000 worlds on the host and compiling Warp's CUDA kernels once). Order: the C env, the Warp
+sizes up to ``--train-size`` (the trainer runs on that size's env), the C trainer, the larger sizes. Output: a table on stdout (flushed line by line)
 and, with ``--out``, every figure as JSON (the card, versions, sizes, rates, failures).
 """
 
@@ -55,11 +57,10 @@ def gpu_name() -> str:
         return f"unknown ({error})"
 
 
-def make(n: int, physics: str, **kwargs):
-    import gymnasium as gym
-    import stairenv  # noqa: F401
-    return gym.make_vec("InterLevel-v0", num_envs=n, vectorization_mode="vector_entry_point", physics=physics,
-                        **kwargs)
+def make(n: int, physics: str):
+    """The batched env the lean trainer builds (``make_env``: its amp_history, the registration's limit)."""
+    from stairenv.training import TrainConfig, make_env
+    return make_env(TrainConfig(num_envs=n, physics=physics))
 
 
 def time_steps(step, warmup: int, max_steps: int, budget: float) -> tuple[int, float]:
@@ -73,8 +74,9 @@ def time_steps(step, warmup: int, max_steps: int, budget: float) -> tuple[int, f
     return steps, time.perf_counter() - start
 
 
-def bench_env(n: int, physics: str, args) -> dict:
-    """Env steps/s of the batched env (and, for warp, of its physics alone and of the device alone)."""
+def bench_env(n: int, physics: str, args, keep: dict | None = None) -> dict:
+    """Env steps/s of the batched env (and, for warp, of its physics alone and of the device alone);
+    the env is left in ``keep["venv"]`` (for the trainer) when ``keep`` is given, else closed."""
     built = time.perf_counter()
     vec = make(n, physics)
     vec.reset(seed=0)
@@ -99,7 +101,7 @@ def bench_env(n: int, physics: str, args) -> dict:
         for env in vec.envs:    # stand everyone up again: a fallen world's NaN-free state is all we need
             env.data.qvel[:] = 0.0
         steps, seconds = time_steps(lambda: physics_impl.step(worlds, frame_skip), 2, args.max_steps,
-                                    args.budget / 2)
+                                    args.budget / 3)
         out.update(physics_steps=steps, physics_steps_per_s=round(n * steps / seconds))
         say(f"warp physics alone (copies included), {n} worlds: {out['physics_steps_per_s']:,} env steps/s")
         launch = physics_impl._launch
@@ -110,18 +112,22 @@ def bench_env(n: int, physics: str, args) -> dict:
                 launch(frame_skip)
                 wp.synchronize_device(physics_impl.device)
 
-        steps, seconds = time_steps(device_step, 2, args.max_steps * 4, args.budget / 2)
+        steps, seconds = time_steps(device_step, 2, args.max_steps * 4, args.budget / 3)
         out.update(device_steps=steps, device_steps_per_s=round(n * steps / seconds),
                    device_physics_steps_per_s=round(n * steps * frame_skip / seconds))
         say(f"warp device alone, {n} worlds: {out['device_steps_per_s']:,} env steps/s "
             f"({out['device_physics_steps_per_s']:,} physics steps/s); overflows {physics_impl.overflows}")
         out["overflows"] = physics_impl.overflows
-    vec.close()
+    if keep is not None:
+        keep["venv"] = vec
+    else:
+        vec.close()
     return out
 
 
-def bench_train(n: int, physics: str, args) -> dict:
-    """The lean trainer end to end (PPO + AMP), env steps/s over a few iterations after one warm-up."""
+def bench_train(n: int, physics: str, args, venv=None) -> dict:
+    """The lean trainer end to end (PPO + AMP), env steps/s over a few iterations after one warm-up
+    (on ``venv`` if given: an env of ``make`` with ``n`` worlds, saving its build)."""
     import torch
 
     from stairenv.style.wrappers import default_reference
@@ -130,7 +136,7 @@ def bench_train(n: int, physics: str, args) -> dict:
     threads = max(1, (os.cpu_count() or 2) // 2)
     config = TrainConfig(num_envs=n, physics=physics, total_steps=10**12, torch_threads=threads,
                          checkpoint_every=10**12)
-    venv = make_env(config)
+    venv = venv if venv is not None and venv.num_envs == n else make_env(config)
     trainer = Trainer(config, build_style(config, default_reference(venv)), venv)
     out = {"worlds": n, "physics": physics, "policy_device": "cpu", "torch_threads": threads,
            "cuda_visible_to_torch": bool(torch.cuda.is_available()), "rollout_steps": config.rollout_steps}
@@ -152,7 +158,7 @@ def bench_train(n: int, physics: str, args) -> dict:
                collect_steps_per_s=round(samples / collect_s), train_steps_per_s=round(samples / (collect_s + update_s)))
     say(f"train {physics}, {n} worlds: {out['train_steps_per_s']:,} env steps/s end to end "
         f"(collect alone {out['collect_steps_per_s']:,}/s; {iterations} iterations)")
-    trainer.close() if hasattr(trainer, "close") else venv.close()
+    trainer.close()
     return out
 
 
@@ -173,23 +179,31 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--train-size", type=int, default=4096, help="worlds of the trainer with Warp (0: none)")
     p.add_argument("--train-c-size", type=int, default=256, help="worlds of the trainer with C (0: none)")
     p.add_argument("--train-iterations", type=int, default=3)
-    p.add_argument("--budget", type=float, default=20.0, help="seconds of timed steps per measurement")
+    p.add_argument("--budget", type=float, default=15.0, help="seconds of timed steps per measurement")
+    p.add_argument("--deadline", type=float, default=330.0,
+                   help="seconds after which no further measurement starts (the JSON keeps what was done)")
     p.add_argument("--max-steps", type=int, default=300, help="timed env steps per measurement at most")
     p.add_argument("--warmup", type=int, default=5, help="untimed env steps after the first")
     p.add_argument("--quick", action="store_true", help="tiny sizes and budgets: checks that it runs")
     p.add_argument("--out", help="write the figures as JSON here")
     args = p.parse_args(argv)
     if args.quick:
-        args.sizes, args.c_size, args.train_size, args.train_c_size = "8,16", 8, 8, 8
+        args.c_size, args.train_size, args.train_c_size = 8, 8, 8
+        args.sizes = "8,16"
         args.budget, args.max_steps, args.warmup, args.train_iterations = 3.0, 10, 1, 1
     sizes = [int(s) for s in args.sizes.split(",") if s]
+    sizes = sorted(n for n in sizes if n <= args.train_size) + sorted(n for n in sizes if n > args.train_size)
     result = {"card": gpu_name(), "cpu_count": os.cpu_count(), "versions": versions(), "args": vars(args),
               "env": [], "train": [], "failures": []}
     say(f"device {result['card']}; {result['cpu_count']} CPU cores; {result['versions']}")
 
-    def attempt(kind: str, fn, *fn_args) -> None:
+    def attempt(kind: str, fn, *fn_args, **fn_kwargs) -> None:
+        if time.perf_counter() - T0 > args.deadline:
+            say(f"skipped {kind} {fn_args[:2]}: past the deadline ({args.deadline:.0f} s)")
+            result["failures"].append({"what": kind, "args": list(fn_args[:2]), "error": "skipped: deadline"})
+            return
         try:
-            result[kind].append(fn(*fn_args))
+            result[kind].append(fn(*fn_args, **fn_kwargs))
         except Exception as error:    # noqa: BLE001  (recorded; the next measurement runs)
             text = f"{kind} {fn_args[:2]}: {type(error).__name__}: {error}"
             say(f"FAILED {text}")
@@ -199,11 +213,15 @@ def main(argv: list[str] | None = None) -> dict:
             with open(args.out, "w") as f:
                 json.dump(result, f, indent=1)
 
+    # cheapest first, the trainer on the env of its size (saving a build), the largest size last
     if args.c_size:
         attempt("env", bench_env, args.c_size, "mujoco", args)
     for n in sizes:
-        attempt("env", bench_env, n, "warp", args)
-    if args.train_size:
+        keep: dict = {}
+        attempt("env", bench_env, n, "warp", args, keep if n == args.train_size else None)
+        if n == args.train_size:
+            attempt("train", bench_train, n, "warp", args, keep.get("venv"))
+    if args.train_size and args.train_size not in sizes:
         attempt("train", bench_train, args.train_size, "warp", args)
     if args.train_c_size:
         attempt("train", bench_train, args.train_c_size, "mujoco", args)

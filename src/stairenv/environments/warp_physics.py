@@ -102,12 +102,13 @@ class WarpPhysics:
     """All worlds of a batched env on one MuJoCo Warp model (see the module docstring).
 
     ``device``: a Warp device ("cuda:0", "cpu"; default Warp's preferred one: the first GPU, else the
-    CPU); ``nconmax`` / ``njmax``: contacts and constraint rows per world on the device (the C back-end
-    saw at most 8 and 32 with random actions on InterLevel); ``graph``: replay the ``nstep`` substeps
+    CPU); ``nconmax`` / ``njmax``: contacts (a pool of ``nconmax x nworld`` shared by all worlds) and
+    constraint rows per world on the device (the C back-end saw at most 8 contacts and 32 rows in 3,000
+    steps of random actions on InterLevel; a world that overflows is counted in ``overflows``); ``graph``: replay the ``nstep`` substeps
     as one CUDA graph (GPU only). ``bind(worlds)`` must be called once with every world of the batch
     before ``step`` (the batched env does)."""
 
-    def __init__(self, device: str | None = None, nconmax: int = 64, njmax: int = 256, graph: bool = True) -> None:
+    def __init__(self, device: str | None = None, nconmax: int = 32, njmax: int = 128, graph: bool = True) -> None:
         self._wp, self._mjw = _import_warp()
         wp = self._wp
         wp.config.quiet = True
