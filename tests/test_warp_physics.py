@@ -2,10 +2,10 @@
 
 MuJoCo Warp computes in float32 and generates some contacts differently (box-box: the feet, which are
 boxes, against each other or a tread), so it follows the C back-end within a tolerance, not bit for bit.
-Measured on this model (``docs/gpu.md``): one env step (8 substeps) from the same state and actions with
-only floor contacts differs by <= 2e-6 m / rad in qpos and <= 1e-4 in qvel (float32 rounding); a step
-with self-contacts (a hand on the pelvis) or box-box contacts (a foot on the other foot, on a tread),
-which the two back-ends resolve differently, by up to ~1e-2 m and ~2.5 rad/s.
+Measured on this model (``docs/gpu.md``), one env step (8 substeps) from the same state and actions: in
+96% of 295 world-steps the two differ by float32 rounding (<= 3.1e-6 m or rad in qpos, <= 6.9e-5 in qvel);
+in the rest, steps with contacts the two back-ends resolve differently (a hand resting on the pelvis, a
+foot on the other foot or a tread: box-box), by up to ~2e-2 m and ~5 rad/s.
 The tolerances below are ~10-20x the float32 figures for the tight checks, and bound the contact-set
 differences for the rest. Skipped where ``mujoco_warp`` is not installed (the ``gpu`` extra); the first run
 compiles Warp's CPU kernels (~45 s on 2 cores, then cached in ``WARP_CACHE_PATH`` / ~/.cache/warp).
@@ -21,9 +21,11 @@ import stairenv  # noqa: F401
 from stairenv.environments.batch_physics import ThreadPoolPhysics
 from stairenv.environments.vector import HumanoidVectorEnv
 
-# tight: float32 rounding of one 8-substep step with floor contacts only (measured <= 2e-6 / 1e-4 / 1e-4 / 6e-7)
-QPOS_TOL, QVEL_TOL, OBS_TOL, REWARD_TOL = 1e-5, 1e-3, 1e-3, 1e-5
-# loose: a step whose box-box contact sets differ (measured up to 1e-2 m, 2.3 rad/s)
+# tight: float32 rounding of one 8-substep step (measured over 295 world-steps: <= 3.1e-6 m or rad in qpos,
+# 6.9e-5 in qvel and obs); the reward differentiates root positions over dt = 1/30 s, so a few 1e-6 m give
+# up to 1.3e-3 (measured) in its velocity term
+QPOS_TOL, QVEL_TOL, OBS_TOL, REWARD_TOL = 1e-5, 1e-3, 1e-3, 5e-3
+# loose: a step whose contacts the back-ends resolve differently (measured up to 2.3e-2 m, 4.8 rad/s)
 QPOS_LOOSE, QVEL_LOOSE = 0.05, 10.0
 
 
@@ -119,7 +121,7 @@ def test_one_step_from_the_same_state_matches_the_c_backend():
         assert np.abs(ow - oc)[close].max() < OBS_TOL and np.abs(rw - rc)[close].max() < REWARD_TOL
         assert (tw == tc).all() and (uw == uc).all() and not iw["physics_unstable"].any()
         for key in ("reward_location", "progress"):
-            np.testing.assert_allclose(iw[key][close], ic[key][close], atol=1e-4)
+            np.testing.assert_allclose(iw[key][close], ic[key][close], atol=1e-3)
     assert tight >= 0.75 * 3 * n, tight
     warp.close()
     c.close()
@@ -128,7 +130,7 @@ def test_one_step_from_the_same_state_matches_the_c_backend():
 @warp_only
 def test_steps_from_the_same_states_stay_within_tolerance():
     """30 steps x 4 worlds, each step from the C back-end's state: most world-steps agree to float32
-    rounding; the others (box-box contact sets that differ) stay within the loose bound."""
+    rounding (measured: 96%); the others (contacts resolved differently) stay within the loose bound."""
     n = 4
     warp, c = batched(n, physics="warp"), batched(n, physics="serial")
     warp.reset(seed=3)

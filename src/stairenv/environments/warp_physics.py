@@ -55,7 +55,8 @@ from collections.abc import Callable, Sequence
 import mujoco
 import numpy as np
 
-from stairenv.environments.batch_physics import World
+# a world as ``batch_physics.World`` (not imported from there: ``make_physics`` imports this module)
+World = tuple[mujoco.MjModel, mujoco.MjData]
 
 #: model fields that a world's staircase writes (``StairsSlots.place``): given a world dimension on the device
 PER_WORLD_MODEL_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_rbound", "geom_aabb")
