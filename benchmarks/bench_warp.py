@@ -117,7 +117,8 @@ def bench_env(n: int, physics: str, args, keep: dict | None = None) -> dict:
                    device_physics_steps_per_s=round(n * steps * frame_skip / seconds))
         say(f"warp device alone, {n} worlds: {out['device_steps_per_s']:,} env steps/s "
             f"({out['device_physics_steps_per_s']:,} physics steps/s); overflows {physics_impl.overflows}")
-        out["overflows"] = physics_impl.overflows
+        out.update(overflows=physics_impl.overflows, device=str(physics_impl.device), cuda_graph=physics_impl.graph,
+                   graph_error=physics_impl.graph_error)
     if keep is not None:
         keep["venv"] = vec
     else:

@@ -186,6 +186,25 @@ def test_each_world_keeps_its_own_staircase_on_the_device():
 
 
 @warp_only
+def test_a_captured_graph_steps_as_kernel_launches_do():
+    """The substeps captured once and replayed (a CUDA graph on a GPU; Warp replays graphs on its CPU
+    device too) give exactly what launching them one by one gives, resets in between included."""
+    from stairenv.environments.warp_physics import WarpPhysics
+    runs = []
+    for graph in (False, True):
+        physics = WarpPhysics(device="cpu", graph=graph)
+        vec = batched(3, physics=physics, max_episode_steps=3)
+        vec.reset(seed=0)
+        rng = np.random.default_rng(0)
+        runs.append([vec.step(rng.uniform(-1, 1, (3, 28)))[:4] for _ in range(7)])
+        assert physics.graph is graph and physics.graph_error is None
+        vec.close()
+    for (a, b) in zip(*runs):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
+@warp_only
 def test_a_divergence_truncates_that_world_only():
     vec = batched(3, physics="warp")
     vec.reset(seed=0)
