@@ -226,6 +226,20 @@ def test_a_divergence_truncates_that_world_only():
 
 
 @warp_only
+@pytest.mark.parametrize("env_id", ["InterLevel2D-v0", "InterSceneStairs-v0"])
+def test_the_ablation_ids_run_on_warp(env_id):
+    warp, c = batched(2, env_id, physics="warp"), batched(2, env_id, physics="serial")
+    warp.reset(seed=0)
+    c.reset(seed=0)
+    action = np.full((2, 28), 0.1)
+    ow, rw, *_ = warp.step(action)
+    oc, rc, *_ = c.step(action)
+    assert np.abs(ow - oc).max() < QVEL_LOOSE and np.abs(rw - rc).max() < 0.1
+    warp.close()
+    c.close()
+
+
+@warp_only
 def test_the_lean_trainer_runs_on_warp_physics():
     from stairenv.training import Trainer, TrainConfig
     config = TrainConfig(num_envs=2, physics="warp", rollout_steps=4, minibatch_size=8, epochs=1, style="none",
