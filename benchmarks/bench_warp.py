@@ -23,8 +23,9 @@ Measured, each size in its own try (a failure is recorded and the next size runs
 Each measurement stops at its time budget (``--budget`` seconds of timed steps) and none starts after
 ``--deadline`` seconds, so the whole run is bounded (about 5-6 minutes with the defaults, most of it
 building 13,000 worlds on the host and compiling Warp's CUDA kernels once). Order: the C env, the Warp
-sizes up to ``--train-size`` (the trainer runs on that size's env), the C trainer, the larger sizes. Output: a table on stdout (flushed line by line)
-and, with ``--out``, every figure as JSON (the card, versions, sizes, rates, failures).
+sizes up to ``--train-size`` (the trainer runs on that size's env), the C trainer, the larger sizes.
+Output: a table on stdout (flushed line by line) and, with ``--out``, every figure as JSON (the card,
+versions, sizes, rates, failures), rewritten after each measurement.
 """
 
 from __future__ import annotations
@@ -156,7 +157,8 @@ def bench_train(n: int, physics: str, args, venv=None) -> dict:
         collect_s, update_s, iterations = collect_s + t1 - t, update_s + t2 - t1, iterations + 1
     samples = iterations * config.batch_size
     out.update(iterations=iterations, collect_s=round(collect_s, 3), update_s=round(update_s, 3),
-               collect_steps_per_s=round(samples / collect_s), train_steps_per_s=round(samples / (collect_s + update_s)))
+               collect_steps_per_s=round(samples / collect_s),
+               train_steps_per_s=round(samples / (collect_s + update_s)))
     say(f"train {physics}, {n} worlds: {out['train_steps_per_s']:,} env steps/s end to end "
         f"(collect alone {out['collect_steps_per_s']:,}/s; {iterations} iterations)")
     trainer.close()

@@ -66,7 +66,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
                  max_episode_steps: int | None = None, physics: str | BatchPhysics = "mujoco",
-                 physics_threads: int | None = None, nthread: int | None = None, batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 physics_threads: int | None = None, nthread: int | None = None,
+                 batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         env_class = env_class or self.env_class
         if env_class is None:

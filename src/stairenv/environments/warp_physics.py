@@ -20,8 +20,9 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
   writes into ``qvel``, a test's forced divergence all reach the device without being announced);
   ``nstep`` substeps of ``mujoco_warp.step`` on the device (one CUDA graph on a GPU); then ``qpos``,
   ``qvel``, ``act`` and ``qacc_warmstart`` down (one copy per field, not per world) into each stepped
-  world's ``MjData``, its ``time`` advanced there by ``nstep`` timesteps in float64 as ``mj_step`` does. The env then runs ``mj_kinematics`` on the host
-  (``_physics_sound``, as after ``mj_step``), so the body poses the task reads come from these ``qpos``.
+  world's ``MjData``, its ``time`` advanced there by ``nstep`` timesteps in float64 as ``mj_step`` does.
+  The env then runs ``mj_kinematics`` on the host (``_physics_sound``, as after ``mj_step``), so the body
+  poses the task reads come from these ``qpos``.
 
 Options (integrator, solver, iterations, line-search iterations, tolerances, timestep, cone) are the
 ``MjModel``'s: ``mujoco_warp.put_model`` reads them, and ``settings()`` reports both sides. MuJoCo Warp
@@ -105,10 +106,10 @@ class WarpPhysics:
     ``device``: a Warp device ("cuda:0", "cpu"; default Warp's preferred one: the first GPU, else the
     CPU); ``nconmax`` / ``njmax``: contacts (a pool of ``nconmax x nworld`` shared by all worlds) and
     constraint rows per world on the device (the C back-end saw at most 8 contacts and 32 rows in 3,000
-    steps of random actions on InterLevel; a world that overflows is counted in ``overflows``); ``graph``: replay the ``nstep`` substeps
-    as one captured graph (default: on a GPU, where it saves a launch per kernel; Warp replays graphs on
-    its CPU device too, which the tests use to check the capture). ``bind(worlds)`` must be called once with every world of the batch
-    before ``step`` (the batched env does)."""
+    steps of random actions on InterLevel; overflows are counted in ``overflows``); ``graph``: replay the
+    ``nstep`` substeps as one captured graph (default: on a GPU, where it saves a launch per kernel; Warp
+    replays graphs on its CPU device too, which the tests use to check the capture). ``bind(worlds)`` must
+    be called once with every world of the batch before ``step`` (the batched env does)."""
 
     def __init__(self, device: str | None = None, nconmax: int = 32, njmax: int = 128,
                  graph: bool | None = None) -> None:
@@ -126,7 +127,8 @@ class WarpPhysics:
         self.worlds: list[World] = []
         self._slot: dict[int, int] = {}
         self._graphs: dict[int, object] = {}
-        #: worlds whose buffers overflowed (contacts or constraints dropped) since construction
+        #: world-steps whose device buffers overflowed (contacts or constraint rows dropped; a full contact
+        #: pool flags every world of that step), since construction
         self.overflows = 0
 
     # --- binding ----------------------------------------------------------------------------------

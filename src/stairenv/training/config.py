@@ -23,7 +23,7 @@ class TrainConfig:
     | env_id | "InterLevel-v0" | registered stairenv id |
     | env_kwargs | {} | keyword arguments of the env (training aids included: the evaluation drops them) |
     | num_envs | 128 | worlds stepped together |
-    | physics | "mujoco" | the batched env's physics back-end ("mujoco": MuJoCo's C library on a thread pool, also "threads"; "serial"; "warp": MuJoCo Warp on a GPU, InterLevel ids, the ``gpu`` extra) |
+    | physics | "mujoco" | the batched env's physics ("mujoco": C library, thread pool; "serial"; "warp": GPU) |
     | physics_threads | None | threads of the "mujoco" pool (None: the cores) |
     | seed | 0 | seeds torch, the trainer's generators and the worlds (world i: seed + i) |
     | total_steps | 2,000,000 | env steps (all worlds together) |
