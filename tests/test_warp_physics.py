@@ -8,7 +8,7 @@ in the rest, steps with contacts the two back-ends resolve differently (a hand r
 foot on the other foot or a tread: box-box), by up to ~2e-2 m and ~5 rad/s.
 The tolerances below are ~10-20x the float32 figures for the tight checks, and bound the contact-set
 differences for the rest. Skipped where ``mujoco_warp`` is not installed (the ``gpu`` extra); the first run
-compiles Warp's CPU kernels (~45 s on 2 cores, then cached in ``WARP_CACHE_PATH`` / ~/.cache/warp).
+compiles Warp's CPU kernels (~35 s of one core, then cached in ``WARP_CACHE_PATH`` / ~/.cache/warp).
 """
 
 from __future__ import annotations
