@@ -11,6 +11,7 @@
     python baselines/train_ppo.py --init-from checkpoints/InterLevel-v0/ppo_3200000_steps.zip   # from an SB3 run
     python baselines/train_ppo.py --env SIMS-Sit-v0 --amp-text-condition   # SIMS: discriminator sees the caption
     python baselines/train_ppo.py --trainer sb3 ...       # Stable-Baselines3 PPO instead (ppo_<n>_steps.zip)
+    torchrun --nproc-per-node 2 baselines/train_ppo.py --n-envs 64 ...   # data-parallel: 2 ranks x 64 worlds
 
 Two trainers run the same algorithm with the same flags. ``--trainer lean`` (the default):
 ``stairenv.training``, PPO + AMP written for the batched env's arrays (the loop is
@@ -19,6 +20,12 @@ checkpoint, one ``checkpoint_<n>.pt`` holding policy, optimiser, normalisers, di
 levels, step counter and generators, read without running code, ``replay_<n>.npy`` beside the latest;
 ``--resume`` continues exactly; ``final_policy.npz`` is the numpy policy ``stairenv.pretrained`` loads).
 ``--trainer sb3``: Stable-Baselines3 PPO with VecNormalize and the AMP wrapper (the files below).
+Under ``torchrun`` (``--nproc-per-node P``, ``--nnodes N --rdzv-backend c10d --rdzv-endpoint HOST:PORT``
+across machines) the lean trainer runs data-parallel (``stairenv.training.distributed``): each rank its
+own ``--n-envs`` worlds (world j of rank r seeded as world ``r x n_envs + j`` of the run), gradients
+averaged, statistics merged, ``--timesteps`` counting every rank's steps, rank 0 printing, logging,
+checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count (exact with the same);
+``--device cuda``: each rank on ``cuda:LOCAL_RANK``, nccl beside gloo.
 ``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
@@ -49,8 +56,10 @@ policy. ``--resume`` continues a run exactly (the checkpoint's own settings and 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
 that started on the floor alone (``episode_floor_start/*``, the ones comparable with the evaluation
-when ``stairs_start_fraction`` starts others on the staircase). With a step-height curriculum
-(``--env-kwarg step_height_levels=N``) the worlds' mean level as ``curriculum/level``, the levels
+when ``stairs_start_fraction`` starts others on the staircase; the lean trainer also leaves SIMS' episodes
+started at the furniture by ``interaction_start_fraction`` out of them). With a step-height curriculum
+(``--env-kwarg step_height_levels=N``) or SIMS' start-distance curriculum (``start_distance_levels=N``)
+the worlds' mean level as ``curriculum/level``, the levels
 saved beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``--resume`` and
 ``--init-from``. The final evaluation leaves the training aids (``TRAINING_AIDS``) out.
 
@@ -80,6 +89,7 @@ import argparse
 import dataclasses
 import importlib.util
 import json
+import os
 import sys
 import time
 import tomllib
@@ -103,7 +113,9 @@ from stairenv.motion.rsi import load_reference_library
 from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.tasks import curriculum
 from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
+from stairenv.training.distributed import LOCAL, DataParallel
 from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
     AdaptiveLearningRate,
@@ -307,7 +319,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
-                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below")
+                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below",
+                 "interaction_start_fraction", "start_distance_levels")
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:
@@ -414,7 +427,23 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
 
 
 def train_lean(args: argparse.Namespace) -> Path:
-    """The lean trainer (``stairenv.training``): PPO + AMP on the batched env's arrays."""
+    """The lean trainer (``stairenv.training``): PPO + AMP on the batched env's arrays; under torchrun
+    one data-parallel rank of it (``stairenv.training.distributed``)."""
+    parallel = DataParallel.from_environment(args.device)
+    try:
+        return _train_lean(args, parallel or LOCAL)
+    finally:
+        if parallel is not None:
+            parallel.close()
+
+
+def _train_lean(args: argparse.Namespace, parallel) -> Path:
+    first = parallel.rank == 0    # rank 0 prints, logs, writes and evaluates
+
+    def say(*words, **kwargs) -> None:
+        if first:
+            print(*words, **kwargs)
+
     resume, init = _lean_start(args)
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
@@ -430,14 +459,17 @@ def train_lean(args: argparse.Namespace) -> Path:
         env_kwargs = run_env_kwargs(args)
         config = None
     if args.vec_env != "batched":
-        print(f"note: the lean trainer steps the batched env ({args.vec_env!r} is --trainer sb3's)", file=sys.stderr)
+        say(f"note: the lean trainer steps the batched env ({args.vec_env!r} is --trainer sb3's)", file=sys.stderr)
     reference = reference_windows(args, env_kwargs)
     if config is None:
         config = lean_config(args, env_kwargs)
     elif reference is not None:
         config = config.replace(env_kwargs=env_kwargs)
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
-    trainer = Trainer(config, build_style(config, reference))
+    trainer = Trainer(config, build_style(config, reference, parallel.rank), parallel=parallel)
+    if parallel.world_size > 1:
+        say(f"data-parallel: {parallel.world_size} ranks x {config.num_envs} worlds "
+            f"({parallel.world_size * config.num_envs} in all); --timesteps counts them all")
     if resume is not None:
         try:
             trainer.load_state(resume)
@@ -446,31 +478,37 @@ def train_lean(args: argparse.Namespace) -> Path:
             raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
                              "text-conditioned run needs --amp-text-condition again") from None
         note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
-        print(f"resumed from {args.resume} at {trainer.steps} steps{note}")
+        saved_ranks = int(resume.get("world_size", 1))
+        if saved_ranks != parallel.world_size:
+            note += f" (written by {saved_ranks} ranks, going on with {parallel.world_size}: not exact)"
+        say(f"resumed from {args.resume} at {trainer.steps} steps{note}")
     elif init is not None:
         try:
             trainer.load_state(init, weights_only=True)
         except (RuntimeError, ValueError, KeyError) as err:
             raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
                              "--policy-hidden and --env it was trained with") from None
-        print(f"initialised from {args.init_from} (weights, optimiser, statistics"
-              f"{', discriminator' if init.get('style') else ''})")
-    log = RunLog(run_dir)
+        say(f"initialised from {args.init_from} (weights, optimiser, statistics"
+            f"{', discriminator' if init.get('style') else ''})")
+    log = RunLog(run_dir) if first else None
     start_steps, start, start_cpu = trainer.steps, time.perf_counter(), time.process_time()
     try:
         trainer.learn(log, run_dir / "checkpoints")
     finally:
-        log.close()
+        if log is not None:
+            log.close()
     seconds = time.perf_counter() - start
-    print(f"trained {trainer.steps - start_steps} env steps in {seconds:.1f} s "
-          f"({(trainer.steps - start_steps) / max(seconds, 1e-9):.0f} env steps/s)")
-    print(cpu_line(trainer.steps - start_steps, seconds, time.process_time() - start_cpu))
+    say(f"trained {trainer.steps - start_steps} env steps in {seconds:.1f} s "
+        f"({(trainer.steps - start_steps) / max(seconds, 1e-9):.0f} env steps/s)")
+    say(cpu_line(trainer.steps - start_steps, seconds, time.process_time() - start_cpu)
+        + (" (rank 0)" if parallel.world_size > 1 else ""))
     final = trainer.save(run_dir / "final_checkpoint.pt")
     policy_path = run_dir / "final_policy.npz"
-    trainer.policy().save(policy_path)
+    if first:
+        trainer.policy().save(policy_path)
     trainer.close()
-    print(f"saved {final} and {policy_path}")
-    if args.eval_episodes > 0:
+    say(f"saved {final} and {policy_path}")
+    if args.eval_episodes > 0 and first:
         report = evaluator_for(config.env_id)(
             load_policy(str(policy_path), gym.make(config.env_id, **env_kwargs)), env_id=config.env_id,
             episodes=args.eval_episodes, seed=10_000 + config.seed, env_kwargs=evaluation_kwargs(env_kwargs),
@@ -485,6 +523,9 @@ def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
     if args.trainer == "lean":
         return train_lean(args)
+    if "WORLD_SIZE" in os.environ and int(os.environ["WORLD_SIZE"]) > 1:
+        raise SystemExit("--trainer sb3 trains in one process; data-parallel training (torchrun) is the lean "
+                         "trainer's")
     if args.torch_threads is not None:
         torch.set_num_threads(args.torch_threads)
     env_kwargs = run_env_kwargs(args)
@@ -581,7 +622,7 @@ def main(argv: list[str] | None = None) -> Path:
     callbacks.append(EpisodeStatsCallback())
     if args.adaptive_kl is not None:
         callbacks.append(AdaptiveLearningRate(args.adaptive_kl))
-    if env_kwargs.get("step_height_levels"):
+    if any(env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
         callbacks.append(CurriculumCallback(save_freq, run_dir / "checkpoints"))
         saved = curriculum_state_beside(checkpoint) if checkpoint is not None else None
         if saved is not None:

@@ -55,6 +55,25 @@ def test_videos_of_the_other_envs(tmp_path, env_id):
     assert frames.shape[1:] == (72, 96, 3) and frames.std() > 5
 
 
+def test_one_episode_to_its_end(tmp_path):
+    """Without seconds: one episode until it ends, its outcome held on the last frame, captions drawn."""
+    from stairenv.__main__ import OUTCOME_HOLD_SECONDS, caption_frame, outcome_of, record
+
+    summary = record(policy="zero", seconds=None, out=tmp_path / "v.mp4", width=96, height=72, progress_bar=False)
+    hold = int(round(OUTCOME_HOLD_SECONDS * summary["fps"]))
+    assert summary["episodes"] == 1 and summary["outcome"] == "fell"  # the zero policy collapses
+    assert summary["frames"] == summary["steps"] + 1 + hold
+    frames = iio.imread(tmp_path / "v.mp4")
+    assert frames.shape[0] == summary["frames"]
+    assert np.abs(frames[-1].astype(int) - frames[-hold].astype(int)).mean() < 2  # the held last frame
+    # the banner is drawn (a dark band with light text) and the outcome words come from info
+    blank = np.full((72, 96, 3), 128, np.uint8)
+    assert np.abs(caption_frame(blank, ["x"], "FELL").astype(int) - 128).sum() > 0
+    assert outcome_of({"success": True}, True, False) == "success"
+    assert outcome_of({"physics_unstable": True, "fell": True}, False, True) == "physics diverged"
+    assert outcome_of({}, False, True) == "time limit" and outcome_of({}, False, False) == "still running"
+
+
 def test_bad_arguments(tmp_path):
     result = _run("--policy", "nope", "--out", str(tmp_path / "v.mp4"))
     assert result.returncode == 2 and "policy must be one of" in result.stderr

@@ -25,3 +25,11 @@ def test_interactions_filmstrip(tmp_path, baseline_script):
                                                    "--height-px", "96", "--out", str(out)]) == 0
     image = iio.imread(out)
     assert image.shape[0] >= 96 and image.shape[2] == 3 and image.std() > 5
+
+
+def test_plamo_filmstrip(tmp_path, baseline_script):
+    out = tmp_path / "plamo.png"
+    assert baseline_script("filmstrip_plamo").main(["--clips", "dm_walk", "crouch_walk_1.0mps", "--frames", "2",
+                                                    "--width", "64", "--height", "80", "--combined", str(out)]) == 0
+    image = iio.imread(out)
+    assert image.shape[0] == 2 * (80 + 16) + 4 and image.std() > 5

@@ -66,7 +66,7 @@ def test_check_grid_accepts_the_bound_and_refuses_beyond():
 BOOL_KEYWORDS = [
     (InterLevelEnv, "progress_scaling"), (InterLevelEnv, "terminate_on_success"),
     (InterLevelEnv, "random_start_heading"), (SIMSEnv, "details"), (SIMSEnv, "text_conditioned"),
-    (SIMSEnv, "speed_from_style"), (SIMSEnv, "terminate_on_success"),
+    (SIMSEnv, "speed_from_style"), (SIMSEnv, "terminate_on_success"), (PlaMoEnv, "matched_starts"),
 ]
 
 

@@ -29,6 +29,8 @@ def test_wheel_installs_and_makes_env(tmp_path):
     presets = {n for n in names if n.startswith("stairenv/envs/") and n.endswith(".toml")}
     assert {"stairenv/envs/InterLevel-v0.toml", "stairenv/envs/InterLevel2D-v0.toml"} <= presets
     assert "stairenv/policies/InterLevel-v0.npz" in names  # the shipped climbing policy
+    assert "stairenv/motion/data/plamo/NOTICE.txt" in names  # builtin:plamo's clips and their notice
+    assert len([n for n in names if n.startswith("stairenv/motion/data/plamo/") and n.endswith(".npz")]) >= 12
 
     # A fresh venv that borrows the dependencies from this one (a .pth path line, which
     # does not run this venv's own .pth files, so the editable stairenv stays out)

@@ -1,15 +1,19 @@
-"""``python -m stairenv`` (or ``stairenv``): record a short MP4 of a policy in an env.
+"""``python -m stairenv`` (or ``stairenv``): record an MP4 of a policy in an env.
 
 Examples::
 
-    python -m stairenv                                   # 6 s of InterLevel-v0 -> videos/interlevel.mp4
+    python -m stairenv                                   # one InterLevel-v0 episode -> videos/interlevel.mp4
     python -m stairenv --policy pretrained               # the trained policy shipped with the package
     python -m stairenv --policy random --seconds 3 --frames-png stills/
     python -m stairenv --policy runs/ppo/model.zip --env InterLevel2D-v0 --out videos/2d.mp4
     python -m stairenv --env-kwarg step_height_set="(0.15,)" --env-kwarg random_start_heading=False
 
-Episodes that end before ``--seconds`` are followed by new ones (seeds ``seed``,
-``seed + 1``, ...) so that the video has the requested length.
+Without ``--seconds`` the video shows one episode to its end (success, fall, physics divergence or
+the time limit; at most :data:`MAX_EPISODE_SECONDS`) and holds its last frame for a second with the
+outcome written on it. With ``--seconds`` it has that length: episodes that end before are followed
+by new ones (seeds ``seed``, ``seed + 1``, ...). The follow camera stands
+``--camera-distance`` m from the pelvis so that the character fills the frame; each frame carries
+the env, the policy and the episode time.
 
 Without ``--policy`` the video shows the trained policy the package ships for the env
 (``stairenv/policies/<env id>.npz``, ``stairenv.pretrained.load``) and, where none ships, the
@@ -32,6 +36,14 @@ PRETRAINED = "pretrained"
 #: what ``--policy`` falls back to when the package ships no trained policy for the env
 FALLBACK_POLICY = "zero"
 DEFAULT_OUT = "videos/interlevel.mp4"
+#: a one-episode video stops here if the episode has not ended (envs without a time limit)
+MAX_EPISODE_SECONDS = 60.0
+#: the follow camera of a film: distance (m) from the pelvis and elevation (deg); a 1.7 m character
+#: then fills about two thirds of the frame height
+FILM_CAMERA_DISTANCE = 3.2
+FILM_CAMERA_ELEVATION = -12.0
+#: how long the last frame, with the outcome written on it, is held (s)
+OUTCOME_HOLD_SECONDS = 1.0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -44,13 +56,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help="'pretrained' (the trained policy shipped for --env), 'random', 'zero', an exported "
                              "policy .npz, a Stable-Baselines3 model .zip or ALGO:path (default: the shipped "
                              f"policy, else {FALLBACK_POLICY!r})")
-    parser.add_argument("--seconds", type=float, default=6.0, help="video length in seconds (default: %(default)s)")
+    parser.add_argument("--seconds", type=float, default=None,
+                        help="video length in seconds (default: one episode, filmed to its end)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
     parser.add_argument("--out", default=DEFAULT_OUT, help="output .mp4 path (default: %(default)s)")
     parser.add_argument("--width", type=int, default=640, help="frame width in pixels (default: %(default)s)")
     parser.add_argument("--height", type=int, default=480, help="frame height in pixels (default: %(default)s)")
     parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable; values parsed as Python literals, else strings")
+    parser.add_argument("--camera-distance", type=float, default=FILM_CAMERA_DISTANCE,
+                        help="follow camera distance from the pelvis in m (default: %(default)s)")
     parser.add_argument("--frames-png", metavar="DIR", help="also write one PNG still per second of video into DIR")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -77,10 +92,50 @@ def resolve_policy(policy: str | None, env_id: str) -> tuple[str, str | None]:
                              f"showing the {FALLBACK_POLICY!r} policy (choose one with --policy)")
 
 
+def outcome_of(info: dict, terminated: bool, truncated: bool) -> str:
+    """How an episode ended, in words: "success", "fell", "physics diverged", "time limit",
+    "ended" (another termination) or "still running"."""
+    if info.get("physics_unstable"):
+        return "physics diverged"
+    if info.get("success"):
+        return "success"
+    if info.get("fell"):
+        return "fell"
+    if truncated:
+        return "time limit"
+    return "ended" if terminated else "still running"
+
+
+def caption_frame(frame, lines: list[str], banner: str | None = None):
+    """``frame`` with ``lines`` written small at its top left and ``banner`` (if any) large across
+    its lower third, each on a dark band so that it reads on any background."""
+    import numpy as np
+    from PIL import Image, ImageDraw, ImageFont
+
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image, "RGBA")
+    height = image.height
+    small = ImageFont.load_default(size=max(8, height // 30))
+    y = 4
+    for line in lines:
+        box = draw.textbbox((6, y), line, font=small)
+        draw.rectangle((box[0] - 3, box[1] - 2, box[2] + 3, box[3] + 2), fill=(0, 0, 0, 140))
+        draw.text((6, y), line, font=small, fill=(255, 255, 255, 255))
+        y = box[3] + 5
+    if banner:
+        large = ImageFont.load_default(size=max(10, height // 12))
+        box = draw.textbbox((0, 0), banner, font=large)
+        x = (image.width - (box[2] - box[0])) // 2
+        y = int(height * 0.72)
+        draw.rectangle((0, y + box[1] - 8, image.width, y + box[3] + 8), fill=(0, 0, 0, 170))
+        draw.text((x, y), banner, font=large, fill=(255, 255, 255, 255))
+    return np.asarray(image)
+
+
 def record(
     env_id: str = DEFAULT_ENV,
     policy: str | None = None,
-    seconds: float = 6.0,
+    seconds: float | None = None,
     seed: int = 0,
     out: str | Path = DEFAULT_OUT,
     width: int = 640,
@@ -88,13 +143,16 @@ def record(
     env_kwargs: dict[str, Any] | None = None,
     frames_png: str | Path | None = None,
     progress_bar: bool = True,
+    camera_distance: float = FILM_CAMERA_DISTANCE,
 ) -> dict[str, Any]:
-    """Render ``seconds`` of ``policy`` in ``env_id`` to the MP4 ``out``; returns a summary dict
+    """Render ``policy`` in ``env_id`` to the MP4 ``out``: one episode to its end (``seconds`` None;
+    at most :data:`MAX_EPISODE_SECONDS`, then its last frame held :data:`OUTCOME_HOLD_SECONDS` with
+    the outcome written on it) or ``seconds`` of video (episodes restarted). Returns a summary dict
     (``path``, ``frames``, ``fps``, ``steps``, ``episodes``, ``best_progress`` (None unless the env
-    reports InterLevel's ``progress``), ``successes``,
-    ``falls``, ``unstable``, ``pngs``, ``policy``: the spec loaded, ``note``: :func:`resolve_policy`'s).
-    ``policy`` None or "pretrained" is resolved by :func:`resolve_policy`.
-    Raises ``ValueError`` for bad arguments."""
+    reports InterLevel's ``progress``), ``successes``, ``falls``, ``unstable``, ``outcome`` (how the
+    last episode filmed ended, :func:`outcome_of`), ``pngs``, ``policy``: the spec loaded,
+    ``note``: :func:`resolve_policy`'s). ``policy`` None or "pretrained" is resolved by
+    :func:`resolve_policy`. Raises ``ValueError`` for bad arguments."""
     import gymnasium as gym
     import imageio.v2 as imageio
     import numpy as np
@@ -103,13 +161,16 @@ def record(
     import stairenv  # noqa: F401  (registers the envs, picks EGL without a display)
     from stairenv.evaluation.policies import load_policy
 
-    if not (isinstance(seconds, (int, float)) and np.isfinite(seconds) and 0 < seconds <= 600):
-        raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
+    if seconds is not None and not (isinstance(seconds, (int, float)) and np.isfinite(seconds)
+                                    and 0 < seconds <= 600):
+        raise ValueError(f"seconds must be None (one episode) or in (0, 600], got {seconds!r}")
     if seed < 0:
         raise ValueError(f"seed must be >= 0, got {seed!r}")
     for name, value in (("width", width), ("height", height)):
         if not 16 <= value <= 4096:
             raise ValueError(f"{name} must be in [16, 4096] pixels, got {value!r}")
+    if not (isinstance(camera_distance, (int, float)) and 0.5 <= camera_distance <= 50):
+        raise ValueError(f"camera_distance must be in [0.5, 50] m, got {camera_distance!r}")
     if env_id not in gym.registry:
         raise ValueError(f"env must be a registered env id such as {list(stairenv.ENV_IDS)}, got {env_id!r}")
     out = Path(out)
@@ -121,22 +182,27 @@ def record(
     try:
         act = load_policy(policy, env, seed=seed)
         fps = int(env.metadata["render_fps"])
-        n_frames = max(1, int(round(seconds * fps)))
+        one_episode = seconds is None
+        n_frames = max(1, int(round((MAX_EPISODE_SECONDS if one_episode else seconds) * fps)))
         out.parent.mkdir(parents=True, exist_ok=True)
         png_dir = None
         if frames_png is not None:
             png_dir = Path(frames_png)
             png_dir.mkdir(parents=True, exist_ok=True)
+        policy_name = Path(policy).name if Path(policy).suffix else policy
 
         # best_progress: InterLevel's stair progress; None for envs that report none (PlaMo, SIMS)
-        stats = {"steps": 0, "episodes": 1, "best_progress": None, "successes": 0, "falls": 0, "unstable": 0}
+        stats = {"steps": 0, "episodes": 1, "best_progress": None, "successes": 0, "falls": 0, "unstable": 0,
+                 "outcome": "still running"}
         pngs: list[str] = []
         episode_seed = seed
+        episode_step = 0
 
         def reset() -> np.ndarray:
             if callable(getattr(act, "reset", None)):
                 act.reset(episode_seed)
             obs, info = env.reset(seed=episode_seed)
+            env.unwrapped.set_camera(FILM_CAMERA_ELEVATION, camera_distance)  # after a scene rebuild
             note_progress(info)
             return obs
 
@@ -144,35 +210,57 @@ def record(
             if "progress" in info and not info.get("physics_unstable", False):
                 stats["best_progress"] = max(stats["best_progress"] or 0.0, float(info["progress"]))
 
+        def labelled(frame: np.ndarray, banner: str | None = None) -> np.ndarray:
+            lines = [f"{env_id}  |  {policy_name}", f"episode {stats['episodes']}  t = {episode_step / fps:4.1f} s"]
+            if stats["best_progress"] is not None:
+                lines[-1] += f"  |  progress {100 * stats['best_progress']:.0f}%"
+            return caption_frame(frame, lines, banner)
+
         obs = reset()
         # libx264 needs even frame sizes; macro_block_size=2 rounds odd ones up without a warning.
         writer = imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=2,
                                     pixelformat="yuv420p")
+        written = 0
         try:
             for k in tqdm(range(n_frames), desc=f"rendering {out.name}", unit="frame", disable=not progress_bar):
+                ended = False
                 if k > 0:
                     obs, _, terminated, truncated, info = env.step(np.asarray(act(obs)))
                     stats["steps"] += 1
+                    episode_step += 1
                     note_progress(info)
+                    stats["outcome"] = outcome_of(info, terminated, truncated)
                     if terminated or truncated:
+                        ended = True
                         stats["successes"] += bool(info.get("success"))
                         stats["falls"] += bool(info.get("fell"))
                         stats["unstable"] += bool(info.get("physics_unstable"))
-                        if k < n_frames - 1:
-                            episode_seed += 1
-                            stats["episodes"] += 1
-                            obs = reset()
-                frame = env.render()
+                frame = labelled(env.render())
                 writer.append_data(frame)
+                written += 1
                 if png_dir is not None and k % fps == 0:
                     path = png_dir / f"frame_{k // fps:03d}s.png"
                     imageio.imwrite(path, frame)
                     pngs.append(str(path))
+                if one_episode and (ended or k == n_frames - 1):
+                    break
+                if ended and k < n_frames - 1:
+                    episode_seed += 1
+                    stats["episodes"] += 1
+                    episode_step = 0
+                    obs = reset()
+            if one_episode:  # the outcome, written on the last frame, held
+                banner = stats["outcome"] if stats["outcome"] != "still running" else (
+                    f"stopped after {MAX_EPISODE_SECONDS:.0f} s")
+                last = labelled(env.render(), banner.upper())
+                for _ in range(max(1, int(round(OUTCOME_HOLD_SECONDS * fps)))):
+                    writer.append_data(last)
+                    written += 1
         finally:
             writer.close()
     finally:
         env.close()
-    return {"path": str(out), "frames": n_frames, "fps": fps, "pngs": pngs, "policy": policy, "note": note, **stats}
+    return {"path": str(out), "frames": written, "fps": fps, "pngs": pngs, "policy": policy, "note": note, **stats}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -194,6 +282,7 @@ def main(argv: list[str] | None = None) -> int:
             env_kwargs=dict(args.env_kwarg),
             frames_png=args.frames_png,
             progress_bar=not args.no_progress,
+            camera_distance=args.camera_distance,
         )
     except ValueError as error:
         parser.error(str(error))
@@ -206,6 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{label} on {args.env}: {summary['steps']} steps, {summary['episodes']} episode(s), "
         f"{progress}{summary['successes']} success(es), "
         f"{summary['falls']} fall(s)" + (f", {summary['unstable']} unstable" if summary["unstable"] else "")
+        + (f"; the episode filmed: {summary['outcome']}" if args.seconds is None else "")
     )
     return 0
 

@@ -391,12 +391,14 @@ class HumanoidEnv(gym.Env):
         return info
 
     # --- pieces -----------------------------------------------------------------
-    def _reference_pose(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray] | None:
+    def _reference_pose(self, rng: np.random.Generator, library=None) -> tuple[np.ndarray, np.ndarray] | None:
         """A reference state ``(qpos (35,), qvel (34,))`` to start from, or None to start standing:
-        always with ``init="reference"``, in ``hybrid_fraction`` of the episodes with "hybrid"."""
+        always with ``init="reference"``, in ``hybrid_fraction`` of the episodes with "hybrid". Drawn
+        from ``library`` (a ``MotionLibrary``), by default the env's start clips."""
         if not (self.init == "reference" or (self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)):
             return None
-        qpos, qvel = self._library.states(*self._library.sample(1, rng))
+        library = self._library if library is None else library
+        qpos, qvel = library.states(*library.sample(1, rng))
         return qpos[0], qvel[0]
 
     def _place_at(self, xy, heading: float, reference: tuple[np.ndarray, np.ndarray] | None,
@@ -463,6 +465,13 @@ class HumanoidEnv(gym.Env):
     def _render_lines(self) -> tuple:
         """(from, to, rgba) segments drawn over the frame."""
         return ()
+
+    def set_camera(self, elevation: float, distance: float) -> None:
+        """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
+        pelvis, now and after later camera rebuilds (a SIMS scene rebuild restores the scene's default)."""
+        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
+        if self._camera is not None:
+            self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
 
     def render(self):
         if self.render_mode is None:

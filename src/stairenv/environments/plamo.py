@@ -12,10 +12,11 @@ from gymnasium import spaces
 from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import HEAD, PELVIS
-from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
+from stairenv.motion.library import MotionLibrary
+from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion, nearest_locomotion
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.validation import check_choice, check_float, check_grid, check_int
+from stairenv.validation import check_bool, check_choice, check_float, check_grid, check_int
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 
 PATH_GENERATORS = ("coupled", "naive")
@@ -58,6 +59,15 @@ class PlaMoEnv(HumanoidEnv):
     physics (``info["physics_unstable"]``). ``info`` has ``xy_error``, ``z_error``,
     the reward terms, ``terrain`` and ``amp_obs``.
 
+    **Reference starts** (``init`` "reference" or "hybrid") are frames of the reference clips
+    (``reference_motion``, by default ``builtin:plamo``: crawls, crouch-walks, walks and runs).
+    With ``matched_starts`` (default) the path is drawn first and the frame comes from the clips of
+    the locomotion its first segment asks for (``planning.locomotion.nearest_locomotion`` of its
+    opening head height and speed, among the types the clips are labelled with,
+    ``meta["locomotion"]``): a path that opens with a crawl starts crawling, not upright 1 m above
+    its target. Off, or where a clip has no such label (a folder of the user's clips): any clip, the
+    path drawn after the character is placed.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). **Memory bound**: the height field has
     ``terrain_size / terrain_cell_size + 1`` samples per side and may hold at most
@@ -75,10 +85,14 @@ class PlaMoEnv(HumanoidEnv):
     | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
-    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose, as InterLevel |
+    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose as InterLevel; None: builtin:plamo |
+    | matched_starts | True | a reference start is a frame of the path's opening locomotion (below) |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
+
+    #: PlaMo's reference motion (AMP and reference-state starts): all four locomotion types
+    DEFAULT_REFERENCE_MOTION = "builtin:plamo"
 
     def __init__(
         self,
@@ -95,6 +109,7 @@ class PlaMoEnv(HumanoidEnv):
         init: str = "default",
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
+        matched_starts: bool = True,
         pd_gains: str = "soft",
         frame_skip: int = 8,
         amp_history: int = 2,
@@ -122,6 +137,8 @@ class PlaMoEnv(HumanoidEnv):
         self.min_head_height = check_float("min_head_height", min_head_height, 0.0, 1.0)
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
         self._setup_starts(init, hybrid_fraction, reference_motion)
+        self.matched_starts = check_bool("matched_starts", matched_starts)
+        self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         if self.locomotion is not None:
             self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                                speed_range=self.locomotion.speed_range)
@@ -163,17 +180,41 @@ class PlaMoEnv(HumanoidEnv):
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         start = rng.uniform(-1.0, 1.0, 2)
         heading = rng.uniform(-math.pi, math.pi)
-        reference = self._reference_pose(rng)
-        self._start = start, heading
+        if self._starts_by_locomotion is None:
+            reference = self._reference_pose(rng)
+            self._start = start, heading
+        else:  # the path first: the locomotion it opens with picks the clips to start from
+            self._start = start, heading
+            self._draw_path(rng)
+            kind = nearest_locomotion(float(self.path.head[0]), float(self.path.speed[0]), self._starts_by_locomotion)
+            reference = self._reference_pose(rng, self._starts_by_locomotion[kind])
         self._place_at(start, heading, reference, self._floor_under(start))
         return reference is not None
 
     def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        if self._starts_by_locomotion is None:  # (matched starts drew it before placing the character)
+            self._draw_path(rng)
+
+    def _draw_path(self, rng: np.random.Generator) -> None:
         start, heading = self._start
         self.path = task.random_head_path(
             self.path_config, rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
             self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
         )
+
+    def _group_starts(self) -> dict[str, MotionLibrary] | None:
+        """The start clips by ``meta["locomotion"]`` (weights kept), or None where starts cannot be
+        matched: no reference starts, or a clip without a locomotion the planner knows."""
+        if self._library is None:
+            return None
+        kinds = [clip.meta.get("locomotion") for clip in self._library.clips]
+        if not all(kind in LOCOMOTIONS for kind in kinds):
+            return None
+        groups = {}
+        for kind in dict.fromkeys(kinds):
+            keep = [i for i, k in enumerate(kinds) if k == kind]
+            groups[kind] = MotionLibrary([self._library.clips[i] for i in keep], self._library.probabilities[keep])
+        return groups
 
     # --- pieces -------------------------------------------------------------
     def _floor_under(self, xy: np.ndarray) -> float:

@@ -17,10 +17,13 @@ from scipy.spatial.transform import Rotation
 from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
 from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
 from stairenv.humanoid.kinematics import humanoid_lowest_z
+from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.humanoid.state import HEAD, PELVIS
+from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
+from stairenv.tasks import curriculum
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
@@ -49,7 +52,17 @@ TEXT_ENCODERS = ("auto", "minilm", "all-minilm-l6-v2", "hashing")
 MAX_TEXT_DIM = 4096
 HASHING_DIMS = (8, MAX_TEXT_DIM)
 GOAL_SIZE = 4 * task.NUM_CONTACT_JOINTS  # 15 target offsets (3) + 15 mask bits
+#: The skills whose training aids start near the furniture (walk has no piece to start at; get up
+#: already starts seated or lying on it).
+NEAR_START_SKILLS = ("sit", "lie", "reach")
+#: Most a start drawn from an interaction clip may press into the furniture or the floor (m), and how
+#: many of its frames are tried before the episode starts as the others do.
+START_PENETRATION = 0.01
+START_TRIES = 4
+#: Turns (rad) from facing the reach target from the piece's outside tried for a reach start, nearest first.
+REACH_TURNS = (0.0, *(sign * k * math.pi / 8 for k in range(1, 8) for sign in (1.0, -1.0)), math.pi)
 _DOF = {name: k for k, name in enumerate(DOF_NAMES)}
+CONTACT_NAMES = task.CONTACT_JOINTS
 
 
 @cache
@@ -239,8 +252,33 @@ class SIMSEnv(HumanoidEnv):
     | fall_height | 0.25 | head height (m) below which the episode ends |
     | terminate_on_success | False | end the episode at the first success |
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states (None: "builtin:sims"; walk and idle clips) |
+    | interaction_start_fraction | 0.0 | sit, lie, reach: share of episodes that start in a frame of the skill's clip made for their piece (training) |
+    | start_distance_levels | 0 | sit, lie, reach in object scenes: levels of a success-driven curriculum growing ``start_distance`` (training); 0 = off |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
+
+    Training aids (both off by default; evaluations leave them off, ``baselines/train_ppo.py``'s
+    ``TRAINING_AIDS``):
+
+    - Interaction starts (``interaction_start_fraction``, sit, lie and reach): in that share of the
+      episodes the character starts in a frame of the skill's clip synthesised for the episode's
+      piece (``stairenv.motion.interaction_starts``), with the clip's velocities, drawn uniformly in
+      time: sit, standing right in front of the seat with the back to it, sitting down, seated (the
+      clip's seat edge on the piece's front edge, its seat height the piece's); lie, that on the edge
+      of the bed or sofa and then lying down on it, the head ending on the pillow; reach, standing
+      0.45-0.75 m from the goal's target (drawn first; facing it from the piece's outside, else turned
+      round it), reaching to it and holding it there. A frame
+      that would press more than ``START_PENETRATION`` into the furniture or the floor is redrawn
+      (``START_TRIES`` frames, then the episode starts as the others do); ``info["interaction_start"]``
+      (present only with the aid) tells which.
+    - Start-distance curriculum (``start_distance_levels`` N, object scenes): each world holds a level
+      (``curriculum_level``, 0 at its first reset); level k draws the start distance from the first
+      (k + 1) / N of the ``start_distance`` range (the top level: all of it). An episode that started
+      standing moves its world up a level when it succeeded (``success_once``), down one when it ended
+      without success having closed less than half the distance (on the ground) between its start and
+      the goal's root target; episodes cut by the trainer (``reset(options={"episode_cut": True})``)
+      and interaction starts are not judged. The level carries over resets, seeded ones too: training
+      state that the trainers log (``curriculum/level``) and save with their checkpoints.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
@@ -271,6 +309,8 @@ class SIMSEnv(HumanoidEnv):
         init: str = "default",
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
+        interaction_start_fraction: float = 0.0,
+        start_distance_levels: int = 0,
         pd_gains: str = "soft",
         frame_skip: int = 8,
         amp_history: int = 2,
@@ -304,6 +344,21 @@ class SIMSEnv(HumanoidEnv):
         self.fall_height = check_float("fall_height", fall_height, 0.0, 1.5)
         self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
         self._setup_starts(init, hybrid_fraction, reference_motion)
+        self.interaction_start_fraction = check_float("interaction_start_fraction", interaction_start_fraction,
+                                                      0.0, 1.0)
+        if self.interaction_start_fraction > 0.0 and self.skill not in NEAR_START_SKILLS:
+            raise ValueError(f"interaction_start_fraction applies to the skills {list(NEAR_START_SKILLS)}, "
+                             f"not {self.skill!r}; leave it 0.0")
+        self.start_distance_levels = check_int("start_distance_levels", start_distance_levels, 0, 100)
+        if self.start_distance_levels and (self.skill not in NEAR_START_SKILLS or room is not None
+                                           or self.scene != "object"):
+            raise ValueError(f"start_distance_levels needs scene='object' and one of the skills "
+                             f"{list(NEAR_START_SKILLS)} (start_distance places those starts); leave it 0")
+        #: this world's level of the start-distance curriculum (None until the first reset draws it)
+        self.curriculum_level: int | None = None
+        self._interaction_start = False
+        self._start_goal: task.ContactGoal | None = None
+        self._root_distance = self._start_root_distance = 0.0
         self._pd_gains = pd_gains
         self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
         self._resets = 0
@@ -380,6 +435,9 @@ class SIMSEnv(HumanoidEnv):
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The scene (a fixed room is built once; generated scenes change every ``scene_resample_every``
         resets and on a seed) and the piece of furniture to use."""
+        if self.start_distance_levels:
+            # options={"episode_cut": True}: the episode in progress was cut short (a trainer's checkpoint)
+            self._judge_start_distance(judge_last=not (options or {}).get("episode_cut", False))
         if self._seeded_reset:  # the resample count restarts: a seeded reset fixes every episode after it
             self._resets = 0
         if self.fixed_room is None and (self._seeded_reset or self._resets % self.scene_resample_every == 0):
@@ -390,6 +448,29 @@ class SIMSEnv(HumanoidEnv):
         if self.skill != "walk" and target is None:
             raise RuntimeError(f"the scene has no furniture to {self.skill} on among {sorted(self.furniture)}")
         self._target = target
+        # drawn only when asked for, so that the default episodes' random stream is unchanged
+        self._interaction_start = (self.interaction_start_fraction > 0.0
+                                   and rng.uniform() < self.interaction_start_fraction)
+        self._start_goal = None
+
+    def _judge_start_distance(self, judge_last: bool) -> None:
+        """The start-distance curriculum's level: 0 at the first reset, then moved by the outcome of the
+        episode that just ended if it started standing, took a step and ``judge_last``."""
+        if self.curriculum_level is None:
+            self.curriculum_level = 0
+            return
+        if not judge_last or self._interaction_start or getattr(self, "_steps", 0) == 0 or self.goal is None:
+            return
+        progress = 1.0 - self._root_distance / max(self._start_root_distance, 1e-6)
+        self.curriculum_level = curriculum.next_growing_level(self.curriculum_level, self.start_distance_levels,
+                                                              bool(self._success_once), progress)
+
+    def episode_start_distance(self) -> tuple[float, float]:
+        """The start distance range (m) of this world's episodes: ``start_distance``, or with
+        ``start_distance_levels`` its curriculum level's part of it."""
+        if not self.start_distance_levels or self.curriculum_level is None:
+            return self.start_distance
+        return curriculum.growing_range(self.curriculum_level, self.start_distance_levels, *self.start_distance)
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Get up: seated or lying on the piece; otherwise standing (or in a reference state) on the floor."""
@@ -400,7 +481,14 @@ class SIMSEnv(HumanoidEnv):
                 pose = "lie" if target.family in LYING_FAMILIES and rng.uniform() < 0.5 else "sit"
             self.place_on(target, pose)
             return False
-        self._start = self._random_start(rng, target)
+        if self._interaction_start:
+            if self._place_interaction_start(rng, target):
+                return True
+            # no frame fits this piece: a start as the others, from the state reset left (the frames
+            # tried wrote joint angles and velocities)
+            self._interaction_start = False
+            mujoco.mj_resetData(self.model, self.data)
+        self._start = self._random_start(rng, target, self.episode_start_distance())
         heading = float(rng.uniform(-math.pi, math.pi))
         reference = self._reference_pose(rng)
         self._place_at(self._start, heading, reference, 0.0)
@@ -411,6 +499,8 @@ class SIMSEnv(HumanoidEnv):
         target = self._target
         if self.skill == "getup":
             goal = task.contact_goal("getup", target, rng, details=self.details)
+        elif self._start_goal is not None:  # drawn before the character was placed (a reach start)
+            goal = self._start_goal
         else:
             walk_target = self.random_walk_target(rng, self._start) if self.skill == "walk" else None
             goal = task.contact_goal(self.skill, target, rng, walk_target=walk_target, details=self.details)
@@ -473,6 +563,8 @@ class SIMSEnv(HumanoidEnv):
     def _start_tracking(self, state) -> None:
         self._success_once = False
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
+        root, target = state.body_pos[0, PELVIS], self.goal.root_target
+        self._start_root_distance = self._root_distance = math.hypot(target[0] - root[0], target[1] - root[1])
 
     def embed_text(self, text: str) -> np.ndarray:
         """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
@@ -522,13 +614,6 @@ class SIMSEnv(HumanoidEnv):
         low, high = self.model.jnt_range[self.model.dof_jntid[self._idx.qvel_joints]].T.copy()
         return low, high
 
-    def set_camera(self, elevation: float, distance: float) -> None:
-        """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
-        pelvis, now and after later camera rebuilds (a scene rebuild restores the scene's default)."""
-        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
-        if self._camera is not None:
-            self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
-
     def planning_grid(self, body_radius: float | None = None) -> PlanningGrid:
         """The scene's floor as a ``stairenv.planning`` grid for a character of ``body_radius`` (m):
         ``blocked`` where it cannot stand, flat ground, open sky. A room: its free space
@@ -547,14 +632,18 @@ class SIMSEnv(HumanoidEnv):
         return PlanningGrid(np.zeros(free.shape), ~free, np.full(free.shape, np.inf), float(cell), origin)
 
     # --- placement ----------------------------------------------------------------------------
-    def _random_start(self, rng: np.random.Generator, target: PlacedFurniture | None) -> np.ndarray:
+    def _random_start(self, rng: np.random.Generator, target: PlacedFurniture | None,
+                      distance: tuple[float, float] | None = None) -> np.ndarray:
+        """A free floor point (rooms), or one ``distance`` (default ``start_distance``) from the
+        target's centre and clear of the furniture (object scenes)."""
         if self._free_xy is not None and len(self._free_xy):
             return self._free_xy[int(rng.integers(0, len(self._free_xy)))].copy()
+        distance = self.start_distance if distance is None else distance
         centre = target.position if target is not None else np.zeros(2)
         boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
         for _ in range(100):
             angle = rng.uniform(-math.pi, math.pi)
-            xy = centre + rng.uniform(*self.start_distance) * np.array([math.cos(angle), math.sin(angle)])
+            xy = centre + rng.uniform(*distance) * np.array([math.cos(angle), math.sin(angle)])
             if not any(b.contains_xy(xy[None])[0] for b in boxes):
                 return xy
         radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
@@ -629,6 +718,117 @@ class SIMSEnv(HumanoidEnv):
         mujoco.mj_forward(self.model, data)
         return q
 
+    # --- interaction starts (training aid) -------------------------------------------------------
+    def _place_interaction_start(self, rng: np.random.Generator, placed: PlacedFurniture) -> bool:
+        """Put the character in a frame of the skill's clip made for ``placed`` (class docstring,
+        training aids); False (the data then to be overwritten) when no frame tried fits."""
+        if self.skill == "reach":
+            # the goal first: the clip is made for its target (``_new_goal`` then keeps it)
+            self._start_goal = goal = task.contact_goal("reach", placed, rng, details=self.details)
+            return self._place_reach_start(rng, goal)
+        qpos, qvel, yaw, origin = self._seat_start_frames(rng, placed, self.skill)
+        return self._try_start_frames(rng, qpos, qvel, yaw, origin)
+
+    def _seat_start_frames(self, rng: np.random.Generator, placed: PlacedFurniture, skill: str):
+        """The sit (or sit-and-lie) clip's frames for ``placed`` and the frame (yaw, origin) that puts
+        its seat edge (x = 0) on the piece's front edge: for sit facing out of the seat's front (a bed's
+        long side), for lie facing the side whose left is the pillow's end (a sofa's front)."""
+        furniture = placed.furniture
+        label = task.resolve_part(placed.family, None, skill)
+        surface = furniture.contact_surface(label)          # furniture frame
+        corners = surface.corners()
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
+        centre, top = surface.center, float(surface.center[2])
+        bed = placed.family in ("bed", "double_bed")
+        axis, sign = (1, 1.0) if bed else (0, 1.0)
+        pillow = None
+        if skill == "lie" and "pillow" in furniture.labels:
+            pillow = furniture.contact_surface("pillow", index=0)
+            # the character's left (the clip's head end) is (-sign) along x facing +-y: towards the pillow
+            sign = 1.0 if pillow.center[0] <= centre[0] else -1.0
+        lateral = 1 - axis
+        left_sign = -sign if axis == 1 else sign           # the left's direction along the lateral axis
+        half_lateral = 0.5 * float(hi[lateral] - lo[lateral])
+        if skill == "sit":
+            spread = max(half_lateral - (0.6 if bed else 0.45), 0.0)
+            along = float(centre[lateral] + rng.uniform(-spread, spread)) if spread > 0.0 else float(centre[lateral])
+        else:
+            edge = float(hi[axis] if sign > 0 else lo[axis])
+            offset = abs(edge - float(centre[axis]))
+            pillow_height = 0.0 if pillow is None else max(p.vertices[:, 2].max() for p in furniture.parts("pillow")) - top
+            qpos, qvel, head = interaction_starts.lie_frames(top, offset, pillow_height)
+            # the head ends over the pillow's centre; without one the body (about -1.0 .. +0.8 m along
+            # the clip's y from the pelvis) is centred on the surface
+            along = (float(pillow.center[lateral]) - left_sign * float(head[1]) if pillow is not None
+                     else float(centre[lateral]) + left_sign * 0.1)
+        # the front: the outermost face, along the facing axis, of the parts below the seat across the body
+        front = sign * float(hi[axis] if sign > 0 else lo[axis])
+        for part in furniture.part_list:
+            v = part.vertices
+            if v[:, 2].max() <= top + 0.01 and v[:, lateral].min() < along + 0.25 and v[:, lateral].max() > along - 0.25:
+                front = max(front, float((sign * v[:, axis]).max()))
+        if skill == "sit":
+            qpos, qvel = interaction_starts.sit_frames(top)
+        origin_local = np.zeros(3)
+        origin_local[axis], origin_local[lateral] = sign * front, along
+        facing = placed.rotation @ (sign * np.eye(3)[axis])
+        return qpos, qvel, math.atan2(facing[1], facing[0]), placed.to_world(origin_local[None])[0]
+
+    def _place_reach_start(self, rng: np.random.Generator, goal: task.ContactGoal) -> bool:
+        """Stand 0.45-0.75 m from the reach target, facing it from the piece's outside (turned by up to
+        180 deg, nearest first, where that side is blocked), in a frame of a reach made for it."""
+        hand = CONTACT_NAMES[goal.primary].removesuffix("_hand")
+        target = goal.root_target
+        out = target[:2] - self._target.position
+        if np.hypot(*out) < 1e-6:
+            out = (self._target.rotation @ np.array([1.0, 0.0, 0.0]))[:2]
+        base = math.atan2(-out[1], -out[0])
+        side = interaction_starts.REACH_SIDE * (-1.0 if hand == "right" else 1.0)
+        for ahead in interaction_starts.REACH_AHEAD:
+            frames = interaction_starts.reach_frames(ahead, float(target[2]), hand)
+            if frames is None:
+                continue
+            qpos, qvel, _ = frames
+            for turn in REACH_TURNS:
+                yaw = base + turn
+                c, s = math.cos(yaw), math.sin(yaw)
+                origin = np.array([target[0] - (c * ahead - s * side), target[1] - (s * ahead + c * side), 0.0])
+                # the stance and the hold pose must fit before frames are drawn
+                if all(self._start_fits(qpos[k], qvel[k], yaw, origin) for k in (0, len(qpos) - 1)):
+                    return self._try_start_frames(rng, qpos, qvel, yaw, origin)
+        return False
+
+    def _try_start_frames(self, rng: np.random.Generator, qpos: np.ndarray, qvel: np.ndarray, yaw: float,
+                          origin: np.ndarray) -> bool:
+        """Up to ``START_TRIES`` frames drawn uniformly until one fits (it stays placed)."""
+        for _ in range(START_TRIES):
+            k = int(rng.integers(len(qpos)))
+            if self._start_fits(qpos[k], qvel[k], yaw, origin):
+                self._start = self.data.qpos[self._idx.qpos_root][:2].copy()
+                return True
+        return False
+
+    def _start_fits(self, qpos: np.ndarray, qvel: np.ndarray, yaw: float, origin: np.ndarray) -> bool:
+        """Place the state (given in the frame ``yaw``, ``origin``), servos holding it; whether it presses
+        at most ``START_PENETRATION`` into anything but itself."""
+        model, data = self.model, self.data
+        place_state_in_frame(model, data, self._idx, qpos.astype(np.float64), qvel.astype(np.float64), yaw,
+                             origin, lift=0.0)
+        self._hold_pose_ctrl()
+        mujoco.mj_forward(model, data)
+        return self.start_penetration() <= START_PENETRATION
+
+    def start_penetration(self) -> float:
+        """The deepest contact (m) between the character and anything else (furniture, walls, floor) in
+        the current state (after ``mj_forward``); 0 when none presses in."""
+        data, ours = self.data, self._humanoid_geom_mask
+        n = data.ncon
+        if n == 0:
+            return 0.0
+        geoms = data.contact.geom[:n]
+        other = ours[geoms[:, 0]] != ours[geoms[:, 1]]
+        return float(max(0.0, -data.contact.dist[:n][other].min())) if other.any() else 0.0
+
     def _rest_on_contacts(self, body_name: str, iterations: int = 20) -> None:
         """Raise the character until it no longer penetrates the floor or the piece ``body_name``
         (then 2 mm of clearance). Other pieces (a table a chair stands at) are ignored: rising
@@ -683,6 +883,7 @@ class SIMSEnv(HumanoidEnv):
                                               targets, joints, mask)
             error = float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
         success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
+        self._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
         fell = bool(state.body_pos[0, HEAD, 2] < self.fall_height)
         self._targets = targets
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
@@ -693,6 +894,11 @@ class SIMSEnv(HumanoidEnv):
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         goal = self.goal
+        if self.interaction_start_fraction > 0.0:  # only with the aid: the default info is unchanged
+            return {**self._base_info(goal, results), "interaction_start": self._interaction_start}
+        return self._base_info(goal, results)
+
+    def _base_info(self, goal: task.ContactGoal, results: dict[str, Any]) -> dict[str, Any]:
         return {
             "skill": goal.skill,
             "furniture": goal.furniture,

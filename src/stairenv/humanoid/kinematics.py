@@ -132,6 +132,18 @@ def foot_sole_heights(qpos: np.ndarray) -> np.ndarray:
     return out
 
 
+def geom_lowest_points(qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, G) lowest point of each of the humanoid's geoms and (T, G, 2) their centres' horizontal
+    positions, in each frame of qpos (one FK pass): which body part touches the floor, and whether
+    it is planted."""
+    model = humanoid_model()
+    geom_ids = humanoid_geoms(model, HumanoidIndices.from_model(model))
+    xpos, xmat = _geom_frames(qpos, geom_ids)
+    lowest = np.stack([_lowest_z_frames(model, xpos[:, k:k + 1], xmat[:, k:k + 1], geom_ids[k:k + 1])
+                       for k in range(len(geom_ids))], axis=1)
+    return lowest, xpos[..., :2]
+
+
 def lowest_body_point(qpos: np.ndarray, geom_ids: np.ndarray | None = None) -> np.ndarray:
     """(T,) height of the lowest point of the humanoid's geoms (spheres, capsules, boxes) in each
     frame of qpos; ``geom_ids`` (ids in the bare model) limits it to those geoms."""

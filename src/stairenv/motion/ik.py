@@ -23,6 +23,8 @@ __all__ = ["LEFT", "LEG_EXTENSION", "RIGHT", "SIDE_SIGN", "SOLE_GAP", "LegGeomet
 # Sides, in FOOT_BODIES order.
 RIGHT, LEFT = 0, 1
 SIDE_SIGN = np.array([-1.0, 1.0])  # lateral (y) sign of each side
+_SIDE_NAMES = ("right", "left")
+_HIP_FIT_TOLERANCE = np.radians(0.5)  # hip angles beyond their range by more get the in-range fit
 
 LEG_EXTENSION = 0.993  # hip-ankle distance never exceeds this share of thigh + shin
 SOLE_GAP = 0.002  # planted soles float this far above the ground (no initial penetration)
@@ -94,12 +96,15 @@ def dof_index(name: str) -> int:
 
 
 def leg_ik(pelvis_pos: np.ndarray, pelvis_rot: Rotation, ankle: np.ndarray, foot_rot: Rotation,
-            side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            side: int, deep_flexion: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Hip XYZ angles (T, 3), knee angle (T,), ankle XYZ angles (T, 3) placing the ankle at
     ``ankle`` with the foot at orientation ``foot_rot`` (world), for a pelvis pose.
 
     The knee hinge axis (the thigh's y axis) is set parallel to the foot's lateral axis,
     projected perpendicular to the hip-ankle line, so the knee bends forward over the foot.
+    ``deep_flexion`` (the crouch-walk's): hips flexed to and beyond 90 degrees get in-range angles
+    (see ``_hip_angles`` and below); off, scipy's XYZ angles as they come (walks, climbs and the
+    interaction clips, unchanged).
     """
     geo = leg_geometry()
     l1, l2 = geo.thigh, geo.shin
@@ -124,4 +129,35 @@ def leg_ik(pelvis_pos: np.ndarray, pelvis_rot: Rotation, ankle: np.ndarray, foot
     hip_rot = Rotation.from_matrix(target @ np.transpose(source, (0, 2, 1)))
     shin_rot = hip_rot * Rotation.from_euler("y", knee[:, None])
     ankle_rot = shin_rot.inv() * foot_in_pelvis
-    return hip_rot.as_euler("XYZ"), knee, ankle_rot.as_euler("XYZ")
+    if not deep_flexion:
+        return hip_rot.as_euler("XYZ"), knee, ankle_rot.as_euler("XYZ")
+    hip_angles, ankle_angles = _hip_angles(hip_rot), ankle_rot.as_euler("XYZ")
+    # Near 90 degrees of flexion the hip's x and z hinges line up (gimbal): the exact angles of a
+    # rotation there can lie far outside the hip's range while an in-range set turns the thigh
+    # almost the same way. Those frames get the nearest in-range angles, and the ankle is solved
+    # again under the thigh they give, so the foot keeps its orientation.
+    dofs = slice(dof_index(f"{_SIDE_NAMES[side]}_hip_x"), dof_index(f"{_SIDE_NAMES[side]}_hip_z") + 1)
+    low, high = geo.dof_low[dofs], geo.dof_high[dofs]
+    out = np.flatnonzero(np.any((hip_angles < low - _HIP_FIT_TOLERANCE) | (hip_angles > high + _HIP_FIT_TOLERANCE),
+                                axis=1))
+    if len(out):
+        from stairenv.motion.importers import ball_joint_angles, euler_rotation
+
+        fitted, _ = ball_joint_angles(hip_rot[out], low, high, bone=np.array([0.0, 0.0, -1.0]))
+        hip_angles[out] = fitted
+        shin = euler_rotation("XYZ", fitted) * Rotation.from_euler("y", knee[out, None])
+        ankle_angles[out] = (shin.inv() * foot_in_pelvis[out]).as_euler("XYZ")
+    return hip_angles, knee, ankle_angles
+
+
+def _hip_angles(hip_rot: Rotation) -> np.ndarray:
+    """Hip XYZ angles (T, 3): scipy's solution keeps y in [-90, 90] degrees, so a hip flexed beyond
+    90 degrees (a deep crouch) comes out with x and z turned by 180 degrees, far outside the hip's
+    range; there the other solution (x + pi, pi - y, z + pi), wrapped to (-pi, pi], is taken."""
+    angles = hip_rot.as_euler("XYZ")
+    flip = np.abs(angles[:, 0]) > 0.5 * np.pi
+    if flip.any():
+        other = angles[flip] + np.array([np.pi, 0.0, np.pi])
+        other[:, 1] = np.pi - angles[flip, 1]
+        angles[flip] = np.mod(other + np.pi, 2.0 * np.pi) - np.pi
+    return angles

@@ -109,11 +109,14 @@ __all__ = [
     "GaitTiming",
     "LegGeometry",
     "climb_stairs",
+    "crouch_step_length",
+    "crouch_walk",
     "default_stair_step_time",
     "default_step_length",
     "leg_geometry",
     "reference_set",
     "save_reference_set",
+    "speed_change",
     "walk",
 ]
 
@@ -594,6 +597,10 @@ class _Style:
     arm_swing: float = 0.55         # shoulder y (rad) per metre of foot lead
     elbow: float = 0.25             # elbow flexion (rad) with the arm hanging
     obliquity: float = 0.05         # pelvic drop towards the swinging leg (rad)
+    arm_pitch: float = 0.0          # shoulder y (rad) added to the swing: > 0 carries the arms back
+    deep_flexion: bool = False      # hips flexed to 90 degrees and beyond (leg_ik's deep_flexion)
+    pelvis_forward: float = 0.0     # m the pelvis is carried ahead of (< 0: behind) its place between the feet
+    arm_abduction: float = 0.0      # rad of shoulder abduction added (arms held out, clear of the legs)
 
 
 def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, style: _Style,
@@ -623,6 +630,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     pelvis_pitch = style.pelvis_share * lean
     abdomen_pitch = lean - pelvis_pitch
     pelvis_xy = _pelvis_horizontal(plan, times)
+    if style.pelvis_forward:  # (only when set: the other clips keep their exact bits)
+        pelvis_xy[:, 0] += plan.facing * style.pelvis_forward
     radius = max(1, int(round(_HEIGHT_SMOOTHING * fps)))
 
     swing_pitch: dict[int, np.ndarray] | None = None
@@ -648,7 +657,8 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
         shin_pitch = np.zeros((len(times), 2))
         for side, name in zip((RIGHT, LEFT), ("right", "left")):
             foot_rot = plan.foot_rotation(feet.pitch[:, side])
-            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side)
+            hip, knee, ankle = leg_ik(pelvis_pos, pelvis_rot, feet.ankle[:, side], foot_rot, side,
+                                      deep_flexion=style.deep_flexion)
             joints[:, dof_index(f"{name}_hip_x"):dof_index(f"{name}_hip_z") + 1] = hip
             joints[:, dof_index(f"{name}_knee")] = knee
             joints[:, dof_index(f"{name}_ankle_x"):dof_index(f"{name}_ankle_z") + 1] = ankle
@@ -676,10 +686,14 @@ def _synthesise(plan: _GaitPlan, times: np.ndarray, crop: slice, fps: float, *, 
     for name, sign in (("right", 1.0), ("left", -1.0)):
         swing_forward = sign * style.arm_swing * left_lead
         joints[:, dof_index(f"{name}_shoulder_y")] = -swing_forward
+        if style.arm_pitch:  # (only when set: the other clips keep their exact bits)
+            joints[:, dof_index(f"{name}_shoulder_y")] += style.arm_pitch
         # The arm swings slightly out (abduction) the further it leaves the hanging pose, and
         # turns inward as it swings forward.
         out = np.sqrt(swing_forward**2 + 0.05**2) - 0.05  # smooth |swing|
         joints[:, dof_index(f"{name}_shoulder_x")] = -sign * (_SHOULDER_ABDUCTION + _SHOULDER_ABDUCTION_SWING * out)
+        if style.arm_abduction:  # (only when set: the other clips keep their exact bits)
+            joints[:, dof_index(f"{name}_shoulder_x")] -= sign * style.arm_abduction
         joints[:, dof_index(f"{name}_shoulder_z")] = sign * _SHOULDER_ROTATION_GAIN * swing_forward
         forward = 0.5 * (swing_forward + np.sqrt(swing_forward**2 + 0.05**2))  # smooth max(0, .)
         joints[:, dof_index(f"{name}_elbow")] = -(style.elbow + _ELBOW_SWING_GAIN * forward)
@@ -856,7 +870,8 @@ def styled_walk(style: str | WalkStyle, duration: float = 4.0, fps: float = 30.0
 
 def _walk_clip(speed: float, step_length: float | None, duration: float, fps: float, step_width: float,
                swing_height: float, timing: GaitTiming, lead_foot: str, name: str | None, posture: _Style,
-               *, text: str, style: str) -> MotionClip:
+               *, text: str, style: str, nominal_height: float = _WALK_PELVIS_HEIGHT,
+               generator: str = "walk", extra: dict | None = None) -> MotionClip:
     speed = _check_number("speed", speed, 0.0, 3.0)
     fps = _check_number("fps", fps, 0.0, 1000.0)
     step_length = default_step_length(speed) if step_length is None else _check_number(
@@ -883,7 +898,7 @@ def _walk_clip(speed: float, step_length: float | None, duration: float, fps: fl
     times = start + np.arange(-pad_frames, num_frames + pad_frames) / fps
     qpos, contact = _synthesise(
         plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=posture,
-        on_stairs=None, nominal_height=_WALK_PELVIS_HEIGHT, monotone=None, level_reference=None,
+        on_stairs=None, nominal_height=nominal_height, monotone=None, level_reference=None,
         clearance=_Clearance(edge=swing_height, horizontal=0.0, min_lift=swing_height),
     )
     # The frames are periodic up to spline round-off far from the padded ends: make the seam exact.
@@ -894,8 +909,133 @@ def _walk_clip(speed: float, step_length: float | None, duration: float, fps: fl
                   **asdict(timing))
     return MotionClip(
         qpos, fps, name or f"walk_{speed:.2f}mps", loop=True, source=SOURCE,
-        meta=clip_meta("walk", params, contact, cycle_frames=frames_per_cycle, text=text, skill="walk",
-                       style=style),
+        meta=clip_meta(generator, {**params, **(extra or {})}, contact, cycle_frames=frames_per_cycle, text=text,
+                       skill="walk", style=style),
+    )
+
+
+#: Crouch-walk gait: the trailing heel rises early (half a step before the other foot lands), so that
+#: the shin leaning far over a flat foot stays within the ankle's 55 degrees of dorsiflexion.
+CROUCH_TIMING = GaitTiming(heel_off=0.5, push_off_angle=0.6)
+
+
+def crouch_walk(speed: float = 1.0, pelvis_height: float = 0.6, lean: float = 1.5, duration: float = 4.0,
+                fps: float = 30.0, step_length: float | None = None, step_width: float = 0.22,
+                swing_height: float = 0.06, gaze: float | None = None, arm_pitch: float | None = None,
+                elbow: float = 0.6, arm_abduction: float = 0.2, pelvis_share: float = 0.7, pelvis_back: float = 0.15,
+                timing: GaitTiming = CROUCH_TIMING, lead_foot: str = "right", name: str | None = None) -> MotionClip:
+    """A crouched walk (knees deeply bent, trunk leaning forward, head low) along +x, looping.
+
+    The gait of :func:`walk` with the pelvis held at most ``pelvis_height`` (m) above the
+    floor (the legs bend to reach it) and the trunk pitched forward by ``lean`` (rad;
+    ``pelvis_share`` of it at the pelvis, the rest at the abdomen). The head looks ``gaze`` rad
+    below level (default ``lean - 0.4``: the neck lifts the head 0.4 rad); the arms are carried
+    ``arm_pitch`` rad at the shoulders (< 0 forward; default ``-0.8 * lean``) with the elbows
+    bent ``elbow`` rad, so that they hang roughly vertically under the leaning trunk, held out by
+    ``arm_abduction`` rad more than in a walk so that they clear the knees (self-collision). Steps are
+    ``0.25 + 0.15 * speed`` m long by default; the trailing heel rises early
+    (:data:`CROUCH_TIMING`). Hips flex past 90 degrees (``leg_ik``'s ``deep_flexion``). The pelvis
+    is carried ``pelvis_back`` m behind its place between the feet, so that the leaning trunk keeps
+    the centre of mass behind the front toe (without it the CoM passes the toe by up to 10 cm in a
+    third of the frames; mocap walks never pass it). With the
+    defaults (pelvis 0.6 m, the trunk nearly horizontal) the head centre is about 0.81 m above
+    the floor, PlaMo's crouch-walk (``stairenv.planning.locomotion``), at every speed from 0.5 to
+    1.5 m/s. Every joint stays in range (``ValueError`` otherwise); ``meta["skill"]`` is "walk"
+    and ``meta["style"]`` "crouch".
+    """
+    pelvis_height = _check_number("pelvis_height", pelvis_height, 0.35, _WALK_PELVIS_HEIGHT)
+    lean = _check_number("lean", lean, 0.0, 1.5, low_open=False)
+    step_length = crouch_step_length(speed) if step_length is None else step_length
+    gaze = lean - 0.4 if gaze is None else _check_number("gaze", gaze, -0.3, 1.3, low_open=False)
+    arm_pitch = -0.8 * lean if arm_pitch is None else _check_number(
+        "arm_pitch", arm_pitch, -1.5, 1.0, low_open=False)
+    elbow = _check_number("elbow", elbow, 0.0, 1.5, low_open=False)
+    arm_abduction = _check_number("arm_abduction", arm_abduction, 0.0, 0.8, low_open=False)
+    pelvis_share = _check_number("pelvis_share", pelvis_share, 0.0, 1.0, low_open=False)
+    pelvis_back = _check_number("pelvis_back", pelvis_back, -0.1, 0.3, low_open=False)
+    posture = _crouch_style(lean, gaze, arm_pitch, elbow, arm_abduction, pelvis_share, pelvis_back)
+    return _walk_clip(speed, step_length, duration, fps, step_width, swing_height, timing, lead_foot,
+                      name or f"crouch_walk_{speed:.2f}mps", posture, text="crouch-walks, knees bent and head low",
+                      style="crouch", nominal_height=pelvis_height, generator="crouch_walk",
+                      extra=dict(pelvis_height=pelvis_height, lean=lean, gaze=gaze, arm_pitch=arm_pitch,
+                                 elbow=elbow, arm_abduction=arm_abduction, pelvis_share=pelvis_share,
+                                 pelvis_back=pelvis_back))
+
+
+def _crouch_style(lean: float, gaze: float, arm_pitch: float, elbow: float, arm_abduction: float,
+                  pelvis_share: float, pelvis_back: float) -> _Style:
+    return _Style(walk_lean=lean, stairs_lean=lean, walk_gaze=gaze, stairs_gaze=gaze, arm_swing=0.35,
+                  elbow=elbow, obliquity=0.03, arm_pitch=arm_pitch, pelvis_share=pelvis_share,
+                  deep_flexion=True, pelvis_forward=-pelvis_back, arm_abduction=arm_abduction)
+
+
+def crouch_step_length(speed: np.ndarray | float) -> np.ndarray | float:
+    """Step length (m) of :func:`crouch_walk` at ``speed`` (m/s): 0.25 m + 0.15 s * speed."""
+    return 0.25 + 0.15 * speed
+
+
+def speed_change(speed_from: float, speed_to: float, ramp_steps: int = 6, steady_steps: int = 2,
+                 crouch: bool = False, fps: float = 30.0, lead_foot: str = "right",
+                 name: str | None = None) -> MotionClip:
+    """A straight walk (or crouch-walk) that speeds up or slows down: ``steady_steps`` steps at
+    ``speed_from`` (m/s), ``ramp_steps`` steps over which the speed changes smoothly (quintic in
+    the step count) to ``speed_to``, ``steady_steps`` steps at ``speed_to``; not looping.
+
+    The step length follows the speed (:func:`default_step_length`, or :func:`crouch_step_length`
+    with ``crouch``), each step lasting its length over its speed, so the cadence changes with it.
+    Speeds are 0.2-3 m/s: a walk cannot start from or come to a standstill here (every step swings
+    a foot), so a start is a change from a slow walk, a stop one to it. ``crouch`` takes
+    :func:`crouch_walk`'s posture and gait (default parameters: head ~0.81 m). ``meta["skill"]``
+    is "walk"; ``meta["parameters"]`` holds both speeds.
+    """
+    speed_from = _check_number("speed_from", speed_from, 0.2, 3.0, low_open=False)
+    speed_to = _check_number("speed_to", speed_to, 0.2, 3.0, low_open=False)
+    ramp_steps = _check_count("ramp_steps", ramp_steps, 1, 50)
+    steady_steps = _check_count("steady_steps", steady_steps, 0, 50)
+    fps = _check_number("fps", fps, 0.0, 1000.0)
+    if not isinstance(crouch, bool):
+        raise TypeError(f"crouch must be a bool, got {type(crouch).__name__}")
+    lead = _side(lead_foot)
+    if crouch:
+        lean = 1.5
+        posture = _crouch_style(lean, lean - 0.4, -0.8 * lean, 0.6, 0.2, 0.7, 0.15)
+        nominal, timing, step_width, swing_height = 0.6, CROUCH_TIMING, 0.22, 0.06
+        step_of = crouch_step_length
+    else:
+        posture, nominal, timing, step_width, swing_height = _Style(), _WALK_PELVIS_HEIGHT, GaitTiming(), 0.16, 0.05
+        step_of = np.vectorize(default_step_length)
+    pad_steps = 8
+    before = pad_steps + steady_steps
+    n_steps = 2 * before + ramp_steps  # step intervals; footsteps are one more
+    share = smoothstep((np.arange(n_steps) - before + 0.5) / ramp_steps)
+    speeds = speed_from + share * (speed_to - speed_from)
+    lengths = np.asarray(step_of(speeds), dtype=float)
+    durations = lengths / speeds
+    xs = np.concatenate(([0.0], np.cumsum(lengths)))
+    xs -= xs[pad_steps]
+    plan = _GaitPlan.build(
+        xs, np.zeros(n_steps + 1), (lead + pad_steps) % 2, step_width, durations,
+        timing.double_support, timing.heel_off, timing.push_off_angle, 1.0, _Terrain.flat(),
+    )
+    start = plan.mid_double_support(pad_steps)
+    end = plan.mid_double_support(n_steps - pad_steps)
+    num_frames = int(math.floor((end - start) * fps + 1e-9)) + 1
+    pad_frames = int(round(1.5 * fps))
+    times = start + np.arange(-pad_frames, num_frames + pad_frames) / fps
+    qpos, contact = _synthesise(
+        plan, times, slice(pad_frames, pad_frames + num_frames), fps, style=posture,
+        on_stairs=None, nominal_height=nominal, monotone=None, level_reference=None,
+        clearance=_Clearance(edge=swing_height, horizontal=0.0, min_lift=swing_height),
+    )
+    kind = "crouch_walk" if crouch else "walk"
+    params = dict(speed_from=speed_from, speed_to=speed_to, ramp_steps=ramp_steps, steady_steps=steady_steps,
+                  crouch=crouch, fps=fps, step_width=step_width, swing_height=swing_height, lead_foot=lead_foot,
+                  **asdict(timing))
+    verb = "speeds up" if speed_to > speed_from else "slows down"
+    return MotionClip(
+        qpos, fps, name or f"{kind}_{speed_from:.1f}_to_{speed_to:.1f}mps", loop=False, source=SOURCE,
+        meta=clip_meta("speed_change", params, contact, skill="walk", style="crouch" if crouch else "neutral",
+                       text=f"{'crouch-walks' if crouch else 'walks'} and {verb}"),
     )
 
 

@@ -78,3 +78,20 @@ def get_locomotion(locomotion: str | Locomotion) -> Locomotion:
         raise ValueError(f"locomotion must be one of {sorted(LOCOMOTIONS)} (or a word for one: "
                          f"{sorted(LOCOMOTION_WORDS)}), got {locomotion!r}")
     return LOCOMOTIONS[name]
+
+
+def nearest_locomotion(head_height: float, speed: float, names=None) -> str:
+    """The locomotion (of ``names``, default all) a head height and speed ask for: the one whose
+    nominal head height is nearest; among those sharing it (walk, run, sprint: upright) the one
+    whose speed range holds ``speed``, or is nearest to it. E.g. 0.5 m -> crawl, 0.9 m -> crouch-walk,
+    1.3 m at 1 m/s -> walk, at 3 m/s -> run."""
+    names = list(LOCOMOTIONS) if names is None else [get_locomotion(n).name for n in names]
+    if not names:
+        raise ValueError("nearest_locomotion needs at least one locomotion to choose from")
+
+    def cost(name: str) -> tuple[float, float]:
+        loc = LOCOMOTIONS[name]
+        return (round(abs(loc.head_height - head_height), 9),
+                max(loc.speed_min - speed, 0.0, speed - loc.speed_max))
+
+    return min(names, key=cost)

@@ -135,9 +135,13 @@ class RunningNorm(nn.Module):
         self.register_buffer("count", torch.tensor(1e-4, dtype=torch.float64))
 
     @torch.no_grad()
-    def update(self, x: torch.Tensor) -> None:
+    def update(self, x: torch.Tensor, parallel=None) -> None:
+        """Take a batch into the statistics (with ``parallel``, a data-parallel run's collectives: every
+        rank's batch together)."""
         x = x.to(torch.float64)
         batch_mean, batch_var, n = x.mean(0), x.var(0, unbiased=False), x.shape[0]
+        if parallel is not None:
+            batch_mean, batch_var, n = parallel.moments(batch_mean, batch_var, n)
         delta = batch_mean - self.mean
         total = self.count + n
         self.var.copy_((self.var * self.count + batch_var * n + delta.square() * self.count * n / total) / total)
@@ -175,6 +179,9 @@ class AMPDiscriminator(nn.Module):
         # "numba-parallel": threads to split a layer over (None: numba's); 1 while training runs beside.
         self.scoring_threads: int | None = None
         self.noise_generator = torch.Generator().manual_seed(0)  # instance noise: its own stream
+        # A data-parallel run's collectives (``stairenv.training.distributed``, set by the trainer):
+        # ``update`` then merges the input statistics and averages the gradients over the ranks.
+        self.parallel = None
 
     @property
     def linears(self) -> list[nn.Linear]:
@@ -273,7 +280,7 @@ class AMPDiscriminator(nn.Module):
         cfg = self.config
         ref = torch.as_tensor(reference, dtype=torch.float32)
         fake = torch.as_tensor(agent, dtype=torch.float32)
-        self.norm.update(torch.cat((ref, fake)))
+        self.norm.update(torch.cat((ref, fake)), self.parallel)
         # The gradient penalty is taken with respect to the normalised inputs, which the MLP sees,
         # on the whole reference batch (paper) or its first grad_penalty_batch windows.
         ref_n, fake_n = self.norm(ref), self.norm(fake)
@@ -316,6 +323,8 @@ class AMPDiscriminator(nn.Module):
             for w in weights:
                 w.grad.add_(w, alpha=2.0 * cfg.weight_decay)
             self.logit.weight.grad.add_(self.logit.weight, alpha=2.0 * cfg.logit_reg)
+        if self.parallel is not None:
+            self.parallel.average_gradients(self.parameters())
         self.optimizer.step()
         # Both losses separate the classes at logit 0.
         with torch.no_grad():

@@ -40,3 +40,29 @@ def next_level(level: int, levels: int, success: bool, progress: float, rng: np.
 def initial_level(levels: int, rng: np.random.Generator) -> int:
     """A world's first level: uniform over the easier half (the levels below ``levels // 2`` and that one)."""
     return int(rng.integers(levels // 2 + 1))
+
+
+# --- a growing range (SIMS: the start distance from the furniture) ------------------------------------
+#: Env keywords that turn on a level curriculum (their worlds hold ``curriculum_level``): what a trainer
+#: logs as ``curriculum/level`` and saves with its checkpoints.
+LEVEL_KEYWORDS = ("step_height_levels", "start_distance_levels")
+
+
+def growing_range(level: int, levels: int, low: float, high: float) -> tuple[float, float]:
+    """The range ``level`` (0 = easiest) of ``levels`` draws from when the range grows with the level:
+    [low, low + (level + 1) / levels of the way to high]; the top level draws from all of [low, high]."""
+    if not 0 <= level < levels:
+        raise ValueError(f"level must be in [0, {levels - 1}], got {level}")
+    return (low, low + (level + 1) * (high - low) / levels)
+
+
+def next_growing_level(level: int, levels: int, success: bool, progress: float,
+                       demote_below: float = DEMOTE_BELOW) -> int:
+    """The level of a growing range after an episode: up on success (the top level stays: it already
+    draws from the whole range); down when it ended below ``demote_below`` progress without success;
+    else the same. No random draw."""
+    if success:
+        return min(level + 1, levels - 1)
+    if progress < demote_below:
+        return max(level - 1, 0)
+    return level

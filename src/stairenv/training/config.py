@@ -22,14 +22,14 @@ class TrainConfig:
     |---|---|---|
     | env_id | "InterLevel-v0" | registered stairenv id |
     | env_kwargs | {} | keyword arguments of the env (training aids included: the evaluation drops them) |
-    | num_envs | 128 | worlds stepped together |
+    | num_envs | 128 | worlds stepped together (per rank in a data-parallel run) |
     | physics | "mujoco" | the batched env's physics ("mujoco": C library, thread pool; "serial"; "warp": GPU) |
     | physics_threads | None | threads of the "mujoco" pool (None: the cores) |
-    | seed | 0 | seeds torch, the trainer's generators and the worlds (world i: seed + i) |
-    | total_steps | 2,000,000 | env steps (all worlds together) |
+    | seed | 0 | seeds torch, the trainer's generators, the worlds (world i: seed + i; rank r's j: r x num_envs + j) |
+    | total_steps | 2,000,000 | env steps (all worlds together, every rank's) |
     | rollout_steps | 16 | steps per world between updates |
     | epochs | 5 | passes over a rollout |
-    | minibatch_size | 1024 | samples per gradient step |
+    | minibatch_size | 1024 | samples per gradient step (per rank) |
     | learning_rate | 1e-4 | Adam (eps 1e-5) |
     | target_kl | None | adapt the rate to keep approx-KL near this (x1.5 / /1.5, bounds 1e-6..1e-3) |
     | gamma, gae_lambda | 0.99, 0.95 | discount, GAE |
@@ -46,6 +46,10 @@ class TrainConfig:
     | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
     | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
     | checkpoint_every | 1,000,000 | env steps between checkpoints (each starts every episode anew: resumes are exact) |
+
+    Data-parallel runs (torchrun; ``stairenv.training.distributed``): ``disc_batch_size``,
+    ``disc_update_interval`` and ``disc_replay_size`` are per rank too; ``total_steps`` and
+    ``checkpoint_every`` count every rank's steps.
     """
 
     env_id: str = "InterLevel-v0"
@@ -140,7 +144,7 @@ class TrainConfig:
 
     @property
     def batch_size(self) -> int:
-        """Samples per rollout (all worlds)."""
+        """Samples per rollout (all of this rank's worlds)."""
         return self.num_envs * self.rollout_steps
 
     def as_dict(self) -> dict[str, Any]:

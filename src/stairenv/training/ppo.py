@@ -39,7 +39,9 @@ from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, plain_config
 from stairenv.style.wrappers import AMPStyleReward
+from stairenv.tasks import curriculum
 from stairenv.training.config import TrainConfig
+from stairenv.training.distributed import LOCAL, Local
 
 #: the task's results logged at each episode's end (InterLevel's; other families log what they report)
 EPISODE_KEYS = ("progress", "success", "fell", "stalled", "contact_error", "xy_error", "z_error")
@@ -52,15 +54,17 @@ class CheckpointError(ValueError):
 
 # --- normalisers (VecNormalize's statistics, on arrays) ------------------------------------------------
 class RunningMeanStd:
-    """Running mean and variance over batches (Chan et al.'s parallel update; count starts at 1e-4)."""
+    """Running mean and variance over batches (Chan et al.'s parallel update; count starts at 1e-4).
+    In a data-parallel run (``parallel``) a batch is every rank's batch together."""
 
-    def __init__(self, shape: tuple[int, ...] = ()) -> None:
+    def __init__(self, shape: tuple[int, ...] = (), parallel: Local = LOCAL) -> None:
         self.mean = np.zeros(shape, dtype=np.float64)
         self.var = np.ones(shape, dtype=np.float64)
         self.count = 1e-4
+        self.parallel = parallel
 
     def update(self, batch: np.ndarray) -> None:
-        batch_mean, batch_var, n = batch.mean(axis=0), batch.var(axis=0), batch.shape[0]
+        batch_mean, batch_var, n = self.parallel.moments(batch.mean(axis=0), batch.var(axis=0), batch.shape[0])
         delta = batch_mean - self.mean
         total = self.count + n
         self.mean = self.mean + delta * n / total
@@ -85,9 +89,10 @@ class Normalizer:
 
     EPSILON = 1e-8
 
-    def __init__(self, obs_size: int, num_envs: int, gamma: float, clip_obs: float, clip_reward: float) -> None:
-        self.obs_rms = RunningMeanStd((obs_size,))
-        self.ret_rms = RunningMeanStd(())
+    def __init__(self, obs_size: int, num_envs: int, gamma: float, clip_obs: float, clip_reward: float,
+                 parallel: Local = LOCAL) -> None:
+        self.obs_rms = RunningMeanStd((obs_size,), parallel)
+        self.ret_rms = RunningMeanStd((), parallel)
         self.returns = np.zeros(num_envs, dtype=np.float64)
         self.gamma, self.clip_obs, self.clip_reward = gamma, clip_obs, clip_reward
 
@@ -139,10 +144,11 @@ class ActorCritic(nn.Module):
     def distribution(self, obs: torch.Tensor) -> torch.distributions.Normal:
         return torch.distributions.Normal(self.action_mean(self.policy_net(obs)), self.log_std.exp())
 
-    def act(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """A sampled action (unclipped), its log-probability and the value."""
+    def act(self, obs: torch.Tensor, noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The action ``mean + std * noise`` (unclipped; ``noise`` standard normal, as ``sample()``
+        draws it), its log-probability and the value."""
         dist = self.distribution(obs)
-        action = dist.sample()
+        action = dist.loc + dist.scale * noise
         return action, dist.log_prob(action).sum(-1), self.values(obs)
 
     def as_numpy(self, normalizer: Normalizer, clip_obs: float, config: dict[str, Any]) -> NumpyPolicy:
@@ -203,7 +209,9 @@ class EpisodeLog:
             self._add("episode/task_return", self.task_return[i])
             self._add("episode/length", self.length[i])
             info = infos[i]
-            groups = ("episode",) if info.get("stairs_start") else ("episode", "episode_floor_start")
+            # starts on the stairs or at the furniture (training aids) are not the evaluation's
+            aided = info.get("stairs_start") or info.get("interaction_start")
+            groups = ("episode",) if aided else ("episode", "episode_floor_start")
             for key in EPISODE_KEYS:
                 if key in info:
                     for group in groups:
@@ -214,9 +222,13 @@ class EpisodeLog:
     def _add(self, key: str, value: float) -> None:
         self.sums.setdefault(key, []).append(float(value))
 
-    def means(self) -> dict[str, float]:
-        """The means since the last call, then forgotten."""
-        out = {key: float(np.mean(values)) for key, values in self.sums.items() if values}
+    def means(self, parallel: Local = LOCAL) -> dict[str, float]:
+        """The means since the last call (of every rank's episodes), then forgotten."""
+        sums: dict[str, list[float]] = {}
+        for part in parallel.gather(self.sums):
+            for key, values in part.items():
+                sums.setdefault(key, []).extend(values)
+        out = {key: float(np.mean(values)) for key, values in sums.items() if values}
         self.sums = {}
         return out
 
@@ -228,13 +240,23 @@ class Trainer:
     ``Trainer(config, style=None)`` builds the env and networks; ``learn(log)`` trains to
     ``config.total_steps``; ``save(path)`` / ``Trainer.load(path)`` checkpoint and resume.
     ``style``: an ``AMPStyleReward`` (built by the caller from reference windows; None with
-    ``config.style == "none"``)."""
+    ``config.style == "none"``).
+
+    ``parallel``: this rank of a data-parallel run (``stairenv.training.distributed``; default: one
+    process). Every rank steps its own ``config.num_envs`` worlds: world j of rank r is world
+    ``r x num_envs + j`` of the run, seeded as that world of one process stepping them all would be,
+    and drawing its action noise from the same place of the same stream (every rank draws the run's
+    whole noise and keeps its rows, so the torch generator stays the same on every rank). Gradients
+    are averaged over the ranks, the normalisers' and advantages' statistics are every rank's batch
+    together, so the weights stay equal everywhere; ``steps`` and ``total_steps`` count every rank's
+    env steps; rank 0 writes the checkpoints."""
 
     def __init__(self, config: TrainConfig, style: AMPStyleReward | None = None,
-                 venv: HumanoidVectorEnv | None = None) -> None:
+                 venv: HumanoidVectorEnv | None = None, parallel: Local = LOCAL) -> None:
         if config.style == "amp" and style is None:
             raise ValueError("style='amp' needs an AMPStyleReward (see stairenv.training.build_style)")
         self.config = config
+        self.parallel = parallel
         if config.torch_threads is not None:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
@@ -246,8 +268,14 @@ class Trainer:
         self.model = ActorCritic(obs_size, action_size, config.hidden, config.log_std_init)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.learning_rate, eps=1e-5)
         self.learning_rate = config.learning_rate
-        self.normalizer = Normalizer(obs_size, config.num_envs, config.gamma, config.clip_obs, config.clip_reward)
+        self.normalizer = Normalizer(obs_size, config.num_envs, config.gamma, config.clip_obs, config.clip_reward,
+                                     parallel)
         self.style = style
+        self._style_parallel = parallel.for_thread() if style is not None else None
+        parallel.broadcast(self.model)    # the same start on every rank (the discriminator's differs)
+        if style is not None:
+            parallel.broadcast(style.disc)
+            style.disc.parallel = self._style_parallel
         self.rollout = Rollout.empty(config.rollout_steps, config.num_envs, obs_size, action_size)
         self.steps = 0
         self.iterations = 0
@@ -261,9 +289,10 @@ class Trainer:
         """Reset every world, world i seeded with ``seed + i + num_envs x iterations done`` (a run's first
         reset and each checkpoint's; ``update_statistics=False``: a resumed run repeating the reset its
         checkpoint already counted)."""
-        n = self.config.num_envs
+        n, p = self.config.num_envs, self.parallel
         cut = {"episode_cut": True} if self._obs is not None else None    # a checkpoint's: no task judged them
-        obs, _ = self.venv.reset(seed=self.config.seed + n * self.iterations, options=cut)
+        seed = self.config.seed + n * p.rank + n * p.world_size * self.iterations    # world r x n + j of the run
+        obs, _ = self.venv.reset(seed=seed, options=cut)
         self._obs = torch.from_numpy(self.normalizer.observations(obs, update=update_statistics))
         self._starts = torch.ones(n)
         self.normalizer.returns[:] = 0.0
@@ -273,11 +302,13 @@ class Trainer:
         """Fill the rollout; returns the mean task and style rewards."""
         if self._obs is None:
             self.reset(update_statistics=not self._resumed)
-        cfg, r = self.config, self.rollout
+        cfg, r, p = self.config, self.rollout, self.parallel
         task_sum = style_sum = 0.0
+        mine = slice(p.rank * cfg.num_envs, (p.rank + 1) * cfg.num_envs)
         for t in range(cfg.rollout_steps):
+            noise = torch.randn(p.world_size * cfg.num_envs, len(self.action_low))[mine]    # the run's, my rows
             with torch.no_grad():
-                action, log_prob, value = self.model.act(self._obs)
+                action, log_prob, value = self.model.act(self._obs, noise)
             clipped = np.clip(action.numpy(), self.action_low, self.action_high)
             obs, task_reward, terminated, truncated, infos, finals = self.venv.step_worlds(clipped, reset_ended=True)
             dones = terminated | truncated
@@ -304,11 +335,12 @@ class Trainer:
             r.rewards[t], r.starts[t] = norm_reward, self._starts
             self._obs = torch.from_numpy(norm_obs)
             self._starts = torch.from_numpy(dones.astype(np.float32))
-            self.steps += cfg.num_envs
+            self.steps += cfg.num_envs * p.world_size
         with torch.no_grad():
             last_values = self.model.values(self._obs)
         r.compute_returns(last_values, self._starts, cfg.gamma, cfg.gae_lambda)
-        return {"amp/task_reward": task_sum / cfg.rollout_steps, "amp/style_reward": style_sum / cfg.rollout_steps}
+        return p.mean_of({"amp/task_reward": task_sum / cfg.rollout_steps,
+                          "amp/style_reward": style_sum / cfg.rollout_steps})
 
     def update(self) -> dict[str, float]:
         """``epochs`` passes of shuffled minibatches of the clipped PPO loss."""
@@ -334,8 +366,9 @@ class Trainer:
                 log_prob = dist.log_prob(actions[mb]).sum(-1)
                 entropy = dist.entropy().sum(-1)
                 adv = advantages[mb]
-                if len(mb) > 1:
-                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                if len(mb) * self.parallel.world_size > 1:
+                    mean, std = self.parallel.mean_std(adv)    # over every rank's minibatch
+                    adv = (adv - mean) / (std + 1e-8)
                 log_ratio = log_prob - old_log_probs[mb]
                 ratio = log_ratio.exp()
                 policy_loss = -torch.min(adv * ratio, adv * ratio.clamp(1 - cfg.clip_range, 1 + cfg.clip_range)).mean()
@@ -344,6 +377,7 @@ class Trainer:
                 loss = policy_loss + cfg.ent_coef * entropy_loss + cfg.vf_coef * value_loss
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
+                self.parallel.average_gradients(self.model.parameters())    # equal weights on every rank
                 nn.utils.clip_grad_norm_(self.model.parameters(), cfg.max_grad_norm)
                 self.optimizer.step()
                 with torch.no_grad():
@@ -353,7 +387,7 @@ class Trainer:
                     stats["train/approx_kl"].append(((ratio - 1) - log_ratio).mean().item())
                     stats["train/clip_fraction"].append(((ratio - 1).abs() > cfg.clip_range).float().mean().item())
         torch.set_num_threads(rollout_threads)
-        out = {key: float(np.mean(values)) for key, values in stats.items()}
+        out = self.parallel.mean_of({key: float(np.mean(values)) for key, values in stats.items()})
         if cfg.target_kl is not None:    # the legged-robot rule: keep approx-KL near the target
             kl = out["train/approx_kl"]
             if kl > 2.0 * cfg.target_kl:
@@ -384,10 +418,10 @@ class Trainer:
                           "time/update_cpu_us": (time.process_time() - cpu_collect) * per_step})
             if self.style is not None:
                 stats.update({f"amp/{k}": v for k, v in self.style.last_stats.items()})
-            levels = [level for level in self.curriculum_levels() if level is not None]
+            levels = [level for level in self.all_curriculum_levels() if level is not None]
             if levels:
                 stats["curriculum/level"] = float(np.mean(levels))
-            stats.update(self.episodes.means())
+            stats.update(self.episodes.means(self.parallel))
             stats["time/steps_per_second"] = (self.steps - start_steps) / (time.perf_counter() - start)
             if log is not None:
                 log.write(self.steps, stats)
@@ -405,6 +439,9 @@ class Trainer:
             self.style.wait()
             self.style.disc.unfreeze_scoring()
         self._resumed = False
+        networks = [*self.model.parameters(), *(self.style.disc.state_dict().values() if self.style else ())]
+        if not self.parallel.same_everywhere(networks):
+            raise RuntimeError("the ranks' weights differ: data-parallel training must keep them equal")
         return self.save(path, replay=True)
 
     def close(self) -> None:
@@ -412,11 +449,16 @@ class Trainer:
             self.style.close()
         self.venv.close()
 
-    # --- the curriculum (InterLevel's step_height_levels) ----------------------------------------------
+    # --- the curriculum (InterLevel's step_height_levels, SIMS' start_distance_levels) -------------------
     def curriculum_levels(self) -> list[int | None]:
-        if not self.config.env_kwargs.get("step_height_levels"):
+        """This rank's worlds' levels."""
+        if not any(self.config.env_kwargs.get(keyword) for keyword in curriculum.LEVEL_KEYWORDS):
             return []
         return list(self.venv.get_attr("curriculum_level"))
+
+    def all_curriculum_levels(self) -> list[int | None]:
+        """Every rank's worlds' levels, in the run's world order."""
+        return [level for part in self.parallel.gather(self.curriculum_levels()) for level in part]
 
     def set_curriculum_levels(self, levels: list[int | None]) -> None:
         if len(levels) != self.config.num_envs:
@@ -429,42 +471,62 @@ class Trainer:
         return self.model.as_numpy(self.normalizer, self.config.clip_obs, policy_config(self.config, self.steps))
 
     def state(self) -> dict[str, Any]:
+        """The checkpoint's contents (in a data-parallel run every rank must call it: it gathers the
+        ranks' curriculum levels and style generators; ``style["ranks"]`` holds those of ranks 1..)."""
         style = None
         if self.style is not None:
             self.style.wait()
             replay = self.style.replay
+            generators = self.parallel.gather({"rng": self.style.rng.bit_generator.state,
+                                               "noise_rng": self.style.disc.noise_generator.get_state()})
             style = {"discriminator": self.style.disc.state(), "config": plain_config(self.style.config),
                      "rounds": int(self.style.rounds), "pending": int(self.style.pending),
-                     "rng": self.style.rng.bit_generator.state,
-                     "noise_rng": self.style.disc.noise_generator.get_state(),
-                     "replay_size": int(replay.size), "replay_next": int(replay.next)}
+                     **generators[0], "replay_size": int(replay.size), "replay_next": int(replay.next)}
+            if len(generators) > 1:
+                style["ranks"] = generators[1:]
         return {
             "format": CHECKPOINT_FORMAT, "config": self.config.as_dict(), "steps": int(self.steps),
             "iterations": int(self.iterations), "learning_rate": float(self.learning_rate),
             "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
             "obs_rms": self.normalizer.obs_rms.state(), "ret_rms": self.normalizer.ret_rms.state(),
-            "style": style, "curriculum_level": self.curriculum_levels(),
-            "torch_rng": torch.get_rng_state(),
+            "style": style, "curriculum_level": self.all_curriculum_levels(),
+            "torch_rng": torch.get_rng_state(), "world_size": self.parallel.world_size,
         }
 
     def save(self, path: Path, replay: bool = False) -> Path:
         """Write ``state()`` to ``path`` (whole or not at all); with ``replay``, the style's replay buffer
-        to ``replay_<steps>.npy`` beside it, removing older ones (a run keeps one: ~170 MB at 200k windows)."""
+        to ``replay_<steps>.npy`` beside it, removing older ones (a run keeps one: ~170 MB at 200k windows).
+        Data-parallel: every rank calls it, rank 0 writes, rank r's replay buffer as
+        ``replay_<steps>_rank<r>.npy``."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        state = self.state()
+        buffers = None
         if replay and self.style is not None:
             buffer = self.style.replay
-            target = replay_beside(path, self.steps)
-            _atomic(target, lambda tmp: np.save(tmp, buffer.data[:buffer.size]))
+            buffers = self.parallel.gather_to_first(buffer.data[:buffer.size])
+        if self.parallel.rank != 0:
+            return path
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if buffers is not None:
+            targets = [replay_beside(path, self.steps, rank) for rank in range(len(buffers))]
+            for target, windows in zip(targets, buffers):
+                _atomic(target, lambda tmp, windows=windows: np.save(tmp, windows))
             for older in path.parent.glob("replay_*.npy"):
-                if older != target:
+                if older not in targets:
                     older.unlink()
-        _atomic(path, lambda tmp: torch.save(self.state(), tmp))
+        _atomic(path, lambda tmp: torch.save(state, tmp))
         return path
 
     def load_state(self, state: dict[str, Any], weights_only: bool = False) -> None:
         """Take a checkpoint's state (``weights_only``: policy, value, optimiser, normalisers and
-        discriminator, for a new run from a trained one; else also the counters and generators)."""
+        discriminator, for a new run from a trained one; else also the counters and generators).
+
+        Written by a run of another rank count (``state["world_size"]``), the shared state is taken
+        whole (weights, optimisers, statistics, counters, the torch generator); of the per-rank state,
+        rank r takes the style generators of saved rank r where there was one (else keeps its own,
+        seeded ``seed + r``), and the worlds take the saved curriculum levels in order, repeated or cut
+        to the new world count. The worlds' own generators need nothing: a checkpoint reset every world
+        with the seeds of its place in the run. Exact only for the same rank count."""
         self.model.load_state_dict(state["model"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.normalizer.obs_rms.load(state["obs_rms"])
@@ -480,12 +542,24 @@ class Trainer:
                 disc.config = keep
             self.style.config = disc.config
             self.style.rounds = int(state["style"]["rounds"])
+            disc.parallel = self._style_parallel
+            generators = [state["style"], *state["style"].get("ranks", [])]
             if not weights_only:
                 self.style.pending = int(state["style"]["pending"])
-                self.style.rng.bit_generator.state = state["style"]["rng"]
-                disc.noise_generator.set_state(state["style"]["noise_rng"])
-        if state.get("curriculum_level") and self.config.env_kwargs.get("step_height_levels"):
-            self.set_curriculum_levels(state["curriculum_level"])    # when both runs have a curriculum
+                if self.parallel.rank < len(generators):
+                    self.style.rng.bit_generator.state = generators[self.parallel.rank]["rng"]
+                    disc.noise_generator.set_state(generators[self.parallel.rank]["noise_rng"])
+        saved_kwargs = (state.get("config") or {}).get("env_kwargs") or {}
+        same_curriculum = [k for k in curriculum.LEVEL_KEYWORDS if self.config.env_kwargs.get(k)] == [
+            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]
+        if state.get("curriculum_level") and self.curriculum_levels() and same_curriculum:
+            levels = list(state["curriculum_level"])    # every world's, when both runs have a curriculum
+            n, p = self.config.num_envs, self.parallel
+            if int(state.get("world_size", 1)) != p.world_size:    # another rank count: repeated or cut
+                levels = [levels[i % len(levels)] for i in range(n * p.world_size)]
+            if p.world_size > 1:
+                levels = levels[p.rank * n:(p.rank + 1) * n]
+            self.set_curriculum_levels(levels)
         if not weights_only:
             self._resumed = True
             self.steps, self.iterations = int(state["steps"]), int(state["iterations"])
@@ -498,7 +572,8 @@ class Trainer:
         without pickles); False when there is none (the buffer then refills within a round)."""
         if self.style is None or state.get("style") is None:
             return False
-        file = replay_beside(path, int(state["steps"]))
+        saved_ranks = int(state.get("world_size", 1))    # rank r takes saved rank r's (r mod their count)
+        file = replay_beside(path, int(state["steps"]), self.parallel.rank % saved_ranks)
         if not file.is_file():
             return False
         try:
@@ -532,8 +607,10 @@ def policy_from_checkpoint(state: dict[str, Any]) -> NumpyPolicy:
     return model.as_numpy(normalizer, config.clip_obs, policy_config(config, state["steps"]))
 
 
-def replay_beside(checkpoint: Path, steps: int) -> Path:
-    return Path(checkpoint).with_name(f"replay_{steps}.npy")
+def replay_beside(checkpoint: Path, steps: int, rank: int = 0) -> Path:
+    """The replay buffer of rank ``rank`` beside a checkpoint (rank 0's, and a single process's, without
+    a rank in its name)."""
+    return Path(checkpoint).with_name(f"replay_{steps}.npy" if rank == 0 else f"replay_{steps}_rank{rank}.npy")
 
 
 def _atomic(path: Path, write) -> None:
@@ -580,11 +657,12 @@ def discriminator_config(config: TrainConfig) -> DiscriminatorConfig:
         input_noise=config.disc_input_noise, batch_size=config.disc_batch_size, replay_size=config.disc_replay_size)
 
 
-def build_style(config: TrainConfig, reference) -> AMPStyleReward | None:
-    """The AMP reward of ``config`` on ``reference`` windows (None with ``style == "none"``)."""
+def build_style(config: TrainConfig, reference, rank: int = 0) -> AMPStyleReward | None:
+    """The AMP reward of ``config`` on ``reference`` windows (None with ``style == "none"``); rank r of a
+    data-parallel run draws its discriminator minibatches and instance noise with seed ``seed + r``."""
     if config.style != "amp":
         return None
-    return AMPStyleReward(reference, w_task=config.w_task, w_style=config.w_style, seed=config.seed,
+    return AMPStyleReward(reference, w_task=config.w_task, w_style=config.w_style, seed=config.seed + rank,
                           update_interval=config.disc_update_interval, updates_per_round=config.disc_updates,
                           config=discriminator_config(config), background_training=config.disc_background,
                           scoring=config.disc_scoring)

@@ -1,0 +1,182 @@
+"""Data-parallel training across processes and machines (``torchrun``), in the few collectives the
+lean trainer needs.
+
+``torchrun --nproc-per-node P baselines/train_ppo.py ...`` starts P copies of the script; each is
+one *rank*, stepping its own batched env of ``num_envs`` worlds. After every backward pass the ranks
+average their gradients (one all-reduce of the flattened gradients), so the weights stay equal on
+every rank without ever being sent; the normalisers' statistics and the advantages' mean and std
+are taken over every rank's batch together. ``DataParallel.from_environment()`` joins the run that
+torchrun describes in the environment (``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK``, ``MASTER_ADDR``...),
+None in a plain ``python`` process.
+
+Why a hand-written gradient all-reduce and not ``DistributedDataParallel``: the update calls the
+policy's and value's sub-networks directly (not ``forward``, which DDP's hooks need), the
+discriminator's gradient penalty is a double backward (which DDP does not support) and its weight
+decay is added to the gradients after the backward; one call after ``backward()`` is also the
+whole of the change a reader has to follow (as rsl_rl does it).
+
+``LOCAL`` is the single-process stand-in: the same methods, returning their inputs, so the trainer
+has one code path and a plain run computes exactly what it did before data-parallel training existed.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Iterable
+
+import numpy as np
+import torch
+import torch.distributed as dist
+
+
+class Local:
+    """One process: rank 0 of 1; every collective returns its input."""
+
+    rank, world_size = 0, 1
+
+    def moments(self, mean, var, count):
+        return mean, var, count
+
+    def mean_std(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return x.mean(), x.std()
+
+    def average_gradients(self, parameters: Iterable[torch.nn.Parameter]) -> None:
+        pass
+
+    def mean_of(self, values: dict[str, float]) -> dict[str, float]:
+        return values
+
+    def gather(self, value: Any) -> list[Any]:
+        return [value]
+
+    def gather_to_first(self, value: Any) -> list[Any] | None:
+        return [value]
+
+    def same_everywhere(self, tensors: Iterable[torch.Tensor]) -> bool:
+        return True
+
+    def broadcast(self, module: torch.nn.Module) -> None:
+        pass
+
+    def for_thread(self) -> "Local":
+        return self
+
+
+LOCAL = Local()
+
+
+class DataParallel(Local):
+    """This rank's place in a data-parallel run and the collectives over ``group`` (a gloo group:
+    the lean trainer's tensors live on the CPU)."""
+
+    def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None,
+                 owns_process_group: bool = False) -> None:
+        self.rank, self.world_size, self.local_rank, self.device = rank, world_size, local_rank, device
+        self.group = group
+        self.owns_process_group = owns_process_group
+
+    @classmethod
+    def from_environment(cls, device: str = "cpu") -> "DataParallel | None":
+        """Join the run torchrun started this process in (None without torchrun's ``WORLD_SIZE``, or with
+        one process: that is a plain run, computing exactly what ``python`` alone would).
+        Backend: nccl with ``device="cuda"`` (this rank takes ``cuda:LOCAL_RANK``), else gloo; the
+        collectives of CPU tensors (all of the lean trainer's, today) go through a gloo group either way."""
+        if int(os.environ.get("WORLD_SIZE", "1")) < 2:
+            return None
+        local_rank = int(os.environ.get("LOCAL_RANK", 0))
+        on_gpu = str(device).startswith("cuda")
+        if on_gpu:
+            torch.cuda.set_device(local_rank)
+        owns = not dist.is_initialized()    # else the caller's process group, which close() leaves open
+        if owns:
+            dist.init_process_group(backend="nccl" if on_gpu else "gloo")
+        group = dist.new_group(backend="gloo") if on_gpu else None
+        return cls(dist.get_rank(), dist.get_world_size(), local_rank,
+                   torch.device("cuda", local_rank) if on_gpu else torch.device("cpu"), group, owns)
+
+    def for_thread(self) -> "DataParallel":
+        """The same ranks over a group of their own, for collectives issued from another thread (the
+        discriminator's background training): collectives of one group must come in the same order on
+        every rank, which two threads sharing a group would not keep. Every rank must call this,
+        in the same order."""
+        return DataParallel(self.rank, self.world_size, self.local_rank, self.device, dist.new_group(backend="gloo"))
+
+    def close(self) -> None:
+        """Leave the run (when ``from_environment`` joined it)."""
+        if self.owns_process_group and dist.is_initialized():
+            dist.destroy_process_group()
+
+    # --- statistics over every rank's batch -----------------------------------------------------------
+    def moments(self, mean, var, count):
+        """The mean, (population) variance and count of every rank's batch together, from each rank's
+        own: Chan et al.'s combination, in rank order on every rank (the same numbers everywhere).
+        numpy or torch in, the same kind out."""
+        own = torch.cat([torch.as_tensor(count, dtype=torch.float64).reshape(1),
+                         torch.as_tensor(mean, dtype=torch.float64).reshape(-1),
+                         torch.as_tensor(var, dtype=torch.float64).reshape(-1)])
+        parts = [torch.empty_like(own) for _ in range(self.world_size)]
+        dist.all_gather(parts, own, group=self.group)
+        table = torch.stack(parts)
+        size = (len(own) - 1) // 2
+        counts, means, variances = table[:, :1], table[:, 1:1 + size], table[:, 1 + size:]
+        total = counts.sum()
+        merged_mean = (counts * means).sum(0) / total
+        merged_var = (counts * (variances + (means - merged_mean) ** 2)).sum(0) / total
+        if isinstance(mean, torch.Tensor):
+            return merged_mean.reshape(mean.shape).to(mean.dtype), merged_var.reshape(var.shape).to(var.dtype), total
+        shape = np.shape(mean)
+        return merged_mean.numpy().reshape(shape), merged_var.numpy().reshape(shape), float(total)
+
+    def mean_std(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean and (unbiased) std of ``x`` over every rank's values, as ``x.mean(), x.std()`` of them all."""
+        x64 = x.detach().to(torch.float64)
+        mean, var, n = self.moments(x64.mean(), x64.var(unbiased=False), x.numel())
+        return mean.to(x.dtype), torch.sqrt(var * n / (n - 1)).to(x.dtype)
+
+    def mean_of(self, values: dict[str, float]) -> dict[str, float]:
+        """Each value averaged over the ranks (the same keys on every rank)."""
+        keys = sorted(values)
+        summed = torch.tensor([values[key] for key in keys], dtype=torch.float64)
+        dist.all_reduce(summed, group=self.group)
+        return {key: float(v) / self.world_size for key, v in zip(keys, summed.tolist())}
+
+    # --- gradients and weights --------------------------------------------------------------------
+    def average_gradients(self, parameters: Iterable[torch.nn.Parameter]) -> None:
+        """Replace every gradient by its mean over the ranks (one all-reduce of them all, flattened)."""
+        grads = [p.grad for p in parameters if p.grad is not None]
+        flat = torch.cat([g.reshape(-1) for g in grads])
+        dist.all_reduce(flat, group=self.group)
+        flat /= self.world_size
+        offset = 0
+        for g in grads:
+            g.copy_(flat[offset:offset + g.numel()].view_as(g))
+            offset += g.numel()
+
+    def broadcast(self, module: torch.nn.Module) -> None:
+        """Rank 0's parameters and buffers on every rank (written in place through ``detach()``, which
+        shares their version counters: caches keyed on them, such as the discriminator's scoring plan,
+        see the change)."""
+        with torch.no_grad():
+            for tensor in [*module.parameters(), *module.buffers()]:
+                dist.broadcast(tensor.detach(), src=0, group=self.group)
+
+    def same_everywhere(self, tensors: Iterable[torch.Tensor]) -> bool:
+        """Whether ``tensors`` hold the same numbers on every rank (compared by two float64 sums)."""
+        checks = torch.stack([torch.stack([t.detach().double().sum(), t.detach().double().abs().sum()])
+                              for t in tensors]).reshape(-1)
+        parts = [torch.empty_like(checks) for _ in range(self.world_size)]
+        dist.all_gather(parts, checks, group=self.group)
+        return all(torch.equal(parts[0], p) for p in parts[1:])
+
+    def gather(self, value: Any) -> list[Any]:
+        """Every rank's ``value`` (any picklable object), in rank order, on every rank."""
+        values: list[Any] = [None] * self.world_size
+        dist.all_gather_object(values, value, group=self.group)
+        return values
+
+    def gather_to_first(self, value: Any) -> list[Any] | None:
+        """Every rank's ``value`` in rank order on rank 0 (None on the others): large things, such as
+        the replay buffers a checkpoint keeps."""
+        values: list[Any] | None = [None] * self.world_size if self.rank == 0 else None
+        dist.gather_object(value, values, dst=0, group=self.group)    # every group spans every rank
+        return values

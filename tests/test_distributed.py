@@ -1,0 +1,122 @@
+"""Data-parallel training (``stairenv.training.distributed``): 2 CPU processes under torchrun (gloo).
+
+The first update of 2 ranks x N worlds equals that of one process with 2N worlds (one epoch, the
+whole rollout one minibatch: equal in exact arithmetic, here within float32 rounding), so does a
+discriminator trained on each rank's half of the batch; every rank keeps the same weights; a run
+resumed from a 2-rank checkpoint with 2 ranks equals the run never stopped; ``train_ppo.py`` under
+torchrun checkpoints and resumes with 2 ranks and with 1.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import torch.distributed as dist
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKER = ROOT / "tests" / "distributed_worker.py"
+SCRIPT = ROOT / "baselines" / "train_ppo.py"
+
+pytestmark = pytest.mark.skipif(not (dist.is_available() and dist.is_gloo_available()),
+                                reason="this torch has no torch.distributed with the gloo backend")
+
+#: weights after the first update, 2 ranks x 2 worlds against 1 x 4: float32 rounding of sums taken in
+#: another order (the normalisers' merged moments, the averaged gradients) through one Adam step
+#: (measured: 3e-8)
+ATOL = 1e-5
+
+
+def torchrun(args: list[str], cwd: Path) -> str:
+    command = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc-per-node=2", *args]
+    env = {**os.environ, "MUJOCO_GL": "egl", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-4000:]
+    return done.stdout
+
+
+#: train_ppo.py's flags for a tiny PPO + AMP run
+SCRIPT_FLAGS = ["--n-envs", "2", "--n-steps", "8", "--batch-size", "16", "--checkpoint-every", "32", "--eval-episodes",
+                "0", "--no-progress-bar", "--policy-hidden", "32,32", "--disc-hidden", "16", "--disc-replay-size", "64",
+                "--disc-update-interval", "16", "--disc-updates", "1", "--disc-batch-size", "8", "--disc-scoring",
+                "torch"]
+
+
+@pytest.fixture(scope="module")
+def ranks(tmp_path_factory):
+    """What each of 2 ranks of ``distributed_worker.py`` wrote (one launch for every test here)."""
+    out = tmp_path_factory.mktemp("ranks")
+    torchrun([str(WORKER), str(out), *SCRIPT_FLAGS], out)
+    return [{**torch.load(out / f"rank{r}.pt", weights_only=False), "out": out} for r in range(2)]
+
+
+@pytest.fixture(scope="module")
+def worker():
+    sys.path.insert(0, str(WORKER.parent))
+    try:
+        import distributed_worker
+    finally:
+        sys.path.remove(str(WORKER.parent))
+    return distributed_worker
+
+
+def test_two_ranks_keep_the_same_weights(ranks):
+    for name, weights in ranks[0]["first_update"]["model"].items():
+        assert torch.equal(weights, ranks[1]["first_update"]["model"][name]), name
+    for name, weights in ranks[0]["disc"].items():
+        assert torch.equal(weights, ranks[1]["disc"][name]), name
+    np.testing.assert_array_equal(ranks[0]["first_update"]["obs_var"], ranks[1]["first_update"]["obs_var"])
+
+
+def test_first_update_of_two_ranks_equals_one_process_with_twice_the_worlds(ranks, worker):
+    one = worker.first_update(4)
+    two = ranks[0]["first_update"]
+    assert two["steps"] == one["steps"] == 4 * 8    # steps count every rank's worlds
+    difference = max((weights - two["model"][name]).abs().max().item() for name, weights in one["model"].items())
+    print(f"largest weight difference, 2 ranks x 2 worlds against 1 x 4: {difference:.2g}")
+    assert difference <= ATOL
+    # world j of rank r is world 2r + j of the single process, acting with the same noise
+    both = torch.cat([ranks[0]["first_update"]["actions"], ranks[1]["first_update"]["actions"]], dim=1)
+    np.testing.assert_allclose(both.numpy(), one["actions"].numpy(), atol=ATOL)
+    # the observations differ as the actions do (float32 rounding through 8 physics steps)
+    np.testing.assert_allclose(two["obs_mean"], one["obs_mean"], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(two["obs_var"], one["obs_var"], rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(two["ret_var"], one["ret_var"], rtol=1e-5)
+
+
+def test_discriminator_of_two_ranks_equals_one_on_the_whole_batch(ranks, worker):
+    one = worker.disc_updates(2)
+    for name, weights in one.items():
+        np.testing.assert_allclose(ranks[0]["disc"][name].numpy(), weights.numpy(), atol=ATOL, err_msg=name)
+
+
+def test_resume_with_the_same_ranks_is_exact(ranks):
+    assert ranks[0]["resume_exact"] and ranks[1]["resume_exact"]
+
+
+def test_train_ppo_under_torchrun_checkpoints_and_resumes_with_two_ranks_and_one(ranks, baseline_script, capsys,
+                                                                                tmp_path):
+    out, run = ranks[0]["script"], ranks[0]["out"] / "a" / "InterLevel-v0" / "seed0"
+    assert "2 ranks x 2 worlds" in out and "trained 64 env steps" in out
+    checkpoint = run / "checkpoints" / "checkpoint_64.pt"
+    for name in ("checkpoints/checkpoint_32.pt", "checkpoints/replay_64.npy", "checkpoints/replay_64_rank1.npy",
+                 "final_checkpoint.pt", "final_policy.npz"):
+        assert (run / name).exists(), name
+    assert len((run / "log.jsonl").read_text().splitlines()) == 2    # rank 0 alone logs: 64 / (2 x 2 x 8)
+    state = torch.load(checkpoint, weights_only=True)
+    assert state["world_size"] == 2 and state["steps"] == 64 and len(state["style"]["ranks"]) == 1
+    assert ranks[1]["script"] == ""    # rank 1 prints nothing
+    # on with 2 ranks (in the same launch), and with 1 (a plain process: 2 worlds)
+    out = ranks[0]["script_resumed"]
+    assert "at 64 steps" in out and "trained 32 env steps" in out and "not exact" not in out
+    baseline_script("train_ppo").main(["--resume", str(checkpoint), "--timesteps", "32", "--logdir",
+                                       str(tmp_path), *SCRIPT_FLAGS])
+    out = capsys.readouterr().out
+    assert "at 64 steps" in out and "written by 2 ranks, going on with 1" in out and "trained 32 env steps" in out
+    final = torch.load(tmp_path / "InterLevel-v0" / "seed0" / "final_checkpoint.pt", weights_only=True)
+    assert final["world_size"] == 1

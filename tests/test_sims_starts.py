@@ -1,0 +1,198 @@
+"""SIMS training aids: starts in a frame of the skill's clip made for the episode's piece
+(``interaction_start_fraction``) and the success-driven start-distance curriculum
+(``start_distance_levels``)."""
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import stairenv  # noqa: F401  (registers the envs)
+from stairenv.environments.sims import START_PENETRATION, SIMSEnv
+from stairenv.motion import interaction_starts
+from stairenv.tasks import curriculum
+
+FAST = {"text_encoder": "hashing", "scene_resample_every": 1}
+
+
+def _pelvis(env):
+    return env.data.xpos[env._idx.pelvis_id].copy()
+
+
+# --- interaction starts ---------------------------------------------------------------------------
+@pytest.mark.parametrize("skill", ["sit", "lie"])
+def test_seat_starts_are_at_the_piece_and_do_not_press_into_it(skill):
+    env = SIMSEnv(skill=skill, interaction_start_fraction=1.0, **FAST)
+    started = successes = 0
+    for seed in range(12):
+        _, info = env.reset(seed=seed)
+        assert info["reference_start"] == info["interaction_start"]
+        if not info["interaction_start"]:
+            continue
+        started += 1
+        assert env.start_penetration() <= START_PENETRATION
+        # standing right in front of the seat at the farthest: the pelvis within a metre of its target
+        assert info["contact_error"] < 1.0
+        surface = env._target.footprint_box(margin=1.0)
+        assert surface.contains_xy(_pelvis(env)[None, :2])[0]
+        successes += info["success"]
+        # the character's velocities are the clip's (a start mid-motion moves)
+        assert np.all(np.isfinite(env.data.qvel))
+    assert started >= 10          # a frame that fits is found on nearly every piece
+    assert successes >= 3         # seated (lying) frames start within the success distance
+
+
+def test_starts_step_with_a_zero_action_without_ending():
+    for skill in ("sit", "lie"):
+        env = SIMSEnv(skill=skill, interaction_start_fraction=1.0, **FAST)
+        for seed in range(4):
+            env.reset(seed=seed)
+            for _ in range(5):
+                _, _, terminated, truncated, info = env.step(np.zeros(28))
+                assert not terminated and not truncated
+                assert not info["physics_unstable"]
+
+
+def test_reach_start_holds_the_hand_towards_the_goal_drawn_for_it():
+    env = SIMSEnv(skill="reach", interaction_start_fraction=1.0, **FAST)
+    started = 0
+    for seed in range(12):
+        _, info = env.reset(seed=seed)
+        if not info["interaction_start"]:
+            # no frame fitted (a target deep inside a double bed): a start as the others, at rest,
+            # none of the tried frames' joint angles or velocities left over
+            assert not info["reference_start"]
+            assert not np.any(env.data.qvel) and not np.any(env.data.qpos[env._idx.qpos_joints])
+            continue
+        started += 1
+        assert env.start_penetration() <= START_PENETRATION
+        # standing 0.45-0.75 m from the target (hand 0.2 m to the side): the hand within an arm's length
+        assert info["contact_error"] < 1.0
+        feet = min(env.data.xpos[env.model.body(n).id][2] for n in ("right_foot", "left_foot"))
+        assert feet < 0.15
+    assert started >= 6
+
+
+def test_the_default_starts_no_episode_at_the_furniture_and_reports_nothing_new():
+    env = SIMSEnv(skill="sit", **FAST)
+    _, info = env.reset(seed=3)
+    assert "interaction_start" not in info and env.curriculum_level is None
+    aided = SIMSEnv(skill="sit", interaction_start_fraction=0.0, start_distance_levels=0, **FAST)
+    obs, _ = aided.reset(seed=3)
+    np.testing.assert_array_equal(obs, env.reset(seed=3)[0])
+
+
+def test_clip_frames_are_cached_on_their_grid():
+    a = interaction_starts.sit_frames(0.452)
+    assert a[0] is interaction_starts.sit_frames(0.448)[0]    # both 0.45 m
+    qpos, qvel, head = interaction_starts.lie_frames(0.5, 0.45, 0.1)
+    assert qpos.shape[1] == 35 and qvel.shape == (len(qpos), 34)
+    assert head[1] > 0.4        # lying with the head towards +y (the seated character's left)
+    assert interaction_starts.reach_frames(0.6, 1.0, "left")[2] == pytest.approx(1.0)
+
+
+# --- the start-distance curriculum -------------------------------------------------------------------
+def _end_episode(env, success: bool, progress: float) -> None:
+    """Take a step, then make the episode's outcome what the test needs (success, distance closed)."""
+    env.step(np.zeros(28))
+    env._success_once = success
+    env._root_distance = (1.0 - progress) * env._start_root_distance
+
+
+def test_curriculum_grows_the_start_distance_with_success_and_ignores_cut_episodes():
+    env = SIMSEnv(skill="sit", start_distance_levels=3, start_distance=(1.0, 4.0), **FAST)
+    env.reset(seed=0)
+    assert env.curriculum_level == 0 and env.episode_start_distance() == (1.0, 2.0)
+    _end_episode(env, success=True, progress=1.0)
+    env.reset(options={"episode_cut": True})        # a trainer's checkpoint: not judged
+    assert env.curriculum_level == 0
+    _end_episode(env, success=True, progress=1.0)
+    env.reset()
+    assert env.curriculum_level == 1 and env.episode_start_distance() == (1.0, 3.0)
+    _end_episode(env, success=True, progress=1.0)
+    env.reset(seed=5)                               # seeded resets keep the level too
+    assert env.curriculum_level == 2 and env.episode_start_distance() == (1.0, 4.0)
+    _end_episode(env, success=True, progress=1.0)
+    env.reset()
+    assert env.curriculum_level == 2                # the top level already draws the whole range
+    _end_episode(env, success=False, progress=0.7)  # most of the way: the level holds
+    env.reset()
+    assert env.curriculum_level == 2
+    _end_episode(env, success=False, progress=0.1)  # hardly moved: down a level
+    env.reset()
+    assert env.curriculum_level == 1
+    env.reset()                                     # no step taken: nothing to judge
+    assert env.curriculum_level == 1
+
+
+def test_curriculum_starts_within_the_level_range():
+    env = SIMSEnv(skill="sit", start_distance_levels=4, start_distance=(1.0, 5.0), **FAST)
+    for seed in range(10):
+        env.reset(seed=seed)
+        distance = float(np.hypot(*(_pelvis(env)[:2] - env._target.position)))
+        low, high = env.episode_start_distance()
+        assert high == 2.0
+        # within the band, or (when the band is inside the piece's margin) just outside the piece
+        radius = max(env._target.furniture.footprint) + 0.5
+        assert distance <= max(high, radius) + 0.05
+
+
+def test_interaction_starts_are_not_judged_by_the_curriculum():
+    env = SIMSEnv(skill="sit", start_distance_levels=3, interaction_start_fraction=1.0, **FAST)
+    env.reset(seed=1)
+    assert env._interaction_start
+    _end_episode(env, success=True, progress=1.0)
+    env.reset(seed=2)
+    assert env.curriculum_level == 0
+
+
+def test_growing_range_and_levels():
+    assert curriculum.growing_range(0, 4, 1.0, 5.0) == (1.0, 2.0)
+    assert curriculum.growing_range(3, 4, 1.0, 5.0) == (1.0, 5.0)
+    with pytest.raises(ValueError, match="level"):
+        curriculum.growing_range(4, 4, 1.0, 5.0)
+    assert curriculum.next_growing_level(1, 4, True, 0.0) == 2
+    assert curriculum.next_growing_level(3, 4, True, 1.0) == 3
+    assert curriculum.next_growing_level(1, 4, False, 0.2) == 0
+    assert curriculum.next_growing_level(1, 4, False, 0.6) == 1
+
+
+# --- keywords ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("kwargs", "error", "match"), [
+    ({"interaction_start_fraction": -0.1}, ValueError, "interaction_start_fraction"),
+    ({"interaction_start_fraction": 1.5}, ValueError, r"interaction_start_fraction.*\[0\.0, 1\.0\]"),
+    ({"interaction_start_fraction": "0.5"}, TypeError, "interaction_start_fraction"),
+    ({"interaction_start_fraction": 0.5, "skill": "walk"}, ValueError, "interaction_start_fraction"),
+    ({"interaction_start_fraction": 0.5, "skill": "getup"}, ValueError, "interaction_start_fraction"),
+    ({"start_distance_levels": -1}, ValueError, r"start_distance_levels.*\[0, 100\]"),
+    ({"start_distance_levels": 101}, ValueError, "start_distance_levels"),
+    ({"start_distance_levels": 2.5}, ValueError, "start_distance_levels"),
+    ({"start_distance_levels": "3"}, TypeError, "start_distance_levels"),
+    ({"start_distance_levels": 3, "scene": "room"}, ValueError, "start_distance_levels"),
+    ({"start_distance_levels": 3, "skill": "walk"}, ValueError, "start_distance_levels"),
+])
+def test_bad_values_are_refused_naming_the_keyword(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        SIMSEnv(**{"skill": "sit", **FAST, **kwargs})
+
+
+def test_both_keywords_work_in_the_batched_env():
+    env = gym.make_vec("SIMS-Sit-v0", num_envs=4, vectorization_mode="vector_entry_point",
+                       interaction_start_fraction=0.5, start_distance_levels=3, text_encoder="hashing",
+                       max_episode_steps=4)
+    _, info = env.reset(seed=0)
+    assert info["interaction_start"].dtype == bool
+    for _ in range(10):
+        env.step(np.zeros((4, 28)))
+    levels = env.get_attr("curriculum_level")
+    assert all(level in (0, 1, 2) for level in levels)
+    env.close()
+
+
+def test_the_evaluation_drops_both_aids(baseline_script):
+    train_ppo = baseline_script("train_ppo")
+    kwargs = {"interaction_start_fraction": 0.5, "start_distance_levels": 3, "start_distance": (1.0, 4.0)}
+    assert train_ppo.evaluation_kwargs(kwargs) == {"start_distance": (1.0, 4.0)}
+    assert "start_distance_levels" in curriculum.LEVEL_KEYWORDS
+    assert math.isclose(START_PENETRATION, 0.01)
