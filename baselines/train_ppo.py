@@ -197,6 +197,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="dummy: the envs step one after another in this process; subproc: a process per env; "
                         "batched: the natively batched env (stairenv.vec_sb3), one step call advancing every "
                         "world's physics on every core")
+    p.add_argument("--physics", choices=("mujoco", "serial", "warp"), default=None,
+                   help="the batched env's physics: mujoco (default; MuJoCo's C library on a pool of threads), "
+                        "serial (one core), warp (MuJoCo Warp on a GPU; InterLevel ids; pip install '.[gpu]'); "
+                        "with --resume: the checkpoint's unless given")
+    p.add_argument("--physics-threads", type=int, default=None,
+                   help="threads of the mujoco physics pool (default: the cores; with --resume: the checkpoint's "
+                        "unless given)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--logdir", type=Path, default=Path("runs"))
     p.add_argument("--checkpoint-every", type=int, default=None,
@@ -380,6 +387,7 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
     try:
         return TrainConfig(
             env_id=args.env, env_kwargs=env_kwargs, num_envs=args.n_envs, seed=args.seed,
+            physics=args.physics or TrainConfig.physics, physics_threads=args.physics_threads,
             total_steps=int(args.timesteps), rollout_steps=args.n_steps, epochs=args.n_epochs,
             minibatch_size=args.batch_size, learning_rate=args.learning_rate, target_kl=args.adaptive_kl,
             gamma=args.gamma, gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
@@ -440,6 +448,10 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
         config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
+        # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's
+        for name in ("physics", "physics_threads"):
+            if getattr(args, name) is not None:
+                config = config.replace(**{name: getattr(args, name)})
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
                                                                    config.reference)
         env_kwargs = dict(config.env_kwargs)
@@ -532,7 +544,9 @@ def main(argv: list[str] | None = None) -> Path:
     if args.vec_env == "batched":
         # VecMonitor: episode returns and lengths for SB3's rollout/ep_*_mean (make_vec_env's Monitor does it
         # for the other vec envs)
-        venv = VecMonitor(make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, **env_kwargs))
+        venv = VecMonitor(make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed,
+                                           physics=args.physics or "mujoco", physics_threads=args.physics_threads,
+                                           **env_kwargs))
     else:
         vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv
         venv = make_vec_env(args.env, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs, vec_env_cls=vec_cls)

@@ -50,7 +50,8 @@ def test_numpy_seeds_are_seeds(vec):
         vec.reset(seed=-1)
 
 
-@pytest.mark.parametrize("physics", ["threads", "serial"])
+@pytest.mark.parametrize("physics", ["mujoco", "threads", "serial", pytest.param("warp", marks=pytest.mark.skipif(
+    __import__("importlib").util.find_spec("mujoco_warp") is None, reason="mujoco_warp not installed (.[gpu])"))])
 def test_a_closed_batched_env_refuses_steps_and_resets(physics):
     env = batched(2, physics=physics)
     env.reset(seed=0)

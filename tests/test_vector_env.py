@@ -26,6 +26,9 @@ from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 from stairenv.vec_sb3 import SB3BatchedVecEnv, make_sb3_vec_env
 
 IDS = sorted(load_presets())
+# the contract tests below also run on MuJoCo Warp (its CPU device here) where it is installed
+WARP = pytest.param("warp", marks=pytest.mark.skipif(
+    __import__("importlib").util.find_spec("mujoco_warp") is None, reason="mujoco_warp not installed (.[gpu])"))
 
 
 def assert_same(a, b, where=""):
@@ -90,8 +93,9 @@ def test_physics_backends_give_the_same_worlds(physics):
     assert_same(runs[0], runs[1])
 
 
-def test_next_step_autoreset_semantics():
-    vec = batched("InterLevel-v0", 3, max_episode_steps=4)
+@pytest.mark.parametrize("physics", ["mujoco", WARP])
+def test_next_step_autoreset_semantics(physics):
+    vec = batched("InterLevel-v0", 3, max_episode_steps=4, physics=physics)
     assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
     single = gym.make("InterLevel-v0")
     obs, info = vec.reset(seed=[10, 11, 12])
@@ -174,8 +178,9 @@ def test_non_real_actions_are_refused_naming_the_world():
     vec.step(np.zeros((3, 28), dtype=np.int64))
 
 
-def test_reset_mask_resets_only_those_worlds():
-    vec = batched("InterLevel-v0", 3)
+@pytest.mark.parametrize("physics", ["mujoco", WARP])
+def test_reset_mask_resets_only_those_worlds(physics):
+    vec = batched("InterLevel-v0", 3, physics=physics)
     vec.reset(seed=0)
     obs, *_ = vec.step(np.zeros((3, 28)))
     new, info = vec.reset(options={"reset_mask": np.array([False, True, False])})
@@ -239,9 +244,10 @@ def test_threads_release_the_gil_and_keep_worlds_apart():
         np.testing.assert_array_equal(env.data.qpos, data.qpos)
 
 
-def test_gymnasium_amp_wrapper_runs_on_the_batched_env():
+@pytest.mark.parametrize("physics", ["mujoco", WARP])
+def test_gymnasium_amp_wrapper_runs_on_the_batched_env(physics):
     from stairenv.style.wrappers import AMPVectorWrapper
-    wrapped = AMPVectorWrapper(batched("InterLevel-v0", 2, max_episode_steps=6),
+    wrapped = AMPVectorWrapper(batched("InterLevel-v0", 2, max_episode_steps=6, physics=physics),
                                AMPStyleReward(gait_reference(), w_task=1.0, w_style=1.0))
     wrapped.reset(seed=0)
     for _ in range(8):

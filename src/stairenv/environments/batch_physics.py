@@ -15,9 +15,10 @@ do its Python work while the physics runs:
 
 ``step`` returns when every callback has returned. Each world keeps its own ``MjModel`` (InterLevel
 writes its staircase into it) and ``MjData`` (its warm start included), so a world stepped here is
-bit-identical to the same world stepped alone by ``mujoco.mj_step``. A GPU back-end (MuJoCo Warp)
-would launch the whole batch, run ``meanwhile``, then call ``then`` for each world and ``collect`` once
-with all of them.
+bit-identical to the same world stepped alone by ``mujoco.mj_step``. The GPU back-end (MuJoCo Warp,
+``warp_physics.WarpPhysics``) launches the whole batch, runs ``meanwhile``, then calls ``then`` for each
+world and ``collect`` once with all of them; it also has ``bind(worlds)`` (every world of the batch, once)
+and ``world_changed(k)`` (world k was reset on the host), which the batched env calls where they exist.
 """
 
 from __future__ import annotations
@@ -143,13 +144,23 @@ class ThreadPoolPhysics:
             self._pool = None
 
 
-PHYSICS_BACKENDS = {"threads": ThreadPoolPhysics, "serial": SerialPhysics}
+#: back-ends by name: "mujoco" (the default; the thread pool of MuJoCo's C library, also called
+#: "threads"), "serial" (one world after the other, one core) and "warp" (MuJoCo Warp on a GPU or on
+#: Warp's CPU device: ``stairenv.environments.warp_physics``; needs the ``gpu`` extra)
+PHYSICS_BACKENDS = ("mujoco", "threads", "serial", "warp")
 
 
-def make_physics(backend: str | BatchPhysics = "threads", nthread: int | None = None) -> BatchPhysics:
-    """A back-end by name ("threads", "serial") or an object that already implements ``BatchPhysics``."""
+def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = None) -> BatchPhysics:
+    """A back-end by name (``PHYSICS_BACKENDS``) or an object that already implements ``BatchPhysics``.
+    ``nthread``: the threads of the "mujoco" pool (default ``os.cpu_count()``); the other back-ends
+    take none."""
     if not isinstance(backend, str):
         return backend
     if backend not in PHYSICS_BACKENDS:
-        raise ValueError(f"physics must be one of {sorted(PHYSICS_BACKENDS)} or a BatchPhysics, got {backend!r}")
-    return ThreadPoolPhysics(nthread) if backend == "threads" else SerialPhysics()
+        raise ValueError(f"physics must be one of {list(PHYSICS_BACKENDS)} or a BatchPhysics, got {backend!r}")
+    if nthread is not None and (isinstance(nthread, bool) or not isinstance(nthread, int) or nthread < 1):
+        raise ValueError(f"physics_threads must be None or a positive integer, got {nthread!r}")
+    if backend == "warp":
+        from stairenv.environments.warp_physics import WarpPhysics
+        return WarpPhysics()
+    return ThreadPoolPhysics(nthread) if backend in ("mujoco", "threads") else SerialPhysics()

@@ -54,16 +54,20 @@ from stairenv.environments.batch_physics import BatchPhysics, make_physics
 class HumanoidVectorEnv(gym.vector.VectorEnv):
     """N worlds of ``env_class(**kwargs)`` stepped as one batch (see the module docstring).
 
-    ``physics``: "threads" (default), "serial" or a ``BatchPhysics``; ``nthread``: the pool's threads
-    (default ``os.cpu_count()``); ``max_episode_steps``: the truncation limit (None: none);
+    ``physics``: "mujoco" (default: MuJoCo's C library on a pool of threads; "threads" is the same),
+    "serial" (one core), "warp" (MuJoCo Warp on a GPU: ``warp_physics``; InterLevel ids only, others
+    refused with a ``ValueError`` saying why) or a ``BatchPhysics``; ``physics_threads``: the pool's
+    threads (default ``os.cpu_count()``; ``nthread`` is its older name); ``max_episode_steps``: the
+    truncation limit (None: none);
     ``batch_evaluation``: evaluate the task over the batch in one call (default: where the env class can).
     """
 
     env_class: type[HumanoidEnv] | None = None
 
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
-                 max_episode_steps: int | None = None, physics: str | BatchPhysics = "threads",
-                 nthread: int | None = None, batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 max_episode_steps: int | None = None, physics: str | BatchPhysics = "mujoco",
+                 physics_threads: int | None = None, nthread: int | None = None,
+                 batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         env_class = env_class or self.env_class
         if env_class is None:
@@ -78,8 +82,19 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             raise ValueError(f"autoreset_mode must be AutoresetMode.NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
         if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or max_episode_steps < 1):
             raise ValueError(f"max_episode_steps must be None or a positive integer, got {max_episode_steps!r}")
+        if nthread is not None and physics_threads is not None and nthread != physics_threads:
+            raise ValueError(f"physics_threads={physics_threads!r} and its older name nthread={nthread!r} differ")
+        physics_threads = nthread if physics_threads is None else physics_threads
+        device = physics == "warp" or hasattr(physics, "bind")
+        if device:    # refused before any world is built
+            from stairenv.environments.warp_physics import check_supported
+            check_supported(env_class)
         self.num_envs = int(num_envs)
-        self.envs: list[HumanoidEnv] = [env_class(**kwargs) for _ in range(self.num_envs)]
+        if device:    # thousands of worlds: copies of the first (~10x faster than building each), all unseeded
+            first = env_class(**kwargs)
+            self.envs: list[HumanoidEnv] = [first, *(first.replicate() for _ in range(self.num_envs - 1))]
+        else:
+            self.envs = [env_class(**kwargs) for _ in range(self.num_envs)]
         first = self.envs[0]
         self.max_episode_steps = max_episode_steps
         self.single_observation_space = first.observation_space
@@ -88,7 +103,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(first.action_space, self.num_envs)
         self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = first.render_mode
-        self.physics = make_physics(physics, nthread)
+        self.physics = make_physics(physics, physics_threads)
+        if hasattr(self.physics, "bind"):    # a device back-end: every world's model and data, once
+            self.physics.bind([(env.model, env.data) for env in self.envs])
+        #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
+        self._world_changed = getattr(self.physics, "world_changed", None)
         #: the task evaluated over the batch (``HumanoidEnv._finish_worlds``) where the env class can
         #: (``BATCH_EVALUATION``: InterLevel), else world by world
         self.batch_evaluation = bool(env_class.BATCH_EVALUATION) if batch_evaluation is None else batch_evaluation
@@ -124,6 +143,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         """Reset world ``i`` alone (its episode count and autoreset flag too); its ``(obs, info)``."""
         self.check_open()
         obs, info = self.envs[i].reset(seed=seed, options=options)
+        if self._world_changed is not None:
+            self._world_changed(i)
         self._elapsed[i] = 0
         self._autoreset[i] = False
         self._last_obs[i] = obs

@@ -23,7 +23,8 @@ class TrainConfig:
     | env_id | "InterLevel-v0" | registered stairenv id |
     | env_kwargs | {} | keyword arguments of the env (training aids included: the evaluation drops them) |
     | num_envs | 128 | worlds stepped together (per rank in a data-parallel run) |
-    | physics | "threads" | the batched env's physics back-end ("threads", "serial") |
+    | physics | "mujoco" | the batched env's physics ("mujoco": C library, thread pool; "serial"; "warp": GPU) |
+    | physics_threads | None | threads of the "mujoco" pool (None: the cores) |
     | seed | 0 | seeds torch, the trainer's generators, the worlds (world i: seed + i; rank r's j: r x num_envs + j) |
     | total_steps | 2,000,000 | env steps (all worlds together, every rank's) |
     | rollout_steps | 16 | steps per world between updates |
@@ -54,7 +55,8 @@ class TrainConfig:
     env_id: str = "InterLevel-v0"
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     num_envs: int = 128
-    physics: str = "threads"
+    physics: str = "mujoco"
+    physics_threads: int | None = None
     seed: int = 0
     total_steps: int = 2_000_000
     rollout_steps: int = 16
@@ -98,7 +100,9 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         self._set("num_envs", check_int("num_envs", self.num_envs, 1, 1_000_000))
-        self._set("physics", check_choice("physics", self.physics, ("threads", "serial")))
+        self._set("physics", check_choice("physics", self.physics, ("mujoco", "threads", "serial", "warp")))
+        if self.physics_threads is not None:
+            self._set("physics_threads", check_int("physics_threads", self.physics_threads, 1, 1024))
         self._set("seed", check_int("seed", self.seed, 0, 2**31 - 1))
         self._set("total_steps", check_int("total_steps", self.total_steps, 0, 10**12))
         self._set("rollout_steps", check_int("rollout_steps", self.rollout_steps, 1, 100_000))

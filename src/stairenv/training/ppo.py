@@ -643,7 +643,7 @@ def make_env(config: TrainConfig) -> HumanoidVectorEnv:
     if config.style == "amp":
         kwargs.setdefault("amp_history", config.amp_history)
     venv = gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
-                        physics=config.physics, **kwargs)
+                        physics=config.physics, physics_threads=config.physics_threads, **kwargs)
     if not isinstance(venv, HumanoidVectorEnv):
         raise TypeError(f"{config.env_id} has no natively batched env; the lean trainer needs one")
     return venv

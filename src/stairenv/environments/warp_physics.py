@@ -1,0 +1,292 @@
+"""MuJoCo Warp physics for the batched env: every world's physics in one Warp model on a GPU (or, for
+tests, on Warp's CPU device), behind the same ``BatchPhysics.step`` as the C back-ends.
+
+``gym.make_vec("InterLevel-v0", num_envs=4096, vectorization_mode="vector_entry_point", physics="warp")``
+(``train_ppo.py --physics warp``) selects it. Needs the ``gpu`` extra (``mujoco-warp``, ``warp-lang``);
+it is imported only when asked for, so a CPU install never loads it.
+
+Design: the per-world ``MjModel`` / ``MjData`` of the batched env stay the source of truth on the host,
+and everything the task reads is computed there by the same code as with the C back-end (observation,
+reward and termination are one implementation: the CPU kernels of ``stairenv.tasks``). The device holds
+one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data``:
+
+- the fields a staircase writes (``StairsSlots.place``: ``body_pos``, ``body_quat``, ``geom_size``,
+  ``geom_rbound``, ``geom_aabb``) have a world dimension, so each world keeps its own staircase (the same
+  number of step boxes in every world, only their sizes and poses differ), rewritten without recompiling;
+- a world marked changed (``world_changed(k)``: the batched env calls it when it resets world k; every
+  world at ``bind``) has those model rows copied from its host ``MjModel`` before the next step;
+- each ``step``: the stepped worlds' state (``qpos``, ``qvel``, ``act``, ``qacc_warmstart``, ``time``)
+  and ``ctrl`` up, one copy per field (the host state is the truth: a reset, a push an evaluation
+  writes into ``qvel``, a test's forced divergence all reach the device without being announced);
+  ``nstep`` substeps of ``mujoco_warp.step`` on the device (one CUDA graph on a GPU); then ``qpos``,
+  ``qvel``, ``act`` and ``qacc_warmstart`` down (one copy per field, not per world) into each stepped
+  world's ``MjData``, its ``time`` advanced there by ``nstep`` timesteps in float64 as ``mj_step`` does.
+  The env then runs ``mj_kinematics`` on the host (``_physics_sound``, as after ``mj_step``), so the body
+  poses the task reads come from these ``qpos``.
+
+Options (integrator, solver, iterations, line-search iterations, tolerances, timestep, cone) are the
+``MjModel``'s: ``mujoco_warp.put_model`` reads them, and ``settings()`` reports both sides. MuJoCo Warp
+computes in float32 and is not bit-deterministic, so a world stepped here follows the C back-end's
+trajectory only within a tolerance (``tests/test_warp_physics.py``, ``docs/gpu.md``).
+
+Divergence: MuJoCo C resets a world whose state blows up and counts a warning, which the env's
+divergence check reads; MuJoCo Warp does neither. Here a world whose state comes back non-finite or
+beyond MuJoCo's own bound (1e10) gets the same warning count (``mjWARN_BADQACC``), and one whose contacts
+or constraints overflowed the device's buffers (``nconmax``, ``njmax``: contacts would be dropped) gets
+``mjWARN_CONTACTFULL`` counted in ``overflows``; the env truncates a diverged world alone, as with the C
+back-end (``info["physics_unstable"]``), while its speed check catches the rest.
+
+Which ids: InterLevel-v0 and its ablations (InterLevel2D-v0, InterSceneStairs-v0): one model structure
+for every world, only box sizes and poses per world. Not supported, refused with a ``ValueError``:
+
+- PlaMo (PlaMo-v0, PlaMoNaivePaths-v0, PlaMoScene-v0): each world's terrain is a height field rewritten
+  at every reset (``HeightfieldSlot``), and MuJoCo Warp has no per-world height-field data (``hfield_data``
+  is shared by all worlds). It would take per-world height fields in MuJoCo Warp, or terrain made of boxes
+  (as the staircase is) with the same number of boxes in every world.
+- SIMS (the five SIMS-* skills): each reset builds a room of furniture bodies and recompiles the model,
+  so the worlds differ in their number of bodies and geoms, which one Warp model cannot hold. It would
+  take a fixed set of furniture slots (parked bodies with convex parts resized per world, as
+  ``StairsSlots`` does for treads) so that every world has the same structure.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import mujoco
+import numpy as np
+
+# a world as ``batch_physics.World`` (not imported from there: ``make_physics`` imports this module)
+World = tuple[mujoco.MjModel, mujoco.MjData]
+
+#: model fields that a world's staircase writes (``StairsSlots.place``): given a world dimension on the device
+PER_WORLD_MODEL_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_rbound", "geom_aabb")
+#: state copied up before and down after every step (``ctrl`` and ``time`` go up too)
+STATE_FIELDS = ("qpos", "qvel", "act", "qacc_warmstart")
+#: MuJoCo's bound on a state value (``mjMAXVAL``): beyond it (or non-finite) C resets the world
+MAX_VALUE = 1e10
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+_CONTACTFULL = int(mujoco.mjtWarning.mjWARN_CONTACTFULL)
+
+#: why each unsupported env class is refused (see the module docstring)
+UNSUPPORTED = {
+    "PlaMoEnv": "PlaMo rewrites a per-world height field at every reset and MuJoCo Warp has no per-world "
+                "height-field data",
+    "PlaMoSceneEnv": "PlaMo scenes rewrite a per-world height field at every reset and MuJoCo Warp has no "
+                     "per-world height-field data",
+    "SIMSEnv": "SIMS builds each world's furniture as bodies and recompiles the model at every reset, so "
+               "worlds differ in their bodies and geoms, which one MuJoCo Warp model cannot hold",
+}
+
+
+def check_supported(env_class: type) -> None:
+    """``ValueError`` naming ``physics`` unless ``env_class`` can run on the Warp back-end (InterLevel)."""
+    from stairenv.environments.interlevel import InterLevelEnv
+    if issubclass(env_class, InterLevelEnv):
+        return
+    reason = next((UNSUPPORTED[c.__name__] for c in env_class.__mro__ if c.__name__ in UNSUPPORTED),
+                  "only InterLevel's staircase worlds (the same structure in every world) are supported")
+    raise ValueError(f"physics='warp' does not support {env_class.__name__}: {reason}. Supported: "
+                     "InterLevel-v0, InterLevel2D-v0, InterSceneStairs-v0; use physics='mujoco' for this env")
+
+
+def _import_warp():
+    try:
+        import mujoco_warp
+        import warp
+    except ImportError as error:    # the gpu extra is not installed
+        raise ImportError("physics='warp' needs MuJoCo Warp: pip install 'stairenv[gpu]' "
+                          f"(mujoco-warp, warp-lang); {error}") from error
+    return warp, mujoco_warp
+
+
+class WarpPhysics:
+    """All worlds of a batched env on one MuJoCo Warp model (see the module docstring).
+
+    ``device``: a Warp device ("cuda:0", "cpu"; default Warp's preferred one: the first GPU, else the
+    CPU); ``nconmax`` / ``njmax``: contacts (a pool of ``nconmax x nworld`` shared by all worlds) and
+    constraint rows per world on the device (the C back-end saw at most 8 contacts and 32 rows in 3,000
+    steps of random actions on InterLevel; overflows are counted in ``overflows``); ``graph``: replay the
+    ``nstep`` substeps as one captured graph (default: on a GPU, where it saves a launch per kernel; Warp
+    replays graphs on its CPU device too, which the tests use to check the capture). ``bind(worlds)`` must
+    be called once with every world of the batch before ``step`` (the batched env does)."""
+
+    def __init__(self, device: str | None = None, nconmax: int = 32, njmax: int = 128,
+                 graph: bool | None = None) -> None:
+        self._wp, self._mjw = _import_warp()
+        wp = self._wp
+        wp.config.quiet = True
+        wp.config.log_level = 30    # warnings only: no line per compiled or loaded kernel module
+        wp.init()
+        self.device = wp.get_device(device) if device is not None else wp.get_preferred_device()
+        self.nconmax, self.njmax = int(nconmax), int(njmax)
+        self.graph = self.device.is_cuda if graph is None else bool(graph)
+        #: why a CUDA graph could not be captured (the substeps then launch kernel by kernel), if so
+        self.graph_error: str | None = None
+        self.model = self.data = None
+        self.worlds: list[World] = []
+        self._slot: dict[int, int] = {}
+        self._graphs: dict[int, object] = {}
+        #: world-steps whose device buffers overflowed (contacts or constraint rows dropped; a full contact
+        #: pool flags every world of that step), since construction
+        self.overflows = 0
+
+    # --- binding ----------------------------------------------------------------------------------
+    def bind(self, worlds: Sequence[World]) -> None:
+        """Build the device model and data for these worlds (one structure: the first world's model,
+        the staircase fields per world), every world marked changed."""
+        wp, mjw = self._wp, self._mjw
+        if not worlds:
+            raise ValueError("WarpPhysics.bind needs at least one world")
+        model0, data0 = worlds[0]
+        for k, (model, _) in enumerate(worlds):
+            if (model.nq, model.nv, model.nu, model.na, model.nbody, model.ngeom) != (
+                    model0.nq, model0.nv, model0.nu, model0.na, model0.nbody, model0.ngeom):
+                raise ValueError(f"physics='warp' needs one model structure in every world; world {k} differs")
+        n = len(worlds)
+        self.worlds = list(worlds)
+        self._slot = {id(data): k for k, (_, data) in enumerate(worlds)}
+        with wp.ScopedDevice(self.device):
+            self.model = mjw.put_model(model0, batch_sizes=dict.fromkeys(PER_WORLD_MODEL_FIELDS, n))
+            self.model.opt.warn_overflow = 0    # counted per world instead of printed
+            self.data = mjw.put_data(model0, data0, nworld=n, nconmax=self.nconmax, njmax=self.njmax)
+        self._timestep = float(model0.opt.timestep)
+        self._model_host = {name: np.stack([getattr(m, name) for m, _ in worlds]).astype(np.float32)
+                            for name in PER_WORLD_MODEL_FIELDS}
+        self._state_host = {name: np.zeros((n, getattr(data0, name).size), dtype=np.float32)
+                            for name in STATE_FIELDS}
+        self._ctrl_host = np.zeros((n, model0.nu), dtype=np.float32)
+        self._time_host = np.zeros(n, dtype=np.float64)
+        self._changed = np.ones(n, dtype=bool)
+        self._graphs = {}
+
+    def world_changed(self, k: int) -> None:
+        """World ``k``'s staircase was written into its host ``MjModel`` (a reset): copy the per-world model
+        fields up before the next step (its state goes up at every step anyway)."""
+        self._changed[k] = True
+
+    def settings(self) -> dict[str, tuple]:
+        """The options the device runs with next to the host model's: ``{name: (host, device)}``."""
+        host = self.worlds[0][0].opt
+        dev = self.model.opt
+
+        def first(value):
+            return value.numpy().reshape(-1)[0].item() if hasattr(value, "numpy") else value
+        return {name: (getattr(host, name) if not hasattr(getattr(host, name), "item") else getattr(host, name).item(),
+                       first(getattr(dev, name)))
+                for name in ("timestep", "integrator", "solver", "iterations", "ls_iterations", "tolerance",
+                             "ls_tolerance", "cone", "disableflags", "enableflags")}
+
+    # --- stepping ---------------------------------------------------------------------------------
+    def step(self, worlds: Sequence[World], nstep: int, then: Callable[[int], None] | None = None,
+             meanwhile: Callable[[], None] | None = None,
+             collect: Callable[[list[int]], None] | None = None) -> None:
+        if not worlds:
+            if meanwhile is not None:
+                meanwhile()
+            return
+        if self.model is None:
+            raise RuntimeError("WarpPhysics.bind(worlds) must be called before step")
+        wp = self._wp
+        try:
+            slots = np.fromiter((self._slot[id(data)] for _, data in worlds), dtype=np.int64, count=len(worlds))
+        except KeyError:
+            raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
+        self._upload(worlds, slots)
+        with wp.ScopedDevice(self.device):
+            self.data.overflow.zero_()
+            self._launch(nstep)
+            if meanwhile is not None:    # the host resets other worlds while the device steps
+                meanwhile()
+            down = {name: getattr(self.data, name).numpy() for name in STATE_FIELDS}
+            overflow = self.data.overflow.numpy()
+        self._download(worlds, slots, nstep, down, overflow)
+        if then is not None:
+            for k in range(len(worlds)):
+                then(k)
+        if collect is not None:
+            collect(list(range(len(worlds))))
+
+    def _upload(self, worlds: Sequence[World], slots: np.ndarray) -> None:
+        changed = np.flatnonzero(self._changed)
+        if changed.size:    # a reset world's staircase: its rows of the per-world model fields
+            for name, host in self._model_host.items():
+                for k in changed:
+                    host[k] = getattr(self.worlds[k][0], name)
+                self._assign(getattr(self.model, name), host)
+            self._changed[:] = False
+        datas = [data for _, data in worlds]
+        for name, host in self._state_host.items():    # the host's state is the truth (resets, pushes)
+            if host.shape[1]:
+                host[slots] = np.stack([getattr(data, name) for data in datas])
+                self._assign(getattr(self.data, name), host)
+        self._time_host[slots] = np.fromiter((data.time for data in datas), dtype=np.float64, count=len(datas))
+        self._assign(self.data.time, self._time_host)
+        self._ctrl_host[slots] = np.stack([data.ctrl for data in datas])
+        self._assign(self.data.ctrl, self._ctrl_host)
+
+    @staticmethod
+    def _assign(array, host: np.ndarray) -> None:
+        """One host-to-device copy of a whole field (``host`` reshaped to the device array's layout)."""
+        if array.size == 0:
+            return
+        shape = tuple(array.shape) + tuple(getattr(array.dtype, "_shape_", ()))
+        array.assign(np.ascontiguousarray(host, dtype=np.float32).reshape(shape))
+
+    def _launch(self, nstep: int) -> None:
+        wp, mjw = self._wp, self._mjw
+        if not self.graph:
+            for _ in range(nstep):
+                mjw.step(self.model, self.data)
+            return
+        graph = self._graphs.get(nstep)
+        if graph is None:
+            if not self._graphs.get("loaded"):    # kernels compiled and loaded before a capture
+                for _ in range(nstep):
+                    mjw.step(self.model, self.data)
+                self._graphs["loaded"] = True
+                return
+            try:
+                with wp.ScopedCapture() as capture:
+                    for _ in range(nstep):
+                        mjw.step(self.model, self.data)
+            except Exception as error:    # noqa: BLE001  (a driver without graph support: launch kernel by kernel)
+                self.graph, self.graph_error = False, f"{type(error).__name__}: {error}"
+                for _ in range(nstep):
+                    mjw.step(self.model, self.data)
+                return
+            graph = self._graphs[nstep] = capture.graph
+        wp.capture_launch(graph)
+
+    def _download(self, worlds: Sequence[World], slots: np.ndarray, nstep: int, down: dict[str, np.ndarray],
+                  overflow: np.ndarray) -> None:
+        rows = {name: value.reshape(len(self.worlds), -1)[slots].astype(np.float64) for name, value in down.items()}
+        qpos, qvel, act, warm = (rows[name] for name in STATE_FIELDS)
+        bad = ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
+                & (np.abs(qpos) <= MAX_VALUE).all(1) & np.isfinite(warm).all(1))
+        full = (overflow[slots] & int(self._mjw.OverflowType.NEFC | self._mjw.OverflowType.NJMAX_NNZ
+                                      | self._mjw.OverflowType.BROADPHASE
+                                      | self._mjw.OverflowType.NARROWPHASE)) != 0
+        self.overflows += int(full.sum())
+        dt = self._timestep
+        has_act = act.shape[1] > 0
+        for k, (_, data) in enumerate(worlds):
+            data.qpos[:] = qpos[k]
+            data.qvel[:] = qvel[k]
+            data.qacc_warmstart[:] = warm[k]
+            if has_act:
+                data.act[:] = act[k]
+            t = data.time
+            for _ in range(nstep):    # as mj_step advances it, in float64
+                t += dt
+            data.time = t
+            if bad[k]:
+                data.warning[_BADQACC].number += 1
+            if full[k]:
+                data.warning[_CONTACTFULL].number += 1
+
+    def close(self) -> None:
+        self._graphs = {}
+        self.model = self.data = None
+        self.worlds = []
+        self._slot = {}
