@@ -393,7 +393,8 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
             gamma=args.gamma, gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
             max_grad_norm=args.max_grad_norm, hidden=tuple(args.policy_hidden), log_std_init=args.log_std_init,
             style=args.style, reference=None if args.reference is None else str(args.reference),
-            amp_history=args.amp_history, w_task=args.w_task, w_style=args.w_style,
+            amp_history=args.amp_history, amp_text_condition=args.amp_text_condition,
+            w_task=args.w_task, w_style=args.w_style,
             torch_threads=args.torch_threads, update_threads=args.update_threads, update_bf16=args.update_bf16,
             checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every, **disc)
     except (TypeError, ValueError) as err:
@@ -454,6 +455,9 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
                 config = config.replace(**{name: getattr(args, name)})
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
                                                                    config.reference)
+        # checkpoints written before the run recorded it need the flag again
+        args.amp_text_condition = args.amp_text_condition or config.amp_text_condition
+        config = config.replace(amp_text_condition=args.amp_text_condition)
         env_kwargs = dict(config.env_kwargs)
     else:
         env_kwargs = run_env_kwargs(args)
@@ -476,7 +480,8 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
             replay = trainer.load_replay(args.resume, resume)
         except (CheckpointError, RuntimeError, ValueError, KeyError) as err:
             raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
-                             "text-conditioned run needs --amp-text-condition again") from None
+                             "text-conditioned run written before checkpoints recorded amp_text_condition needs "
+                             "--amp-text-condition again") from None
         note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
         saved_ranks = int(resume.get("world_size", 1))
         if saved_ranks != parallel.world_size:

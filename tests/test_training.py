@@ -223,6 +223,18 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
 
+def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
+    """The checkpoint records amp_text_condition: --resume needs no --amp-text-condition again."""
+    tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
+            "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
+    run_script(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
+                "--timesteps", "32", *tiny], tmp_path)
+    checkpoint = tmp_path / "SIMS-Sit-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
+    assert read_checkpoint(checkpoint)["config"]["amp_text_condition"] is True
+    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
+    assert "at 32 steps" in out and "trained 32 env steps" in out
+
+
 def test_resume_equals_an_uninterrupted_run(tmp_path):
     """Serial physics, PPO + AMP (discriminator trained in the background): training on from a checkpoint
     (and the replay buffer beside it) gives the same weights, statistics and discriminator as the run

@@ -11,7 +11,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from stairenv.validation import check_choice, check_float, check_int
+from stairenv.validation import check_bool, check_choice, check_float, check_int
 
 
 @dataclass(frozen=True)
@@ -77,6 +77,7 @@ class TrainConfig:
     style: str = "amp"
     reference: str | None = None
     amp_history: int = 2
+    amp_text_condition: bool = False    # SIMS: the discriminator also sees the caption's embedding
     w_task: float = 0.5
     w_style: float = 0.5
     disc_hidden: tuple[int, ...] = (1024, 512)
@@ -123,6 +124,7 @@ class TrainConfig:
         self._set("clip_reward", check_float("clip_reward", self.clip_reward, 1e-3, 1e9))
         self._set("style", check_choice("style", self.style, ("amp", "none")))
         self._set("amp_history", check_int("amp_history", self.amp_history, 1, 100))
+        self._set("amp_text_condition", check_bool("amp_text_condition", self.amp_text_condition))
         self._set("w_task", check_float("w_task", self.w_task, 0.0, 1e6))
         self._set("w_style", check_float("w_style", self.w_style, 0.0, 1e6))
         self._set("checkpoint_every", check_int("checkpoint_every", self.checkpoint_every, 1, 10**12))
