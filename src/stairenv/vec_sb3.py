@@ -33,11 +33,8 @@ class SB3BatchedVecEnv(VecEnv):
         self._actions: np.ndarray | None = None
 
     def reset(self):
-        obs = np.empty((self.num_envs, *self.observation_space.shape), dtype=self.observation_space.dtype)
-        for i in range(self.num_envs):
-            obs[i], self.reset_infos[i] = self.venv.reset_world(
-                i, seed=self._seeds[i], options=self._options[i] or None)
-        self.venv._was_reset = True
+        obs, infos = self.venv.reset_each(self._seeds, self._options)
+        self.reset_infos[:] = infos
         self._reset_seeds()
         self._reset_options()
         return obs

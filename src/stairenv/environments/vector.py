@@ -139,6 +139,17 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self._was_reset = True
         return obs.copy(), self.batch_infos(infos)
 
+    def reset_each(self, seeds: Sequence[int | None], options: Sequence[dict[str, Any] | None]):
+        """A full reset with a seed and options per world (SB3's ``VecEnv`` convention); returns the
+        observations and the list of per-world infos."""
+        self.check_open()
+        obs = np.empty((self.num_envs, *self.single_observation_space.shape), dtype=self.single_observation_space.dtype)
+        infos: list[dict[str, Any]] = [{}] * self.num_envs
+        for i in range(self.num_envs):
+            obs[i], infos[i] = self.reset_world(i, seed=seeds[i], options=options[i] or None)
+        self._was_reset = True
+        return obs, infos
+
     def reset_world(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None):
         """Reset world ``i`` alone (its episode count and autoreset flag too); its ``(obs, info)``."""
         self.check_open()
@@ -374,9 +385,3 @@ def _classes():
 
 
 InterLevelVectorEnv, PlaMoVectorEnv, PlaMoSceneVectorEnv, SIMSVectorEnv = _classes()
-
-#: the single env's entry point -> the vector env's (``registration`` registers both)
-VECTOR_ENTRY_POINTS = {
-    f"{cls.env_class.__module__}:{cls.env_class.__name__}": f"{__name__}:{cls.__name__}"
-    for cls in (InterLevelVectorEnv, PlaMoVectorEnv, PlaMoSceneVectorEnv, SIMSVectorEnv)
-}
