@@ -128,6 +128,17 @@ def test_losing_the_path_terminates():
     mujoco.mj_forward(u.model, u.data)
     _, _, terminated, _, info = env.step(np.zeros(28))
     assert terminated and info["xy_error"] > 0.5
+    assert info["off_path"] and not info["fell"]  # the reason is in info
+
+
+def test_a_fall_terminates_with_its_reason():
+    env = gym.make("PlaMo-v0", terrain="flat", max_xy_error=50.0)  # the path cannot be lost here
+    env.reset(seed=0)
+    for _ in range(300):  # the zero policy collapses within a few seconds
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated or truncated:
+            break
+    assert terminated and info["fell"] and not info["off_path"]
 
 
 def test_unstable_physics_truncates():

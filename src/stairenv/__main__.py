@@ -93,14 +93,16 @@ def resolve_policy(policy: str | None, env_id: str) -> tuple[str, str | None]:
 
 
 def outcome_of(info: dict, terminated: bool, truncated: bool) -> str:
-    """How an episode ended, in words: "success", "fell", "physics diverged", "time limit",
-    "ended" (another termination) or "still running"."""
+    """How an episode ended, in words: "success", "fell", "lost the path" (PlaMo), "physics diverged",
+    "time limit", "ended" (another termination) or "still running"."""
     if info.get("physics_unstable"):
         return "physics diverged"
     if info.get("success"):
         return "success"
     if info.get("fell"):
         return "fell"
+    if info.get("off_path"):
+        return "lost the path"
     if truncated:
         return "time limit"
     return "ended" if terminated else "still running"
@@ -204,6 +206,7 @@ def record(
             obs, info = env.reset(seed=episode_seed)
             env.unwrapped.set_camera(FILM_CAMERA_ELEVATION, camera_distance)  # after a scene rebuild
             note_progress(info)
+            note_task(info)
             return obs
 
         def note_progress(info: dict) -> None:
@@ -214,7 +217,17 @@ def record(
             lines = [f"{env_id}  |  {policy_name}", f"episode {stats['episodes']}  t = {episode_step / fps:4.1f} s"]
             if stats["best_progress"] is not None:
                 lines[-1] += f"  |  progress {100 * stats['best_progress']:.0f}%"
+            task = task_text.get("text")    # PlaMoScene's instructions, a SIMS caption
+            if task:
+                lines.append(f'"{task}"')
             return caption_frame(frame, lines, banner)
+
+        task_text: dict[str, str] = {}
+
+        def note_task(info: dict) -> None:
+            text = info.get("instructions") or info.get("caption")
+            if isinstance(text, str):
+                task_text["text"] = text
 
         obs = reset()
         # libx264 needs even frame sizes; macro_block_size=2 rounds odd ones up without a warning.
@@ -229,6 +242,7 @@ def record(
                     stats["steps"] += 1
                     episode_step += 1
                     note_progress(info)
+                    note_task(info)
                     stats["outcome"] = outcome_of(info, terminated, truncated)
                     if terminated or truncated:
                         ended = True

@@ -54,7 +54,8 @@ class PlaMoEnv(HumanoidEnv):
     head's forward axis; max body z includes the head, so the body term is <= 0.
 
     **Episode**: terminated when the head is more than ``max_xy_error`` from its
-    target on the ground plane or within ``min_head_height`` of the terrain;
+    target on the ground plane (``info["off_path"]``) or within ``min_head_height`` of the terrain
+    (``info["fell"]``);
     truncated by the TimeLimit (300 steps = 10 s in the preset) or on diverging
     physics (``info["physics_unstable"]``). ``info`` has ``xy_error``, ``z_error``,
     the reward terms, ``terrain`` and ``amp_obs``.
@@ -250,9 +251,11 @@ class PlaMoEnv(HumanoidEnv):
                                        max_body_z)
         xy_error = float(np.hypot(*(target[:2] - head[:2])))
         head_clearance = float(head[2] - self.ground_height(head[:2]))
-        terminated = xy_error > self.max_xy_error or head_clearance < self.min_head_height
-        return Evaluation(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())), bool(terminated),
-                          {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2]))})
+        # the two reasons an episode ends early, each in info: the head at the ground, the path lost
+        fell, off_path = head_clearance < self.min_head_height, xy_error > self.max_xy_error
+        return Evaluation(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())), bool(fell or off_path),
+                          {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2])), "fell": bool(fell),
+                           "off_path": bool(off_path)})
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "terrain": self.terrain,

@@ -255,6 +255,17 @@ class PlaMoSceneEnv(PlaMoEnv):
         return evaluation._replace(terminated=bool(evaluation.terminated or success),
                                    results={**evaluation.results, "success": bool(success)})
 
+    def _render_lines(self) -> tuple:
+        """The followed path's next waypoints (PlaMo's, green) and the whole planned route (blue),
+        one segment per ``PATH_DT`` at the height of the head target."""
+        upcoming = super()._render_lines()
+        if self.path is None:
+            return upcoming
+        times = np.arange(0.0, self._trajectory.end_time + PATH_DT, PATH_DT)
+        points = self.path.at(times)
+        route = tuple((a, b, (0.2, 0.4, 1.0, 0.8)) for a, b in zip(points[:-1], points[1:]))
+        return upcoming + route
+
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**super()._info(results), "instructions": self.instructions_text, "replans": self._replans,
                 "replan_failures": self._replan_failures, "waits": self._waits,
