@@ -470,6 +470,21 @@ def test_yaw_quaternion_is_scipys_bit_for_bit():
         assert np.array_equal(yaw_to_quat_wxyz(yaw), [w, x, y, z])
 
 
+def test_one_yaw_rotation_equals_the_forms_it_replaced_bit_for_bit():
+    """``yaw_matrix`` and ``yaw_to_quat_wxyz`` replaced the yaw rotations written out in the furniture
+    parts and poses, the scene, room and furniture bodies, and the SIMS heading frame: same floats."""
+    from stairenv.rotations import yaw_matrix, yaw_to_quat_wxyz
+    angles = np.concatenate([np.random.default_rng(1).uniform(-7, 7, 2000), [0.0, -0.0, math.pi, -math.pi, 1e-300]])
+    rel = np.random.default_rng(2).normal(size=(15, 3))
+    for yaw in [*angles, *angles.tolist()]:  # numpy and Python floats
+        c, s = math.cos(yaw), math.sin(yaw)
+        written = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        assert yaw_matrix(yaw).tobytes() == written.tobytes()
+        assert (rel @ yaw_matrix(yaw)).tobytes() == (rel @ written).tobytes()
+        quat = np.array([math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)])
+        assert yaw_to_quat_wxyz(yaw).tobytes() == quat.tobytes()
+
+
 def test_staircase_frame_is_cached_read_only_and_fresh_after_replace():
     import dataclasses
     stairs = Staircase(step_height=0.1, step_depth=0.3, width=1.5, num_steps=5, landing_depth=2.0, yaw=0.7,

@@ -1,4 +1,5 @@
-"""Batched rotation helpers (leading batch dimension, numpy).
+"""Rotation helpers: batched ones (leading batch dimension, numpy) and the one yaw rotation
+(``yaw_matrix``, ``yaw_to_quat_wxyz``) that every rotation about +z by a single angle uses.
 
 Rotation matrices are (..., 3, 3); the 6-D representation of Zhou et al. (2019) is
 the first two columns of the matrix, concatenated: (R[:, 0], R[:, 1]).
@@ -32,14 +33,12 @@ def heading_angle(mats: np.ndarray) -> np.ndarray:
     return np.arctan2(mats[..., 1, 0], mats[..., 0, 0])
 
 
-def yaw_matrix(yaw: np.ndarray) -> np.ndarray:
-    """Rotation about z: (...) -> (..., 3, 3)."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    zero, one = np.zeros_like(c), np.ones_like(c)
-    return np.stack(
-        (np.stack((c, -s, zero), -1), np.stack((s, c, zero), -1), np.stack((zero, zero, one), -1)),
-        axis=-2,
-    )
+def yaw_matrix(yaw: float) -> np.ndarray:
+    """The (3, 3) rotation by ``yaw`` (rad) about +z: the package's one yaw matrix (furniture poses
+    and parts, the SIMS heading frame). ``math`` cos and sin, so equal bit for bit wherever it
+    replaced the same matrix written out."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def wrap_angle(angle: np.ndarray) -> np.ndarray:
@@ -48,7 +47,8 @@ def wrap_angle(angle: np.ndarray) -> np.ndarray:
 
 
 def yaw_to_quat_wxyz(yaw: float) -> np.ndarray:
-    """MuJoCo (w, x, y, z) quaternion of a rotation by ``yaw`` about z."""
+    """MuJoCo (w, x, y, z) quaternion of a rotation by ``yaw`` (rad) about +z: the package's one yaw
+    quaternion (root poses, the bodies of scene boxes, room walls and furniture)."""
     # The closed form of Rotation.from_euler("z", yaw), bit for bit (tested); scipy costs ~60 us a call
     # on the reset path.
     half = 0.5 * float(yaw)

@@ -23,6 +23,7 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
+from stairenv.rotations import yaw_matrix
 from stairenv.tasks import curriculum
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
@@ -861,7 +862,7 @@ class SIMSEnv(HumanoidEnv):
         root = state.body_pos[0, PELVIS]
         root_mat = state.body_mat[0, PELVIS]
         yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-        c, s = math.cos(yaw), math.sin(yaw)
+        heading = yaw_matrix(yaw)
         proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                  np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
         heightmap = self._heights.egocentric(root, yaw, self.heightmap_size, self.heightmap_extent)
@@ -869,11 +870,11 @@ class SIMSEnv(HumanoidEnv):
         targets = goal.targets(joints)
         mask = goal.mask
         rel = (targets - root) * mask[:, None]
-        rel = rel @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # into the heading frame
+        rel = rel @ heading  # into the heading frame
         obs = np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), self._z))
 
         vel = state.root_lin_vel[0, :2]
-        facing = np.array([c, s])
+        facing = heading[:2, 0].copy()
         if goal.skill == "walk":
             terms = task.walk_reward_terms(goal.root_target, root, vel, self._prev_root_vel, facing,
                                            self._target_speed)

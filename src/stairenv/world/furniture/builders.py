@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from stairenv.rotations import yaw_matrix
 from stairenv.validation import check_choice
 from stairenv.world.furniture.configs import (
     ArmchairConfig,
@@ -26,7 +27,7 @@ from stairenv.world.furniture.configs import (
 )
 from stairenv.world.furniture.fields import FurnitureConfig
 from stairenv.world.furniture.model import FAMILIES, Furniture
-from stairenv.world.furniture.parts import Part, cylinder_points, rot_y, rot_z, rounded_bar_points
+from stairenv.world.furniture.parts import Part, cylinder_points, rot_y, rounded_bar_points
 
 
 def _u(rng: np.random.Generator, r: tuple[float, float]) -> float:
@@ -124,7 +125,7 @@ def _build_stool(c: StoolConfig, rng: np.random.Generator) -> Built:
     for k in range(n):
         a = 2.0 * math.pi * k / n + (math.pi / 4 if n == 4 else 0.0)
         center = (leg_r * math.cos(a), leg_r * math.sin(a), 0.5 * (h - ts))
-        parts.append(Part.box("leg", center, (lt / 2, lt / 2, 0.5 * (h - ts)), rot_z(a)))
+        parts.append(Part.box("leg", center, (lt / 2, lt / 2, 0.5 * (h - ts)), yaw_matrix(a)))
     return parts, {"seat_height": h, "seat_radius": r, "num_legs": n, "round": is_round}
 
 

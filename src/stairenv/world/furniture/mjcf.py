@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
+from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.world.furniture.colors import part_rgba
 from stairenv.world.furniture.model import Furniture
 from stairenv.world.furniture.placement import PlacedFurniture, check_pose
@@ -55,7 +55,7 @@ def add_furniture_to_spec(spec: mujoco.MjSpec, furniture: Furniture, pose: Seque
     """
     x, y, yaw = check_pose(pose)
     name = furniture.family if name is None else str(name)
-    body = spec.worldbody.add_body(name=name, pos=[x, y, 0.0], quat=[math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)])
+    body = spec.worldbody.add_body(name=name, pos=[x, y, 0.0], quat=yaw_to_quat_wxyz(yaw).tolist())
     names: dict[str, list[str]] = {}
     for part in furniture.part_list:
         k = len(names.setdefault(part.label, []))

@@ -8,8 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stairenv.rotations import yaw_matrix
 from stairenv.world.furniture.model import Furniture
-from stairenv.world.furniture.parts import ContactSurface, rot_z
+from stairenv.world.furniture.parts import ContactSurface
 from stairenv.world.scenes import Box
 
 
@@ -57,7 +58,7 @@ class PlacedFurniture:
 
     @property
     def rotation(self) -> np.ndarray:
-        return rot_z(self.pose[2])
+        return yaw_matrix(self.pose[2])
 
     @property
     def translation(self) -> np.ndarray:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -10,6 +9,7 @@ from types import MappingProxyType
 import mujoco
 import numpy as np
 
+from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.world.furniture import (
     FurnitureHandle,
     add_furniture_to_spec,
@@ -60,7 +60,7 @@ def add_room_to_spec(spec: mujoco.MjSpec, room: Room, *, prefix: str = "room", f
     for k, wall in enumerate(room.walls):
         name = f"{prefix}_wall{k}"
         body = spec.worldbody.add_body(name=name, pos=wall.center_xyz.tolist(),
-                                       quat=[math.cos(0.5 * wall.yaw), 0.0, 0.0, math.sin(0.5 * wall.yaw)])
+                                       quat=yaw_to_quat_wxyz(wall.yaw).tolist())
         body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=wall.half_extents_xyz.tolist(),
                       rgba=list(WALL_RGBA), condim=3)
         wall_names.append(name)

@@ -3,7 +3,6 @@ landmark markers) and ``SceneHandles``, which moves the balls over time."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -11,13 +10,10 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.world.scenes.model import Scene
 from stairenv.world.scenes.shapes import Box
 
-
-def _yaw_quat(yaw: float) -> list[float]:
-    """MuJoCo quaternion (w, x, y, z) of a rotation by ``yaw`` about +z."""
-    return [math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)]
 
 # --- MuJoCo --------------------------------------------------------------------------------------
 # Depth of the height field's solid base below the scene's lowest point (MuJoCo size[3], m).
@@ -158,7 +154,7 @@ def add_scene_to_spec(spec: mujoco.MjSpec, scene: Scene, *, prefix: str = "scene
         names = []
         for k, box in enumerate(boxes):
             name = f"{prefix}_{kind}{k}"
-            body = spec.worldbody.add_body(name=name, pos=box.center_xyz.tolist(), quat=_yaw_quat(box.yaw))
+            body = spec.worldbody.add_body(name=name, pos=box.center_xyz.tolist(), quat=yaw_to_quat_wxyz(box.yaw).tolist())
             body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=box.half_extents_xyz.tolist(),
                           material=material, condim=3)
             names.append(name)
