@@ -485,6 +485,20 @@ def test_one_yaw_rotation_equals_the_forms_it_replaced_bit_for_bit():
         assert yaw_to_quat_wxyz(yaw).tobytes() == quat.tobytes()
 
 
+def test_old_names_of_the_step_outcome_still_work_with_a_deprecation_warning():
+    from stairenv.environments import base
+    with pytest.warns(DeprecationWarning, match="StepOutcome"):
+        assert base.Evaluation is base.StepOutcome
+    with pytest.warns(DeprecationWarning, match="StepOutcome"):
+        from stairenv.environments.base import Evaluation  # noqa: F401
+    with pytest.warns(DeprecationWarning, match="interlevel_outcome"):
+        assert task.interlevel_evaluate is task.interlevel_outcome
+    with pytest.warns(DeprecationWarning, match="interlevel_outcome_columns"):
+        assert task.interlevel_evaluate_columns is task.interlevel_outcome_columns
+    with pytest.raises(AttributeError):
+        base.NoSuchName  # noqa: B018
+
+
 def test_staircase_frame_is_cached_read_only_and_fresh_after_replace():
     import dataclasses
     stairs = Staircase(step_height=0.1, step_depth=0.3, width=1.5, num_steps=5, landing_depth=2.0, yaw=0.7,

@@ -173,8 +173,8 @@ def test_curriculum_bands_split_the_range_and_levels_move_on_outcomes():
 def _finish_episode(env, progress: float, success: bool) -> None:
     """As if the episode had ended after a step with this outcome (its last evaluation's results)."""
     env._steps = max(env._steps, 1)
-    env._evaluation = env._evaluation._replace(
-        results={**env._evaluation.results, "progress": progress, "success": success})
+    env._outcome = env._outcome._replace(
+        results={**env._outcome.results, "progress": progress, "success": success})
 
 
 def test_curriculum_draws_the_level_band_and_moves_on_floor_start_episodes():

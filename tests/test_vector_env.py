@@ -255,18 +255,25 @@ def test_gymnasium_amp_wrapper_runs_on_the_batched_env(physics):
         assert reward.shape == (2,) and "style_reward" in info
 
 
-def test_interlevel_batch_evaluation_equals_per_world_finish():
+def test_interlevel_batch_outcomes_equal_per_world_finish():
     """InterLevel's batch-first finish (one compiled call for all worlds) against each world's own
     ``_finish_step``, with resets and falls inside; exact."""
     runs = []
     for flag in (True, False):
-        vec = batched("InterSceneStairs-v0", 4, batch_evaluation=flag, max_episode_steps=15)
-        assert vec.batch_evaluation is flag
+        vec = batched("InterSceneStairs-v0", 4, batch_outcomes=flag, max_episode_steps=15)
+        assert vec.batch_outcomes is flag
         vec.reset(seed=2)
         rng = np.random.default_rng(3)
         runs.append([vec.step(rng.uniform(-1, 1, (4, 28))) for _ in range(40)])
     assert_same(runs[0], runs[1])
-    assert batched("PlaMo-v0", 1).batch_evaluation is False
+    assert batched("PlaMo-v0", 1).batch_outcomes is False
+
+
+def test_batch_evaluation_is_a_deprecated_name_of_batch_outcomes():
+    with pytest.warns(DeprecationWarning, match="batch_outcomes"):
+        assert batched("PlaMo-v0", 1, batch_evaluation=False).batch_outcomes is False
+    with pytest.raises(ValueError, match="batch_evaluation"), pytest.warns(DeprecationWarning):
+        batched("PlaMo-v0", 1, batch_outcomes=True, batch_evaluation=False)
 
 
 @pytest.mark.parametrize("env_id", ["InterLevel-v0", "SIMS-Sit-v0"])

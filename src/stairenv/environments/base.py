@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import os
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -82,8 +83,10 @@ def speed_limits(idx: HumanoidIndices) -> np.ndarray:
     return limits
 
 
-class Evaluation(NamedTuple):
-    """What a task makes of its world after a step (or at the episode's start): ``_evaluate``'s result.
+class StepOutcome(NamedTuple):
+    """What a task makes of its world after a step (or at the episode's start): ``_step_outcome``'s result.
+    (Named for what it is, the outcome of one step, so that "evaluation" means only the papers' protocol,
+    ``stairenv.evaluation``; ``Evaluation`` is its old name, a deprecated alias for one release.)
 
     ``results`` are the task's named per-world numbers (``progress``, ``success``, ``contact_error``...)
     that ``_info`` presents; ``terms`` the reward terms by their ``info`` key (``reward_*``), which
@@ -97,6 +100,15 @@ class Evaluation(NamedTuple):
     results: dict[str, Any]
 
 
+def __getattr__(name: str):
+    if name == "Evaluation":  # the old name of ``StepOutcome``; deprecated, for one release
+        warnings.warn("stairenv.environments.base.Evaluation is deprecated: use StepOutcome (the per-step result; "
+                      "'evaluation' now means only the papers' protocol, stairenv.evaluation)",
+                      DeprecationWarning, stacklevel=2)
+        return StepOutcome
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 class HumanoidEnv(gym.Env):
     """Base class: owns the episode template; subclasses supply their world, task and info.
 
@@ -106,7 +118,7 @@ class HumanoidEnv(gym.Env):
     ``_reference_pose`` draws one as ``init`` asks, ``_place_at`` places a standing or reference
     character on a floor) -> ``_new_goal(rng, options)`` (what the task draws once the character
     stands, optional) -> ``_begin_episode`` (bookkeeping, ``_start_tracking(state)``, the first
-    ``_evaluate``, style features filled).
+    ``_step_outcome``, style features filled).
 
     ``step``: ``_check_action`` (wrong shapes, non-real dtypes and NaN/inf raise ``ValueError``, a needed reset
     ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range
@@ -115,7 +127,7 @@ class HumanoidEnv(gym.Env):
     physics steps) -> ``_physics_sound`` (divergence, i.e. MuJoCo resetting the data, or a speed no
     body reaches, ``MAX_JOINT_SPEED`` / ``MAX_ROOT_SPEED`` checked in one compiled pass over qvel,
     takes the one unstable branch: truncated, the last good observation,
-    ``info["physics_unstable"]``) -> ``_evaluate(state)`` -> the style
+    ``info["physics_unstable"]``) -> ``_step_outcome(state)`` -> the style
     features (``self._amp``, the last ``amp_history`` frames) -> ``_info(results)`` plus what every
     env reports (``time``, ``physics_unstable``, ``amp_obs``, ``reference_start``, the reward terms).
 
@@ -279,29 +291,29 @@ class HumanoidEnv(gym.Env):
         return read_state(self.data, self._idx) if views is None else views
 
     def _begin_episode(self):
-        """Start counting from the current state: the first evaluation, the style history filled.
+        """Start counting from the current state: the first step outcome, the style history filled.
         Returns ``reset``'s ``(obs, info)``."""
         self._needs_reset = False
         self._steps = 0
         state = self._read_state()
         self._amp.fill(state)
         self._start_tracking(state)
-        self._evaluation = self._evaluate(state)
-        return self._evaluation.obs, self._full_info(self._evaluation, unstable=False, terms=False)
+        self._outcome = self._step_outcome(state)
+        return self._outcome.obs, self._full_info(self._outcome, unstable=False, terms=False)
 
     def _start_tracking(self, state) -> None:
-        """Reset what ``_evaluate`` carries from step to step (the previous root position...)."""
+        """Reset what ``_step_outcome`` carries from step to step (the previous root position...)."""
 
-    def _evaluate(self, state) -> Evaluation:
+    def _step_outcome(self, state) -> StepOutcome:
         """The task's view of ``state`` (``read_state``): observation, reward, end, named results."""
         raise NotImplementedError
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
-        """The task's part of ``info`` from an evaluation's results."""
+        """The task's part of ``info`` from a step outcome's results."""
         return dict(results)
 
-    def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
-        """The results an unstable step reports, from the last good evaluation (default: its results)."""
+    def _unstable_results(self, last: StepOutcome) -> dict[str, Any]:
+        """The results an unstable step reports, from the last good step outcome (default: its results)."""
         return dict(last.results)
 
     def step(self, action):
@@ -322,29 +334,29 @@ class HumanoidEnv(gym.Env):
         mujoco.mj_step(self.model, self.data, self.frame_skip)
 
     def _finish_step(self):
-        """What comes after the physics: the divergence check, the evaluation, the style features and
+        """What comes after the physics: the divergence check, the step outcome, the style features and
         ``info``; ``step``'s result."""
         stable = self._physics_sound(self._expected_time)
         self._steps += 1
         if not stable:
             return self._unstable_step()
         state = self._read_state()
-        evaluation = self._evaluation = self._evaluate(state)
+        outcome = self._outcome = self._step_outcome(state)
         self._amp.push(state)
-        info = self._full_info(evaluation, unstable=False, terms=True)
+        info = self._full_info(outcome, unstable=False, terms=True)
         if self.render_mode == "human":
             self.render()
-        return evaluation.obs, evaluation.reward, bool(evaluation.terminated), False, info
+        return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
 
-    #: True where ``_evaluate_worlds`` evaluates a batch in one call: a batched env then finishes all its
+    #: True where ``_step_outcomes`` computes a batch's outcomes in one call: a batched env then finishes all its
     #: worlds with ``_finish_worlds`` after the physics instead of ``_finish_step`` world by world.
-    BATCH_EVALUATION = False
+    BATCH_OUTCOMES = False
 
     @classmethod
     def _finish_worlds(cls, envs: list[HumanoidEnv]) -> list[tuple]:
         """``_finish_step`` of many worlds of this class, batch-first: each world's result equals its
         ``_finish_step``. The divergence check per world, the state of the stable worlds read as one
-        batch, ``_evaluate_worlds`` and the style features in one call each."""
+        batch, ``_step_outcomes`` and the style features in one call each."""
         results: list[tuple | None] = [None] * len(envs)
         idx = envs[0]._idx
         stable = []
@@ -357,19 +369,19 @@ class HumanoidEnv(gym.Env):
         if stable:
             worlds = [envs[k] for k in stable]
             state = read_states([env.data for env in worlds], idx)
-            evaluations = cls._evaluate_worlds(worlds, state)
+            outcomes = cls._step_outcomes(worlds, state)
             features = amp_features(state)
-            for k, env, evaluation, frame in zip(stable, worlds, evaluations, features):
-                env._evaluation = evaluation
+            for k, env, outcome, frame in zip(stable, worlds, outcomes, features):
+                env._outcome = outcome
                 env._amp.push_features(frame)
-                results[k] = (evaluation.obs, evaluation.reward, bool(evaluation.terminated), False,
-                              env._full_info(evaluation, unstable=False, terms=True))
+                results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
+                              env._full_info(outcome, unstable=False, terms=True))
         return results
 
     @classmethod
-    def _evaluate_worlds(cls, envs: list[HumanoidEnv], state) -> list[Evaluation]:
-        """``_evaluate`` of each world of ``envs`` (row k of the batch ``state`` is world k's state)."""
-        return [env._evaluate(type(state)(*(field[k:k + 1] for field in state))) for k, env in enumerate(envs)]
+    def _step_outcomes(cls, envs: list[HumanoidEnv], state) -> list[StepOutcome]:
+        """``_step_outcome`` of each world of ``envs`` (row k of the batch ``state`` is world k's state)."""
+        return [env._step_outcome(type(state)(*(field[k:k + 1] for field in state))) for k, env in enumerate(envs)]
 
     def _before_physics(self) -> None:
         """Called by ``step`` after the action is applied, before the physics."""
@@ -377,17 +389,17 @@ class HumanoidEnv(gym.Env):
     def _unstable_step(self):
         """The simulation diverged (MuJoCo reset the data) or went faster than a body can: truncate,
         keep the last good observation, reward 0, every reward term 0; the env needs a reset."""
-        last = self._evaluation
-        evaluation = Evaluation(last.obs.copy(), 0.0, dict.fromkeys(last.terms, 0.0), False,
+        last = self._outcome
+        outcome = StepOutcome(last.obs.copy(), 0.0, dict.fromkeys(last.terms, 0.0), False,
                                 self._unstable_results(last))
-        return evaluation.obs, 0.0, False, True, self._full_info(evaluation, unstable=True, terms=True)
+        return outcome.obs, 0.0, False, True, self._full_info(outcome, unstable=True, terms=True)
 
-    def _full_info(self, evaluation: Evaluation, unstable: bool, terms: bool) -> dict[str, Any]:
-        info = self._info(evaluation.results)
+    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool) -> dict[str, Any]:
+        info = self._info(outcome.results)
         info.update(time=self._steps * self.dt, physics_unstable=unstable, amp_obs=self._amp.flat(),
                     reference_start=self._reference_start)
         if terms:
-            info.update(evaluation.terms)
+            info.update(outcome.terms)
         return info
 
     # --- pieces -----------------------------------------------------------------

@@ -5,12 +5,12 @@
 do its Python work while the physics runs:
 
 - ``then(k)``: once per world, right after that world's physics, from any thread (the per-world
-  finish of envs without a batch evaluation: its Python overlaps other worlds' physics);
+  finish of envs without batched step outcomes: its Python overlaps other worlds' physics);
 - ``meanwhile()``: once, in the calling thread, while the physics runs; it must not wait for the
   physics (the batched env resets there the worlds whose episode ended, which ``worlds`` does not hold);
 - ``collect(ks)``: in the calling thread, after ``meanwhile``, with lists of worlds whose physics (and
   ``then``) is done, each world in exactly one list; it may run while other worlds' physics still runs
-  (the batched env evaluates the task over each list in one call, so that evaluation overlaps the
+  (the batched env computes the task's step outcomes over each list in one call, so that this overlaps the
   physics of the worlds still stepping).
 
 ``step`` returns when every callback has returned. Each world keeps its own ``MjModel`` (InterLevel

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.humanoid.state import PELVIS
@@ -23,7 +23,7 @@ from stairenv.validation import check_bool, check_choice, check_float, check_int
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
 REWARDS = ("interlevel", "interscene")
-# Columns of the step kernel's results (``task.STEP_RESULTS``), read row by row in ``_evaluate_worlds``.
+# Columns of the step kernel's results (``task.STEP_RESULTS``), read row by row in ``_step_outcomes``.
 _FELL, _SUCCESS, _PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
     "fell", "success", "progress", "height_progress", "distance_to_target"))
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
@@ -133,7 +133,7 @@ class InterLevelEnv(HumanoidEnv):
     about half a stair width. S_tar = 1 m/s is a relaxed climbing pace (the paper's
     climbs take 8-13 s).
 
-    Training aids (both off by default, the paper's protocol; evaluations leave them off):
+    Training aids (both off by default, the paper's protocol; outcomes leave them off):
 
     - Staircase starts (``stairs_start_fraction``): in that share of the episodes the character
       starts in a frame of a climb synthesised for the episode's own staircase
@@ -298,8 +298,8 @@ class InterLevelEnv(HumanoidEnv):
         levels = self.step_height_levels
         if not levels:
             return self.stairs_config
-        # the episode that just ended: its last evaluation, if it took a step (reset has not yet cleared them)
-        last = getattr(self, "_evaluation", None) if getattr(self, "_steps", 0) > 0 else None
+        # the episode that just ended: its last step outcome, if it took a step (reset has not yet cleared them)
+        last = getattr(self, "_outcome", None) if getattr(self, "_steps", 0) > 0 else None
         if self.curriculum_level is None:
             self.curriculum_level = curriculum.initial_level(levels, rng)
         elif last is not None and not self._stairs_start and judge_last:
@@ -339,15 +339,15 @@ class InterLevelEnv(HumanoidEnv):
         self._prev_root = state.body_pos[:, PELVIS].copy()
         self._approach_distance, self._approach_step = math.inf, 0
 
-    BATCH_EVALUATION = True
+    BATCH_OUTCOMES = True
 
-    def _evaluate(self, state) -> Evaluation:
-        """``_evaluate_worlds`` of this world alone."""
-        return self._evaluate_worlds([self], state)[0]
+    def _step_outcome(self, state) -> StepOutcome:
+        """``_step_outcomes`` of this world alone."""
+        return self._step_outcomes([self], state)[0]
 
     @classmethod
-    def _evaluate_worlds(cls, envs: list[InterLevelEnv], state) -> list[Evaluation]:
-        """One compiled call (``task.interlevel_evaluate``) for the batch ``state`` of ``envs`` (worlds of
+    def _step_outcomes(cls, envs: list[InterLevelEnv], state) -> list[StepOutcome]:
+        """One compiled call (``task.interlevel_outcome``) for the batch ``state`` of ``envs`` (worlds of
         one configuration; row k is world k), then the reward: the task terms (zero on a fall), the success
         bonus and the failure reward. Nothing has happened yet at an episode's start."""
         first = envs[0]
@@ -357,7 +357,7 @@ class InterLevelEnv(HumanoidEnv):
             prev_root = np.concatenate([env._prev_root for env in envs])
             packed = np.concatenate([env._packed_goal for env in envs])
             goal = task.StairsGoal.unpack(packed)
-        obs, results = task.interlevel_evaluate_columns(
+        obs, results = task.interlevel_outcome_columns(
             state, prev_root, packed, goal.rotation, first._reward_params, first.dt, first.termination_height,
             first.success_radius,
         )
@@ -370,7 +370,7 @@ class InterLevelEnv(HumanoidEnv):
         no_terms = [0.0] * len(first._term_names)
         success_reward, failure_reward = first.success_reward, first.failure_reward
         body_pos = state.body_pos
-        evaluations = []
+        outcomes = []
         for k, env in enumerate(envs):
             row = rows[k]
             started = env._steps > 0    # nothing has happened yet at an episode's start
@@ -389,7 +389,7 @@ class InterLevelEnv(HumanoidEnv):
             env._prev_root = body_pos[k:k + 1, PELVIS].copy()
             stalled = stalled and not (fell_k or success_k)
             ended = fell_k or (success_k and env.terminate_on_success) or stalled
-            evaluations.append(Evaluation(obs[k], reward, terms, ended, {
+            outcomes.append(StepOutcome(obs[k], reward, terms, ended, {
                 "progress": row[_PROGRESS],
                 "height_progress": row[_HEIGHT_PROGRESS],
                 "success": success_k,
@@ -397,7 +397,7 @@ class InterLevelEnv(HumanoidEnv):
                 "stalled": stalled,
                 "distance_to_target": distance,
             }))
-        return evaluations
+        return outcomes
 
     def _stalled(self, distance: float) -> bool:
         """Whether the episode has come no ``stall_distance`` closer to M_T than at its last such
@@ -409,7 +409,7 @@ class InterLevelEnv(HumanoidEnv):
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
 
-    def _unstable_results(self, last: Evaluation) -> dict[str, Any]:
+    def _unstable_results(self, last: StepOutcome) -> dict[str, Any]:
         return {"progress": last.results["progress"], "height_progress": 0.0, "success": False, "fell": False,
                 "stalled": False,
                 "distance_to_target": float(np.linalg.norm(last.obs[task.OBSERVATION_STRUCTURE["target_offset"]]))}

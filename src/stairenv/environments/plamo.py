@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
@@ -227,7 +227,7 @@ class PlaMoEnv(HumanoidEnv):
         head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
         return self.data.xpos[self._idx.head_id] + head_mat @ HEAD_CENTRE_OFFSET, head_mat
 
-    def _evaluate(self, state) -> Evaluation:
+    def _step_outcome(self, state) -> StepOutcome:
         t = self._steps * self.dt
         root = state.body_pos[0, PELVIS]
         root_mat = state.body_mat[0, PELVIS]
@@ -253,9 +253,9 @@ class PlaMoEnv(HumanoidEnv):
         head_clearance = float(head[2] - self.ground_height(head[:2]))
         # the two reasons an episode ends early, each in info: the head at the ground, the path lost
         fell, off_path = head_clearance < self.min_head_height, xy_error > self.max_xy_error
-        return Evaluation(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())), bool(fell or off_path),
-                          {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2])), "fell": bool(fell),
-                           "off_path": bool(off_path)})
+        return StepOutcome(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())),
+                           bool(fell or off_path), {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2])),
+                                                    "fell": bool(fell), "off_path": bool(off_path)})
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "terrain": self.terrain,

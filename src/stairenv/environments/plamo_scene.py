@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from stairenv.environments.base import Evaluation
+from stairenv.environments.base import StepOutcome
 from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.planning.errors import InstructionError, PlanningError
@@ -245,15 +245,15 @@ class PlaMoSceneEnv(PlaMoEnv):
         if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
             self._maybe_replan(self._steps * self.dt)
 
-    def _evaluate(self, state) -> Evaluation:
+    def _step_outcome(self, state) -> StepOutcome:
         """PlaMo's, and success: the head within ``success_radius`` of the last landmark after its
         planned arrival (never at the episode's start)."""
-        evaluation = super()._evaluate(state)
+        outcome = super()._step_outcome(state)
         head, _ = self._head()
         success = self._steps > 0 and self._steps * self.dt >= self._trajectory.end_time - 1e-9 and \
             float(np.hypot(*(head[:2] - self._goal_xy))) < self.success_radius
-        return evaluation._replace(terminated=bool(evaluation.terminated or success),
-                                   results={**evaluation.results, "success": bool(success)})
+        return outcome._replace(terminated=bool(outcome.terminated or success),
+                                results={**outcome.results, "success": bool(success)})
 
     def _render_lines(self) -> tuple:
         """The followed path's next waypoints (PlaMo's, green) and the whole planned route (blue),

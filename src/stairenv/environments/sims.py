@@ -14,7 +14,7 @@ from gymnasium import spaces
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from stairenv.environments.base import Evaluation, HumanoidEnv, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
 from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
 from stairenv.humanoid.kinematics import humanoid_lowest_z
 from stairenv.humanoid.placement import place_state_in_frame
@@ -857,7 +857,7 @@ class SIMSEnv(HumanoidEnv):
     def _terms_names(self) -> tuple[str, ...]:
         return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
 
-    def _evaluate(self, state) -> Evaluation:
+    def _step_outcome(self, state) -> StepOutcome:
         goal = self.goal
         root = state.body_pos[0, PELVIS]
         root_mat = state.body_mat[0, PELVIS]
@@ -889,7 +889,7 @@ class SIMSEnv(HumanoidEnv):
         self._targets = targets
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
         self._success_once |= success
-        return Evaluation(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())),
+        return StepOutcome(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())),
                           fell or (self.terminate_on_success and success),
                           {"contact_error": error, "success": success, "fell": fell})
 

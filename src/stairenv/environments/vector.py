@@ -12,11 +12,11 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    ``os.cpu_count()`` threads taking the worlds one at a time and calling ``mujoco.mj_step``, GIL
    released). Meanwhile, in the calling thread: the worlds whose episode ended at the last step are
    reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
-   steps the rest (``collect``): the divergence and speed check, ``_evaluate``, the style features,
+   steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
-   For InterLevel (``BATCH_EVALUATION``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
+   For InterLevel (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
    the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
-   read as one batch (``read_states``), the task in one compiled call (``InterLevelEnv._evaluate_worlds``,
+   read as one batch (``read_states``), the task in one compiled call (``InterLevelEnv._step_outcomes``,
    which the single env calls with one world) and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
    right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
    is bit-identical to a single env's with the same seed.
@@ -24,7 +24,7 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
 PlaMo, PlaMoScene and SIMS the whole finish; for InterLevel the divergence check's time and warning
 counts, ``mj_kinematics``, the reward terms' dicts and ``info``. Batched: the action checks, the
-physics, InterLevel's evaluation, the assembly of obs / reward / flags / info.
+physics, InterLevel's step outcomes, the assembly of obs / reward / flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -39,6 +39,7 @@ of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives. ``reset(seed=s)`` see
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any
 
@@ -59,7 +60,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     refused with a ``ValueError`` saying why) or a ``BatchPhysics``; ``physics_threads``: the pool's
     threads (default ``os.cpu_count()``; ``nthread`` is its older name); ``max_episode_steps``: the
     truncation limit (None: none);
-    ``batch_evaluation``: evaluate the task over the batch in one call (default: where the env class can).
+    ``batch_outcomes``: the task's step outcomes over the batch in one call (default: where the env class can;
+    ``batch_evaluation`` is its older name, deprecated).
     """
 
     env_class: type[HumanoidEnv] | None = None
@@ -67,7 +69,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
                  max_episode_steps: int | None = None, physics: str | BatchPhysics = "mujoco",
                  physics_threads: int | None = None, nthread: int | None = None,
-                 batch_evaluation: bool | None = None, autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 batch_outcomes: bool | None = None, batch_evaluation: bool | None = None,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         env_class = env_class or self.env_class
         if env_class is None:
@@ -85,6 +88,13 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         if nthread is not None and physics_threads is not None and nthread != physics_threads:
             raise ValueError(f"physics_threads={physics_threads!r} and its older name nthread={nthread!r} differ")
         physics_threads = nthread if physics_threads is None else physics_threads
+        if batch_evaluation is not None:
+            warnings.warn("batch_evaluation is deprecated (it names the per-step outcome, not the papers' "
+                          "evaluation): use batch_outcomes", DeprecationWarning, stacklevel=2)
+            if batch_outcomes is not None and batch_outcomes != batch_evaluation:
+                raise ValueError(f"batch_outcomes={batch_outcomes!r} and its older name "
+                                 f"batch_evaluation={batch_evaluation!r} differ")
+            batch_outcomes = batch_evaluation if batch_outcomes is None else batch_outcomes
         device = physics == "warp" or hasattr(physics, "bind")
         if device:    # refused before any world is built
             from stairenv.environments.warp_physics import check_supported
@@ -108,9 +118,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             self.physics.bind([(env.model, env.data) for env in self.envs])
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
         self._world_changed = getattr(self.physics, "world_changed", None)
-        #: the task evaluated over the batch (``HumanoidEnv._finish_worlds``) where the env class can
-        #: (``BATCH_EVALUATION``: InterLevel), else world by world
-        self.batch_evaluation = bool(env_class.BATCH_EVALUATION) if batch_evaluation is None else batch_evaluation
+        #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
+        #: (``BATCH_OUTCOMES``: InterLevel), else world by world
+        self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._was_reset = False
@@ -204,7 +214,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         limit = self.max_episode_steps
 
         def collect(ks: list[int]) -> None:    # in the calling thread, while other worlds' physics runs
-            if self.batch_evaluation:    # the task over this group of worlds in one call
+            if self.batch_outcomes:    # the task over this group of worlds in one call
                 for k, result in zip(ks, type(envs[0])._finish_worlds([envs[stepping[k]] for k in ks])):
                     results[k] = result
             for k in ks:
@@ -226,7 +236,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             results[k] = envs[stepping[k]]._finish_step()
 
         worlds = [(envs[i].model, envs[i].data) for i in stepping]
-        self.physics.step(worlds, envs[0].frame_skip, None if self.batch_evaluation else finish,
+        self.physics.step(worlds, envs[0].frame_skip, None if self.batch_outcomes else finish,
                           reset_ended_before, collect)
         return obs.copy(), rewards, terminated, truncated, infos, finals
 

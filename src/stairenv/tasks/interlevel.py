@@ -44,6 +44,7 @@ M_B -> M_T, wrapped to [-pi, pi).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -496,7 +497,7 @@ def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_r
         results[b, _R_DISTANCE_TO_TARGET] = math.sqrt(d2)
 
 
-def interlevel_evaluate(
+def interlevel_outcome(
     state: HumanoidState,
     prev_root: np.ndarray,
     goal: StairsGoal,
@@ -513,7 +514,7 @@ def interlevel_evaluate(
     It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
     ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
     """
-    obs, results = interlevel_evaluate_columns(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
+    obs, results = interlevel_outcome_columns(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
                                                goal.rotation, cfg, dt, termination_height, success_radius)
     return obs, StepResults.from_columns(results)
 
@@ -528,13 +529,13 @@ def interlevel_step(
     termination_height: float,
     success_radius: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``interlevel_evaluate`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
+    """``interlevel_outcome`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
     the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
-    return interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
+    return interlevel_outcome_columns(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
                                        termination_height, success_radius)
 
 
-def interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
+def interlevel_outcome_columns(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
     """The step kernel's call (what an env calls each step): the observation (B, 118) and the results
     (B, 8) in ``STEP_RESULTS`` order; ``packed_goal`` is ``goal.pack()``, ``cfg`` a ``RewardParams``."""
     batch = state.body_pos.shape[0]
@@ -543,3 +544,16 @@ def interlevel_evaluate_columns(state, prev_root, packed_goal, rotation, cfg, dt
     _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
                  packed_goal, rotation, dt, termination_height, success_radius, *cfg, obs, results)
     return obs, results
+
+
+# the old names of ``interlevel_outcome`` and ``interlevel_outcome_columns``; deprecated, for one release
+_OLD_NAMES = {"interlevel_evaluate": "interlevel_outcome", "interlevel_evaluate_columns": "interlevel_outcome_columns"}
+
+
+def __getattr__(name: str):
+    if name in _OLD_NAMES:
+        warnings.warn(f"stairenv.tasks.interlevel.{name} is deprecated: use {_OLD_NAMES[name]} (a step's outcome; "
+                      "'evaluation' now means only the papers' protocol, stairenv.evaluation)",
+                      DeprecationWarning, stacklevel=2)
+        return globals()[_OLD_NAMES[name]]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
