@@ -31,7 +31,7 @@ SKILLS = ("walk", "sit", "lie", "reach", "getup")
 def build_parser() -> argparse.ArgumentParser:
     from stairenv.evaluation.cli import env_kwarg_argument
     from stairenv.evaluation.sims import TABLE1_SKILLS
-    from stairenv.scripts.database import DIFFICULTIES
+    from stairenv.screenplays.database import DIFFICULTIES
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", help="policy for every skill: zero, random, kinematic, an SB3 .zip or ALGO:path")

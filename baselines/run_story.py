@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
 
-    from stairenv.scripts import assemble_story, get_encoder, load_database
+    from stairenv.screenplays import assemble_story, get_encoder, load_database
     from stairenv.stories import BindingError, MachineSettings, describe_policy, run_script
 
     db = load_database()

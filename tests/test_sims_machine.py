@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from stairenv.environments.sims import SIMSEnv
-from stairenv.scripts import (
+from stairenv.screenplays import (
     Keyframe,
     RoomMatch,
     Script,

@@ -273,7 +273,7 @@ def test_styled_walks_loop_keep_their_speed_and_plant_the_feet(styled_walks, nam
         assert drift.max() < 0.01
         assert np.abs(poses.corners[frames, side][..., 2].min(axis=1)).max() < 0.01
     # the caption is one of the script database's walking captions of that style
-    from stairenv.scripts.database import load_database
+    from stairenv.screenplays.database import load_database
 
     captions = {(kf.style, kf.caption) for script in load_database() for kf in script.keyframes
                 if kf.skill == "walk"}

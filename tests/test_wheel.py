@@ -25,7 +25,8 @@ def test_wheel_installs_and_makes_env(tmp_path):
     (wheel,) = dist.glob("stairenv-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     assert "stairenv/xml/humanoid.xml" in names
-    assert "stairenv/scripts/data/happy.json" in names  # SIMS script database
+    assert "stairenv/screenplays/data/happy.json" in names  # SIMS script database
+    assert "stairenv/scripts.py" in names  # its old name, a deprecated alias for one release
     presets = {n for n in names if n.startswith("stairenv/envs/") and n.endswith(".toml")}
     assert {"stairenv/envs/InterLevel-v0.toml", "stairenv/envs/InterLevel2D-v0.toml"} <= presets
     assert "stairenv/policies/InterLevel-v0.npz" in names  # the shipped climbing policy

@@ -48,7 +48,7 @@ SKILL_FAMILIES: dict[str, tuple[str, ...]] = {
     "reach": FAMILIES,
     "getup": (*SEATING_FAMILIES, "bed", "double_bed"),
 }
-# The names ``stairenv.scripts.get_encoder`` takes; the text_dim each gives (hashing: >= 8 buckets).
+# The names ``stairenv.screenplays.get_encoder`` takes; the text_dim each gives (hashing: >= 8 buckets).
 TEXT_ENCODERS = ("auto", "minilm", "all-minilm-l6-v2", "hashing")
 MAX_TEXT_DIM = 4096
 HASHING_DIMS = (8, MAX_TEXT_DIM)
@@ -69,7 +69,7 @@ CONTACT_NAMES = task.CONTACT_JOINTS
 @cache
 def skill_captions(skill: str) -> tuple[tuple[str, str], ...]:
     """(style, caption) pairs of the shipped script database's keyframes of ``skill``."""
-    from stairenv.scripts import load_database
+    from stairenv.screenplays import load_database
 
     pairs = {(kf.style, kf.caption) for script in load_database() for kf in script.keyframes if kf.skill == skill}
     return tuple(sorted(pairs))
@@ -78,7 +78,7 @@ def skill_captions(skill: str) -> tuple[tuple[str, str], ...]:
 def captions_for(captions: Sequence[tuple[str, str]], family: str | None) -> tuple[tuple[str, str], ...]:
     """The captions that name no furniture other than ``family`` (None: no furniture at all),
     so that "sits on the stool" is not drawn for a sofa; all of them if none is left."""
-    from stairenv.scripts.schema import FURNITURE
+    from stairenv.screenplays.schema import FURNITURE
 
     target = None if family is None else family.replace("_", " ")
     words = {c: re.compile(rf"\b{c}s?\b") for c in FURNITURE}
@@ -144,7 +144,7 @@ def check_text_encoder(text_encoder, text_dim) -> int:
     """``text_encoder`` must be a ``get_encoder`` name or an encoder (``model_id``, ``dim``, ``encode``),
     and ``text_dim`` a size it gives: hashing 8-4096, MiniLM 1-384, an encoder its ``dim``.
     Returns ``text_dim``. (The encoder itself is built at the first embedding: MiniLM loads slowly.)"""
-    from stairenv.scripts.embeddings import (
+    from stairenv.screenplays.embeddings import (
         INSTALL_HINT,
         EncoderUnavailableError,
         MiniLMEncoder,
@@ -242,7 +242,7 @@ class SIMSEnv(HumanoidEnv):
     | scene_resample_every | 10 | resets between scene rebuilds (>= 1) |
     | details | True | sit: torso at the backrest, hands on armrests; lie: head on the pillow |
     | text_conditioned | True | put z in the observation (False: zeros) |
-    | text_encoder, text_dim | "auto", 64 | ``stairenv.scripts.get_encoder`` name (or an encoder) and size |
+    | text_encoder, text_dim | "auto", 64 | ``stairenv.screenplays.get_encoder`` name (or an encoder) and size |
     | captions | None | (style, caption) pairs to draw from (default: the database's for the skill) |
     | start_distance | (1.0, 4.0) | start distance from the furniture centre (m), object scenes |
     | walk_distance | (1.0, 5.0) | walk target distance from the start (m) |
@@ -572,7 +572,7 @@ class SIMSEnv(HumanoidEnv):
         the reference clips' conditions of a text-conditioned discriminator."""
         if self._encoder is None:
             if isinstance(self._encoder_spec, str):
-                from stairenv.scripts.embeddings import get_encoder
+                from stairenv.screenplays.embeddings import get_encoder
 
                 self._encoder = get_encoder(self._encoder_spec, dim=self.text_dim)
             else:

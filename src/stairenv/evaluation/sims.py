@@ -44,7 +44,7 @@ import stairenv  # noqa: F401  (registers the envs)
 from stairenv.evaluation.report import Column, Layout, Report, write_reports
 from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.policy_loading import load_policy, policy_label
-from stairenv.scripts.database import DIFFICULTIES
+from stairenv.screenplays.database import DIFFICULTIES
 from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings
 
 #: The registered env of each skill (Table 1).
@@ -308,7 +308,7 @@ def evaluate_scripts(
     Rows: one per difficulty then ``"all"``.
     """
     from stairenv.environments.sims import SIMSEnv
-    from stairenv.scripts import load_database
+    from stairenv.screenplays import load_database
     from stairenv.stories import load_skill_policies, run_script
 
     if isinstance(repeats, bool) or not isinstance(repeats, (int, np.integer)) or repeats < 1:

@@ -7,12 +7,12 @@
   placeholder policy that writes poses and is NOT physics-based.
 
 Both drive a :class:`~stairenv.environments.sims.SIMSEnv` through its public methods. The
-scripts, their schema, embeddings and room retrieval are :mod:`stairenv.scripts`, which does
+scripts, their schema, embeddings and room retrieval are :mod:`stairenv.screenplays`, which does
 not import this package.
 
 Example::
 
-    from stairenv.scripts import load_database
+    from stairenv.screenplays import load_database
     from stairenv.stories import KINEMATIC, run_script
 
     result = run_script(load_database().get("tired_bedtime"), KINEMATIC, seed=0)

@@ -41,7 +41,7 @@ The machine uses the env's public API only (``set_task``, ``step``, ``render``, 
 
 Example::
 
-    from stairenv.scripts import load_database
+    from stairenv.screenplays import load_database
     from stairenv.stories import KINEMATIC, run_script
 
     script = load_database().get("tired_bedtime")
@@ -68,7 +68,7 @@ from stairenv.validation import check_int, check_number
 
 if TYPE_CHECKING:
     from stairenv.environments.sims import SIMSEnv
-    from stairenv.scripts.retrieval import RoomMatch
+    from stairenv.screenplays.retrieval import RoomMatch
     from stairenv.world.rooms import Room, RoomConfig
 
 #: What became of a keyframe.
@@ -559,7 +559,7 @@ def story_room(script: Any, rooms: Iterable[tuple[Any, Room]] | None = None, *, 
                seed: int | np.random.Generator | None = 0, timeout: float = 0.05) -> tuple[Room, RoomMatch]:
     """The room for a Script or Story: the best of ``rooms`` ((id, Room) pairs) by graph edit
     distance, or one generated (``generate_room``) with exactly the furniture it needs."""
-    from stairenv.scripts.retrieval import retrieve_room, world_room_builder
+    from stairenv.screenplays.retrieval import retrieve_room, world_room_builder
     from stairenv.world.rooms import RoomConfig
 
     candidates = list(rooms or [])
@@ -575,7 +575,7 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
                seed: int = 0, settings: MachineSettings | None = None, env_kwargs: Mapping[str, Any] | None = None,
                video: str | os.PathLike | None = None, video_every: int = 1, width: int = 640,
                height: int = 480) -> StoryResult:
-    """Run a whole :class:`~stairenv.scripts.Script` or :class:`~stairenv.scripts.Story`.
+    """Run a whole :class:`~stairenv.screenplays.Script` or :class:`~stairenv.screenplays.Story`.
 
     Finds or builds its room (:func:`story_room`, seeded by ``seed``), binds the keyframes to the
     room's instances (``bind_keyframes``), builds ``SIMSEnv(skill="walk", room=room,
@@ -592,7 +592,7 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
     :class:`BindingError`.
     """
     from stairenv.environments.sims import SIMSEnv
-    from stairenv.scripts.retrieval import bind_keyframes
+    from stairenv.screenplays.retrieval import bind_keyframes
 
     seed = check_int("seed", seed, 0, 2**63 - 1)  # before any room is drawn with it
     _check_runnable(script)
@@ -626,9 +626,9 @@ def run_script(script: Any, policies: Mapping[str, Any] | str | None = None, *,
 def _check_runnable(script: Any) -> None:
     """Validate a Script or Story as scripts loaded from files are (one built in code has
     skipped that): TypeError for another type, ScriptValidationError listing the problems."""
-    from stairenv.scripts.database import Script
-    from stairenv.scripts.schema import ScriptValidationError
-    from stairenv.scripts.story import Story
+    from stairenv.screenplays.database import Script
+    from stairenv.screenplays.schema import ScriptValidationError
+    from stairenv.screenplays.story import Story
 
     if isinstance(script, Script):
         errors, script_id = script.errors(), script.id
@@ -643,8 +643,8 @@ def _check_runnable(script: Any) -> None:
 
 def _story_errors(story: Any) -> list[str]:
     """Problems of a story's scripts (they choose the room) and of the keyframes it runs."""
-    from stairenv.scripts.database import Keyframe, Script
-    from stairenv.scripts.schema import keyframe_sequence_errors
+    from stairenv.screenplays.database import Keyframe, Script
+    from stairenv.screenplays.schema import keyframe_sequence_errors
 
     scripts, keyframes = story.scripts, story.keyframes
     if not isinstance(scripts, (list, tuple)) or not scripts:

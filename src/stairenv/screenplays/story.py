@@ -4,7 +4,7 @@ SIMS (Sec. 3.2, "Long-Term Script Matching") asks an LLM to pick short scripts f
 database by their summaries and emotions and to arrange them chronologically. Offline, by
 default, :func:`assemble_story` does it with embeddings:
 
-1. embed the theme and every script's summary with its moods (``Script.retrieval_text``; any :class:`~stairenv.scripts.embeddings.TextEncoder`);
+1. embed the theme and every script's summary with its moods (``Script.retrieval_text``; any :class:`~stairenv.screenplays.embeddings.TextEncoder`);
    the ``pool`` scripts most similar to the theme (cosine) are the candidates;
 2. greedy chain: the opener is the most theme-similar candidate that starts standing; each
    next script maximises ``w_theme * sim(theme, s) + w_chain * sim(previous, s)`` plus
@@ -15,7 +15,7 @@ default, :func:`assemble_story` does it with embeddings:
    softmax of those scores (``temperature``) instead of the argmax;
 3. keyframes are concatenated, with a neutral "gets up" keyframe inserted where a script
    ended seated or lying and the next starts standing; the result passes
-   :func:`~stairenv.scripts.schema.semantic_errors`.
+   :func:`~stairenv.screenplays.schema.semantic_errors`.
 
 An LLM can take over the ordering and write the narrative through :class:`LLMBackend`;
 the default :class:`NoLLM` does neither (greedy order, a template narrative). To plug in a
@@ -37,9 +37,9 @@ from typing import Protocol, runtime_checkable
 import networkx as nx
 import numpy as np
 
-from stairenv.scripts.database import Keyframe, Script
-from stairenv.scripts.embeddings import TextEncoder, cosine_similarity
-from stairenv.scripts.schema import semantic_errors
+from stairenv.screenplays.database import Keyframe, Script
+from stairenv.screenplays.embeddings import TextEncoder, cosine_similarity
+from stairenv.screenplays.schema import semantic_errors
 
 
 @dataclass(frozen=True)
@@ -166,12 +166,12 @@ class Story:
         return semantic_errors(self.keyframes, start_pose=first.start_pose, start_at=first.start_at)
 
     def layout_graph(self) -> nx.Graph:
-        from stairenv.scripts.retrieval import layout_graph_of
+        from stairenv.screenplays.retrieval import layout_graph_of
 
         return layout_graph_of(self)
 
     def required_furniture(self) -> Counter:
-        from stairenv.scripts.retrieval import required_furniture
+        from stairenv.screenplays.retrieval import required_furniture
 
         return required_furniture(self)
 

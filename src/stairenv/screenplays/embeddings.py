@@ -483,7 +483,7 @@ def reduction_corpus(database=None) -> list[str]:
     """Texts the default reduction is fitted on: every caption and every script's
     ``retrieval_text`` of ``database`` (default: the shipped one), deduplicated and sorted."""
     if database is None:
-        from stairenv.scripts.database import load_database
+        from stairenv.screenplays.database import load_database
 
         database = load_database()
     texts = {s.retrieval_text for s in database}

@@ -1,20 +1,24 @@
 """SIMS script planning: short scripts, long-story assembly and room retrieval.
 
-* :mod:`~stairenv.scripts.schema` - the short-script JSON Schema, a validator whose errors
+Named ``screenplays`` (what a character is to act out; :mod:`stairenv.stories` acts it) so that
+"scripts" means only the runnable ones in ``baselines/``; ``stairenv.scripts`` is the old name, a
+deprecated alias for one release.
+
+* :mod:`~stairenv.screenplays.schema` - the short-script JSON Schema, a validator whose errors
   name the bad field, and the pose rules a keyframe sequence must follow;
-* :mod:`~stairenv.scripts.database` - :class:`Script`/:class:`Keyframe` and the shipped
+* :mod:`~stairenv.screenplays.database` - :class:`Script`/:class:`Keyframe` and the shipped
   database of 48 short scripts (``data/*.json``; 8 styles x 6, all 5 skills, all three
   difficulty buckets);
-* :mod:`~stairenv.scripts.embeddings` - offline text encoders (packaged MiniLM, hashing,
+* :mod:`~stairenv.screenplays.embeddings` - offline text encoders (packaged MiniLM, hashing,
   any callable such as CLIP), reduction to a configurable size, a disk + memory cache;
-* :mod:`~stairenv.scripts.story` - :func:`assemble_story` (theme -> ordered scripts), the
+* :mod:`~stairenv.screenplays.story` - :func:`assemble_story` (theme -> ordered scripts), the
   optional :class:`LLMBackend`;
-* :mod:`~stairenv.scripts.retrieval` - layout graphs, :func:`required_furniture`,
+* :mod:`~stairenv.screenplays.retrieval` - layout graphs, :func:`required_furniture`,
   :func:`retrieve_room` by graph edit distance with substitutions and a fallback builder.
 
 Example::
 
-    from stairenv.scripts import load_database, get_encoder, assemble_story, retrieve_room
+    from stairenv.screenplays import load_database, get_encoder, assemble_story, retrieve_room
     db = load_database()
     story = assemble_story("a tired evening at home", db, get_encoder("auto"), length=3)
     match = retrieve_room(story, rooms, fallback=lambda cats: generate_room(cfg, rng, categories=cats))
@@ -25,7 +29,7 @@ loads on first use. Acting a script out in a room (the state machine, the kinema
 is :mod:`stairenv.stories`, which builds on this package.
 """
 
-from stairenv.scripts.database import (
+from stairenv.screenplays.database import (
     DATA_DIR,
     DIFFICULTIES,
     Keyframe,
@@ -35,7 +39,7 @@ from stairenv.scripts.database import (
     difficulty_of,
     load_database,
 )
-from stairenv.scripts.embeddings import (
+from stairenv.screenplays.embeddings import (
     CachedEncoder,
     CallableEncoder,
     EncoderUnavailableError,
@@ -52,7 +56,7 @@ from stairenv.scripts.embeddings import (
     minilm_available,
     reduction_corpus,
 )
-from stairenv.scripts.retrieval import (
+from stairenv.screenplays.retrieval import (
     DEFAULT_SUBSTITUTIONS,
     GEDCosts,
     NoRoomFoundError,
@@ -67,7 +71,7 @@ from stairenv.scripts.retrieval import (
     script_layout_graph,
     world_room_builder,
 )
-from stairenv.scripts.schema import (
+from stairenv.screenplays.schema import (
     FURNITURE,
     INTERACTIONS,
     SCRIPT_SCHEMA,
@@ -79,7 +83,7 @@ from stairenv.scripts.schema import (
     semantic_errors,
     validate_script,
 )
-from stairenv.scripts.story import (
+from stairenv.screenplays.story import (
     CompletionLLM,
     LLMBackend,
     NoLLM,
