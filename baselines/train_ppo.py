@@ -320,7 +320,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
 TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
                  "step_height_levels", "curriculum_promote_at", "curriculum_demote_below",
-                 "interaction_start_fraction", "start_distance_levels")
+                 "interaction_start_fraction", "start_distance_levels", "speed_levels")
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:

@@ -224,3 +224,65 @@ def test_reference_init_on_terrain():
         for contact in u.data.contact[: u.data.ncon]:
             if {int(contact.geom1), int(contact.geom2)} & geoms:
                 assert contact.dist > -0.005
+
+
+def test_speed_scale_scales_every_speed_and_nothing_else():
+    ground = lambda xy: np.zeros(len(xy))  # noqa: E731
+    full = task.random_head_path(task.PathConfig(), np.random.default_rng(3), 30.0, np.zeros(2), 0.0, ground)
+    slow = task.random_head_path(task.PathConfig(speed_scale=0.25), np.random.default_rng(3), 30.0, np.zeros(2), 0.0,
+                                 ground)
+    np.testing.assert_array_equal(slow.head, full.head)
+    np.testing.assert_allclose(slow.speed, 0.25 * full.speed)
+    assert full.speed.max() > 0.5
+    with pytest.raises(ValueError, match="speed_scale"):
+        task.PathConfig(speed_scale=0.0)
+
+
+def _run(env, steps):
+    for _ in range(steps):
+        env.step(np.zeros(28))
+
+
+def test_speed_curriculum_moves_with_the_episode_outcome():
+    # a 1 s episode that nothing ends early (no off-path or fall termination): lasting it is a success
+    env = PlaMoEnv(speed_levels=4, episode_seconds=1.0, max_xy_error=100.0, min_head_height=0.0, terrain="flat")
+    env.reset(seed=0)
+    assert env.curriculum_level == 0
+    assert env.episode_path_config().speed_scale == 0.25
+    assert np.all(env.path.speed <= 0.25 * task.coupled_max_speed(env.path.head) + 1e-12)
+    _run(env, round(1.0 / env.dt))
+    env.reset()
+    assert env.curriculum_level == 1                      # lasted the episode: up
+    _run(env, 3)
+    env.reset(options={"episode_cut": True})
+    assert env.curriculum_level == 1                      # cut by a trainer: not judged
+    env.reset()
+    assert env.curriculum_level == 1                      # no step taken: not judged
+    env.max_xy_error = 1e-6                               # now every step loses the path at once
+    env.curriculum_level = 3
+    env.reset()
+    env.step(np.zeros(28))
+    env.reset()
+    assert env.curriculum_level == 2                      # ended early before half the episode: down
+    assert env.episode_path_config().speed_scale == 0.75
+
+
+def test_speed_levels_off_leaves_the_paper_paths():
+    env = PlaMoEnv()
+    env.reset(seed=0)
+    assert env.curriculum_level is None and env.episode_path_config() is env.path_config
+    with pytest.raises(ValueError, match="speed_levels"):
+        PlaMoEnv(speed_levels=-1)
+    with pytest.raises(ValueError, match="speed_levels"):
+        PlaMoEnv(speed_levels=2.5)
+    with pytest.raises(TypeError, match="speed_levels"):
+        PlaMoEnv(speed_levels="4")
+
+
+def test_speed_curriculum_levels_in_the_batched_env():
+    venv = gym.make_vec("PlaMo-v0", num_envs=3, vectorization_mode="vector_entry_point", speed_levels=5)
+    venv.reset(seed=0)
+    assert list(venv.get_attr("curriculum_level")) == [0, 0, 0]
+    venv.set_attr("curriculum_level", [4, 2, 1])
+    assert list(venv.get_attr("curriculum_level")) == [4, 2, 1]
+    venv.close()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -14,6 +15,7 @@ from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion, nearest_locomotion
+from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.validation import check_bool, check_choice, check_float, check_grid, check_int
@@ -69,6 +71,14 @@ class PlaMoEnv(HumanoidEnv):
     its target. Off, or where a clip has no such label (a folder of the user's clips): any clip, the
     path drawn after the character is placed.
 
+    **Speed curriculum** (``speed_levels`` N, a training aid; 0 = off): each world holds a level
+    (``curriculum_level``, 0 at its first reset); level k draws its paths with every speed scaled by
+    (k + 1) / N (``PathConfig.speed_scale``; head heights unchanged), so the top level is the paper's
+    distribution. After an episode that took a step, the world moves up a level when the episode
+    lasted ``episode_seconds`` without ending early (success), down one when it ended early before
+    half of them (``stairenv.tasks.curriculum.next_growing_level``); an episode cut by the trainer
+    (``reset(options={"episode_cut": True})``) is not judged. Trainers log and checkpoint the level.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). **Memory bound**: the height field has
     ``terrain_size / terrain_cell_size + 1`` samples per side and may hold at most
@@ -88,6 +98,7 @@ class PlaMoEnv(HumanoidEnv):
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose as InterLevel; None: builtin:plamo |
     | matched_starts | True | a reference start is a frame of the path's opening locomotion (below) |
+    | speed_levels | 0 | levels of a success-driven curriculum scaling path speeds by (k + 1) / N (training); 0 = off |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
@@ -111,6 +122,7 @@ class PlaMoEnv(HumanoidEnv):
         reference_motion: str | None = None,
         hybrid_fraction: float = 0.5,
         matched_starts: bool = True,
+        speed_levels: int = 0,
         pd_gains: str = "soft",
         frame_skip: int = 8,
         amp_history: int = 2,
@@ -140,6 +152,9 @@ class PlaMoEnv(HumanoidEnv):
         self._setup_starts(init, hybrid_fraction, reference_motion)
         self.matched_starts = check_bool("matched_starts", matched_starts)
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
+        self.speed_levels = check_int("speed_levels", speed_levels, 0, 100)
+        #: this world's level of the speed curriculum (None until the first reset draws it)
+        self.curriculum_level: int | None = None
         if self.locomotion is not None:
             self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                                speed_range=self.locomotion.speed_range)
@@ -174,6 +189,9 @@ class PlaMoEnv(HumanoidEnv):
 
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        if self.speed_levels:
+            # options={"episode_cut": True}: the episode in progress was cut short (a trainer's checkpoint)
+            self._judge_speed_level(judge_last=not (options or {}).get("episode_cut", False))
         self._heights = terrain_heights(self.terrain, rng, self._terrain_slot.size, self._terrain_slot.cell_size)
         self._terrain_slot.write(self.model, self._heights)
         self._terrain_dirty = True
@@ -196,10 +214,31 @@ class PlaMoEnv(HumanoidEnv):
         if self._starts_by_locomotion is None:  # (matched starts drew it before placing the character)
             self._draw_path(rng)
 
+    def _judge_speed_level(self, judge_last: bool) -> None:
+        """The speed curriculum's level: 0 at the first reset, then moved by the outcome of the episode
+        that just ended, if it took a step and ``judge_last`` (reset has not yet cleared ``_steps``)."""
+        if self.curriculum_level is None:
+            self.curriculum_level = 0
+            return
+        steps = getattr(self, "_steps", 0)
+        if not judge_last or steps == 0:
+            return
+        progress = steps * self.dt / self.episode_seconds
+        success = not self._outcome.terminated and progress >= 1.0 - 1e-9
+        self.curriculum_level = curriculum.next_growing_level(self.curriculum_level, self.speed_levels,
+                                                              success, progress)
+
+    def episode_path_config(self) -> task.PathConfig:
+        """``path_config``, its speeds scaled to this world's speed-curriculum level when there is one."""
+        if not self.speed_levels or self.curriculum_level is None:
+            return self.path_config
+        return dataclasses.replace(self.path_config,
+                                   speed_scale=(self.curriculum_level + 1) / self.speed_levels)
+
     def _draw_path(self, rng: np.random.Generator) -> None:
         start, heading = self._start
         self.path = task.random_head_path(
-            self.path_config, rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
+            self.episode_path_config(), rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
             self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
         )
 

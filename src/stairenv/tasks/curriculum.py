@@ -45,7 +45,7 @@ def initial_level(levels: int, rng: np.random.Generator) -> int:
 # --- a growing range (SIMS: the start distance from the furniture) ------------------------------------
 #: Env keywords that turn on a level curriculum (their worlds hold ``curriculum_level``): what a trainer
 #: logs as ``curriculum/level`` and saves with its checkpoints.
-LEVEL_KEYWORDS = ("step_height_levels", "start_distance_levels")
+LEVEL_KEYWORDS = ("step_height_levels", "start_distance_levels", "speed_levels")
 
 
 def growing_range(level: int, levels: int, low: float, high: float) -> tuple[float, float]:

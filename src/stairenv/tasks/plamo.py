@@ -51,6 +51,7 @@ class PathConfig:
     transition: float = 1.0          # smooth change of head height and speed between segments
     max_turn_rate: float = 0.8       # rad/s, a new turn rate per segment
     dt: float = 0.1
+    speed_scale: float = 1.0         # every speed times this (a speed curriculum's level; 1 = the paper's)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "head_range", check_range("head_range", self.head_range, 0.2, 2.0))
@@ -60,6 +61,7 @@ class PathConfig:
         check_number("transition", self.transition, 0.0, 10.0)
         check_number("max_turn_rate", self.max_turn_rate, 0.0, 10.0)
         check_number("dt", self.dt, 0.0, 1.0, low_open=True)
+        check_number("speed_scale", self.speed_scale, 0.0, 1.0, low_open=True)
 
 
 class PathSamples(NamedTuple):
@@ -120,6 +122,7 @@ def random_head_path(config: PathConfig, rng: np.random.Generator, duration: flo
         fraction = _smooth_levels(rng, times, config, lambda prev: rng.uniform())
         cap = coupled_max_speed(head) if config.coupled else np.full_like(head, V_MAX)
         speed = fraction * cap
+    speed = speed * config.speed_scale  # (x * 1.0 is x: the default paths are unchanged to the bit)
     turn = _smooth_levels(rng, times, config, lambda prev: rng.uniform(-1, 1) * config.max_turn_rate)
     xy = np.empty((len(times), 2))
     yaw = np.empty(len(times))
