@@ -69,11 +69,11 @@ def check_landmark_room(config: SceneConfig) -> None:
     if fits < config.num_landmarks:
         # the least square size that passes this check: ceil(sqrt(n)) squares along each side
         per_side = math.isqrt(config.num_landmarks - 1) + 1
-        least = 2.0 * margin + (per_side - 1) * side
+        least = math.ceil((2.0 * margin + (per_side - 1) * side) * 100.0) / 100.0  # rounded up to cm
         raise ValueError(f"scene: {config.num_landmarks} landmarks (scene['num_landmarks']) "
                          f"{config.landmark_separation:g} m apart (scene['landmark_separation']) cannot fit in a "
                          f"scene of size {config.size} (scene['size']): at most {fits} do; a square scene's "
-                         f"size must exceed ({least:.3g}, {least:.3g}) m (a minimum: generation may need more)")
+                         f"size must exceed ({least:g}, {least:g}) m (a minimum: generation may need more)")
 
 
 def check_instructions(text: str, landmarks) -> None:
