@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import re
+
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -135,6 +138,21 @@ def test_keywords_that_would_fail_at_reset_fail_at_construction():
     with pytest.raises(ValueError, match=r"scene: 4 landmarks .* cannot fit in a scene of size \(2\.0, 2\.0\)"):
         gym.make("PlaMoScene-v0", scene={"size": (2.0, 2.0)})
     gym.make("PlaMoScene-v0", scene_kind="slalom", instructions="Run to the goal").reset(seed=0)
+
+
+def test_a_scene_too_small_for_its_landmarks_names_the_least_size():
+    """The error gives the least square size that passes the check; just above it, construction passes."""
+    from stairenv.environments.plamo_scene import check_landmark_room
+    from stairenv.world.scenes import SceneConfig
+    for landmarks, separation in ((4, 4.0), (5, 3.0), (8, 2.5)):
+        small = SceneConfig(size=(2.0, 2.0), num_landmarks=landmarks, landmark_separation=separation)
+        with pytest.raises(ValueError, match=r"scene's size must exceed \(([\d.]+), \1\) m") as info:
+            check_landmark_room(small)
+        least = float(re.search(r"must exceed \(([\d.]+),", str(info.value))[1])
+        assert "scene['size']" in str(info.value) and "scene['num_landmarks']" in str(info.value)
+        check_landmark_room(dataclasses.replace(small, size=(least * 1.01, least * 1.01)))
+        with pytest.raises(ValueError, match="must exceed"):
+            check_landmark_room(dataclasses.replace(small, size=(least * 0.99, least * 0.99)))
 
 
 def test_what_can_only_fail_at_reset_names_the_keyword():

@@ -67,9 +67,13 @@ def check_landmark_room(config: SceneConfig) -> None:
     for extent in config.size:
         fits *= max(math.ceil(max(extent - 2.0 * margin, 0.0) / side), 1)
     if fits < config.num_landmarks:
+        # the least square size that passes this check: ceil(sqrt(n)) squares along each side
+        per_side = math.isqrt(config.num_landmarks - 1) + 1
+        least = math.ceil((2.0 * margin + (per_side - 1) * side) * 100.0) / 100.0  # rounded up to cm
         raise ValueError(f"scene: {config.num_landmarks} landmarks (scene['num_landmarks']) "
                          f"{config.landmark_separation:g} m apart (scene['landmark_separation']) cannot fit in a "
-                         f"scene of size {config.size} (scene['size']): at most {fits} do")
+                         f"scene of size {config.size} (scene['size']): at most {fits} do; a square scene's "
+                         f"size must exceed ({least:g}, {least:g}) m (a minimum: generation may need more)")
 
 
 def check_instructions(text: str, landmarks) -> None:
