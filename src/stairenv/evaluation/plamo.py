@@ -27,8 +27,18 @@ from stairenv.policy_loading import load_policy, policy_label
 
 TERRAINS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
 LOCOMOTIONS: tuple[str, ...] = ("crawl", "crouch-walk", "walk", "run")
-#: PlaMo Table 2 (XY, Z head error in m) by (terrain, locomotion); the cells we compare with.
-PAPER_TABLE2: dict[tuple[str, str], tuple[float, float]] = {("stairs", "walk"): (0.39, 0.27)}
+#: PlaMo Table 2 (XY, Z mean head error in m along constant-speed, constant-height paths) by
+#: (terrain, locomotion): every cell of the paper's table.
+PAPER_TABLE2: dict[tuple[str, str], tuple[float, float]] = {
+    ("flat", "crawl"): (0.20, 0.07), ("flat", "crouch-walk"): (0.20, 0.03),
+    ("flat", "walk"): (0.24, 0.21), ("flat", "run"): (0.52, 0.26),
+    ("slope", "crawl"): (0.21, 0.09), ("slope", "crouch-walk"): (0.22, 0.03),
+    ("slope", "walk"): (0.25, 0.21), ("slope", "run"): (0.60, 0.27),
+    ("rough", "crawl"): (0.25, 0.10), ("rough", "crouch-walk"): (0.25, 0.04),
+    ("rough", "walk"): (0.29, 0.24), ("rough", "run"): (0.79, 0.31),
+    ("stairs", "crawl"): (0.45, 0.13), ("stairs", "crouch-walk"): (0.41, 0.07),
+    ("stairs", "walk"): (0.39, 0.27), ("stairs", "run"): (1.01, 0.35),
+}
 
 #: Columns of the tracking-error rows and their CSV, in order.
 ROW_FIELDS: tuple[str, ...] = (
