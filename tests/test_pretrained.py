@@ -211,6 +211,17 @@ CRAFTED = {
     "header_bomb": "weight_0",
     "layer_gap": "weight_2",
     "config_array": "config",
+    "bias_short": "bias_1 has shape (255,); expected (256,)",
+    "bias_missing": "bias_0 missing",
+    "obs_size_chain": "weight_0 has shape (256, 118); expected (outputs, 117)",
+    "var_shape": "obs_var (117,)",
+    "clip_missing": "obs_clip missing",
+    "clip_negative": "obs_clip is -1.0",
+    "epsilon_inf": "obs_epsilon is inf",
+    "mean_inf": "obs_mean has 118 NaN or infinite",
+    "bool_weights": "weight_0 has dtype bool",
+    "int_weights": "weight_0 has dtype int64, not floats",
+    "too_many_layers": "weight_16 present",
 }
 
 
@@ -248,10 +259,49 @@ def test_crafted_policy_files_name_the_file_and_the_field(fault, tmp_path):
             del arrays["weight_1"], arrays["bias_1"]
         elif fault == "config_array":
             arrays["config"] = np.array(["{}", "{}"])
+        elif fault == "bias_short":
+            arrays["bias_1"] = arrays["bias_1"][:-1]
+        elif fault == "bias_missing":
+            del arrays["bias_0"]
+        elif fault == "obs_size_chain":  # statistics for 117 observations, a first layer taking 118
+            arrays["obs_mean"], arrays["obs_var"] = arrays["obs_mean"][:-1], arrays["obs_var"][:-1]
+        elif fault == "var_shape":
+            arrays["obs_var"] = arrays["obs_var"][:-1]
+        elif fault == "clip_missing":
+            del arrays["obs_clip"]
+        elif fault == "clip_negative":
+            arrays["obs_clip"] = np.float64(-1.0)
+        elif fault == "epsilon_inf":
+            arrays["obs_epsilon"] = np.float64(np.inf)
+        elif fault == "mean_inf":
+            arrays["obs_mean"] = np.full(118, np.inf)
+        elif fault == "bool_weights":
+            arrays["weight_0"] = arrays["weight_0"] > 0
+        elif fault == "int_weights":
+            arrays["weight_0"] = arrays["weight_0"].astype(np.int64)
+        elif fault == "too_many_layers":
+            for i in range(3, 17):
+                arrays[f"weight_{i}"], arrays[f"bias_{i}"] = np.eye(28), np.zeros(28)
         _write(path, **arrays)
     with pytest.raises(PolicyFileError) as caught:
         load_file(path)
     assert str(path) in str(caught.value) and CRAFTED[fault] in str(caught.value), caught.value
+
+
+def test_the_shipped_policy_loads_and_acts_bit_identically(tmp_path):
+    """The checks change nothing for a valid file: the actions are, bit for bit, the forward pass of the
+    arrays as stored, and a save / load round trip keeps them."""
+    arrays = _shipped_arrays()
+    policy = load_file(shipped_policy_path("InterLevel-v0"), gym.make("InterLevel-v0").unwrapped)
+    obs = np.random.default_rng(0).normal(0.0, 3.0, size=(64, 118))
+    x = np.clip((obs - arrays["obs_mean"]) * (1.0 / np.sqrt(arrays["obs_var"] + arrays["obs_epsilon"])),
+                -arrays["obs_clip"], arrays["obs_clip"])
+    for i in range(2):
+        x = np.maximum(x @ arrays[f"weight_{i}"].T + arrays[f"bias_{i}"], 0.0)
+    expected = np.clip(x @ arrays["weight_2"].T + arrays["bias_2"], -1.0, 1.0).astype(np.float32)
+    np.testing.assert_array_equal(policy(obs), expected)
+    policy.save(tmp_path / "again.npz")
+    np.testing.assert_array_equal(load_file(tmp_path / "again.npz")(obs), expected)
 
 
 def test_zero_variance_with_a_positive_epsilon_and_an_unclipped_identity_map_load(tmp_path):

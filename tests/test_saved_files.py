@@ -215,12 +215,19 @@ def test_the_installed_torch_refusal_is_recognised_and_its_advice_never_passed_o
     marker = tmp_path / "code_ran"
     path = tmp_path / "crafted_amp.pt"
     torch.save({"discriminator": _crafted_payloads(marker)[payload], "w_task": 0.5}, path)
+    _refusal(reference, path, marker)
+
+
+def _refusal(reference, path, marker) -> str:
+    """The error loading a crafted AMP state, checked: refused naming an object, torch's advice not passed
+    on, nothing run."""
     with pytest.raises(AMPStateError) as caught:
         AMPStyleReward.load(path, reference)
     message = str(caught.value)
     assert message.startswith(f"{path}: refused: it asks to build the Python object "), message
-    assert "weights_only" not in message and "truncated" not in message, message
+    assert "weights_only" not in message and "truncated" not in message and "trust" not in message, message
     assert not marker.exists()
+    return message
 
 
 @pytest.mark.parametrize("wording", [
@@ -266,3 +273,71 @@ def test_amp_state_entries_of_the_wrong_type_name_the_entry(reference, tmp_path,
     torch.save(state, path)
     with pytest.raises(AMPStateError, match=rf"amp\.pt: entry '{entry}'"):
         AMPStyleReward.load(path, reference)
+
+
+def _crafted_in_format(path, marker, form):
+    """A file holding a ``WritesAMarker`` in one of the forms torch.load(weights_only=True) reads."""
+    import pickle
+
+    payload = {"discriminator": WritesAMarker(marker), "w_task": 0.5}
+    if form == "torch_zip":
+        torch.save(payload, path)
+    elif form == "torch_legacy":
+        torch.save(payload, path, _use_new_zipfile_serialization=False)
+    else:  # a plain pickle, as pickle.dump writes it
+        path.write_bytes(pickle.dumps(payload, protocol=int(form[-1])))
+    return path
+
+
+@pytest.mark.parametrize("form", ["torch_zip", "torch_legacy", "pickle_0", "pickle_2", "pickle_4", "pickle_5"])
+def test_a_crafted_amp_state_in_any_form_is_refused_as_such(reference, tmp_path, recwarn, form):
+    """torch 2.13 refuses a plain pickle at its first unsupported opcode ("Unsupported operand 149"),
+    before it reaches the global: still a refusal, the object named from the pickle's own opcodes,
+    never "truncated", and torch's warning asking to report the protocol to them is not shown."""
+    marker = tmp_path / "code_ran"
+    path = _crafted_in_format(tmp_path / "crafted_amp.pt", marker, form)
+    assert "the Python object io.open," in _refusal(reference, path, marker)
+    assert not [w for w in recwarn if "pickle protocol" in str(w.message)]
+
+
+# a refusal in a wording no torch version has used yet, with the advice to load the file unsafely
+FUTURE_WORDING = ("Refused to unpickle this checkpoint. If you trust it, pass weights_only=False to torch.load "
+                  "to load it anyway.")
+
+
+@pytest.mark.parametrize("content", ["crafted", "plain"])
+def test_a_refusal_in_a_new_wording_is_recognised_by_its_type(reference, tmp_path, monkeypatch, content):
+    marker = tmp_path / "code_ran"
+    if content == "crafted":
+        path = _crafted_in_format(tmp_path / "amp.pt", marker, "torch_zip")
+    else:  # nothing but torch's own globals in it: the refusal names no object
+        path = AMPStyleReward(reference, config=SMALL).save(tmp_path / "amp.pt")
+
+    def refuse(*args, **kwargs):
+        import pickle
+
+        raise pickle.UnpicklingError(FUTURE_WORDING)
+
+    monkeypatch.setattr(torch, "load", refuse)
+    if content == "crafted":
+        assert "the Python object io.open," in _refusal(reference, path, marker)
+        return
+    with pytest.raises(AMPStateError) as caught:
+        AMPStyleReward.load(path, reference)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: cannot read as an AMP state"), message
+    assert "its pickle holds instructions that a safe load refuses" in message, message
+    assert "weights_only" not in message and "trust" not in message, message
+
+
+@pytest.mark.parametrize("form", ["torch_zip", "pickle_4"])
+def test_a_crafted_lean_trainer_checkpoint_is_refused_naming_the_object(tmp_path, form):
+    from stairenv.training import CheckpointError, read_checkpoint
+
+    marker = tmp_path / "code_ran"
+    path = _crafted_in_format(tmp_path / "checkpoint.pt", marker, form)
+    with pytest.raises(CheckpointError, match=r"checkpoint\.pt: refused: it asks to build the Python object io\.open"
+                       r".*nothing in it was run") as caught:
+        read_checkpoint(path)
+    assert "weights_only" not in str(caught.value)
+    assert not marker.exists()

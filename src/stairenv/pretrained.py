@@ -165,13 +165,35 @@ UNCLIPPED_INPUT_BOUND = 1e6
 MAX_ACTIVATION_BOUND = 1e100
 
 
+def _layer(path: Path, i: int, arrays: dict[str, np.ndarray], inputs: int) -> tuple[np.ndarray, np.ndarray]:
+    """``weight_i`` (outputs, inputs) and ``bias_i`` (outputs,) as float64, ``inputs`` being the size of the
+    previous layer's output (the observation's, from ``obs_mean``, for layer 0)."""
+    w, b = arrays[f"weight_{i}"], arrays.get(f"bias_{i}")
+    source = "the observation size (obs_mean)" if i == 0 else f"weight_{i - 1}'s outputs"
+    if w.ndim != 2 or w.shape[1] != inputs:
+        raise PolicyFileError(f"{path}: weight_{i} has shape {w.shape}; expected (outputs, {inputs}), {inputs} "
+                              f"being {source}")
+    if not 0 < w.shape[0] <= MAX_WIDTH:
+        raise PolicyFileError(f"{path}: weight_{i} has {w.shape[0]} outputs; expected 1..{MAX_WIDTH}")
+    if w.dtype.kind != "f":
+        raise PolicyFileError(f"{path}: weight_{i} has dtype {w.dtype}, not floats")
+    if b is None:
+        raise PolicyFileError(f"{path}: bias_{i} missing (weight_{i} has no bias)")
+    if b.shape != (w.shape[0],):
+        raise PolicyFileError(f"{path}: bias_{i} has shape {b.shape}; expected ({w.shape[0]},), one per output "
+                              f"of weight_{i}")
+    return w.astype(np.float64), _numbers(path, f"bias_{i}", b)
+
+
 def _policy_from_arrays(path: Path, arrays: dict[str, np.ndarray]) -> NumpyPolicy:
     layers = 0
     while f"weight_{layers}" in arrays and layers <= MAX_LAYERS:
         layers += 1
-    missing = [k for k in ("obs_mean", "obs_var", "obs_clip", "obs_epsilon") if k not in arrays]
-    if missing or layers == 0 or layers > MAX_LAYERS:
-        raise PolicyFileError(f"{path}: not a policy file (missing {missing or 'weight_0'}, or over {MAX_LAYERS} layers)")
+    missing = [k for k in ("obs_mean", "obs_var", "obs_clip", "obs_epsilon", "weight_0") if k not in arrays]
+    if missing:
+        raise PolicyFileError(f"{path}: not a policy file: {', '.join(missing)} missing (written by NumpyPolicy.save?)")
+    if layers > MAX_LAYERS:
+        raise PolicyFileError(f"{path}: weight_{MAX_LAYERS} present; a policy has at most {MAX_LAYERS} layers")
     known = {"obs_mean", "obs_var", "obs_clip", "obs_epsilon", "config"}
     known |= {f"{kind}_{i}" for kind in ("weight", "bias") for i in range(layers)}
     extra = sorted(set(arrays) - known)
@@ -182,24 +204,16 @@ def _policy_from_arrays(path: Path, arrays: dict[str, np.ndarray]) -> NumpyPolic
     var = _numbers(path, "obs_var", arrays["obs_var"])
     if mean.ndim != 1 or mean.size == 0 or var.shape != mean.shape:
         raise PolicyFileError(f"{path}: obs_mean {mean.shape} and obs_var {var.shape} must be equal 1-D")
-    size = mean.shape
     weights, biases = [], []
     for i in range(layers):
-        expected_in = size[0] if i == 0 else weights[i - 1].shape[0]
-        w = arrays[f"weight_{i}"]
-        b = arrays.get(f"bias_{i}")
-        if (w.ndim != 2 or b is None or b.shape != (w.shape[0],) or w.shape[1] != expected_in
-                or max(w.shape) > MAX_WIDTH or min(w.shape) == 0):
-            raise PolicyFileError(f"{path}: layer {i} has shape {w.shape} (bias {None if b is None else b.shape}), "
-                                  f"which does not follow {expected_in} inputs")
-        if w.dtype.kind != "f":
-            raise PolicyFileError(f"{path}: weight_{i} has dtype {w.dtype}, not floats")
-        weights.append(w.astype(np.float64))
-        biases.append(_numbers(path, f"bias_{i}", b))
+        w, b = _layer(path, i, arrays, inputs=mean.size if i == 0 else weights[-1].shape[0])
+        weights.append(w)
+        biases.append(b)
     for name, v in [*((f"weight_{i}", w) for i, w in enumerate(weights)),
                     *((f"bias_{i}", b) for i, b in enumerate(biases)), ("obs_mean", mean), ("obs_var", var)]:
         if not np.isfinite(v).all():
-            raise PolicyFileError(f"{path}: {name}: non-finite weights or statistics")
+            raise PolicyFileError(f"{path}: {name} has {np.count_nonzero(~np.isfinite(v))} NaN or infinite "
+                                  "value(s); all must be finite")
     if (var < 0).any():
         raise PolicyFileError(f"{path}: obs_var: a negative variance")
     clip = _scalar(path, "obs_clip", arrays["obs_clip"])

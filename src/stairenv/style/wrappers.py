@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import pickle
 import re
+import warnings
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
@@ -81,44 +82,62 @@ _ADVICE = ("weights_only", "trusted source", "arbitrary code", "add_safe_globals
 
 
 def _unpickler_complaint(err: Exception) -> str:
-    """The reason in torch's weights-only error, without its advice to load unsafely."""
-    text = str(err)
-    found = re.search(r"WeightsUnpickler error:\s*(.*?)(?:\n\n|$)", text, re.DOTALL)
-    if found:
-        text = found[1]
-    sentences = re.split(r"(?<=[.!?])\s+|\n+", text)
+    """torch's reason for not reading a file (truncated, foreign), without any advice to load unsafely."""
+    if isinstance(err, pickle.UnpicklingError):  # torch's whole message is about loading it unsafely
+        return "its pickle holds instructions that a safe load refuses"
+    sentences = re.split(r"(?<=[.!?])\s+|\n+", str(err))
     kept = [part for part in sentences if part.strip() and not any(a in part for a in _ADVICE)]
     return " ".join(" ".join(kept).split()) or type(err).__name__
 
 
+#: the largest pickle read for the names of its globals
+_MAX_PICKLE_BYTES = 64 * 2**20
+
+
 def _pickle_globals(path: Path) -> list[str]:
-    """The globals (``module.name``) the pickle inside a torch zip file names, read with ``pickletools``
-    (opcodes only: nothing is built or run); [] where the file is no such zip."""
-    import pickletools
+    """The globals (``module.name``) the pickles of a torch file name: ``data.pkl`` in a zip file, else
+    the file's own pickles one after another (torch's legacy format, or a plain pickle). Read with
+    ``pickletools`` (opcodes only: nothing is built or run); [] where there is nothing to read."""
     import zipfile
 
-    names: list[str] = []
     try:
-        with zipfile.ZipFile(path) as archive:
-            member = next((m for m in archive.infolist() if m.filename.endswith("data.pkl")), None)
-            if member is None or member.file_size > 64 * 2**20:
-                return []
-            data = archive.read(member)
-        strings: list[str] = []
-        for opcode, arg, _ in pickletools.genops(data):
-            if opcode.name in ("GLOBAL", "INST"):
-                names.append(str(arg).replace(" ", "."))
-            elif opcode.name == "STACK_GLOBAL" and len(strings) >= 2:
-                names.append(f"{strings[-2]}.{strings[-1]}")
-            if isinstance(arg, str):
-                strings.append(arg)
-    except Exception:  # noqa: BLE001  (a truncated or foreign file: no names)
-        return names
+        if zipfile.is_zipfile(path):
+            with zipfile.ZipFile(path) as archive:
+                member = next((m for m in archive.infolist() if m.filename.endswith("data.pkl")), None)
+                if member is None or member.file_size > _MAX_PICKLE_BYTES:
+                    return []
+                data = archive.read(member)
+        elif path.stat().st_size <= _MAX_PICKLE_BYTES:
+            data = path.read_bytes()
+        else:
+            return []
+    except (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile):
+        return []
+    return _opcode_globals(data)
+
+
+def _opcode_globals(data: bytes) -> list[str]:
+    """The globals the pickles in ``data`` name, in order (``pickletools``: opcodes only, nothing built)."""
+    import io
+    import pickletools
+
+    names: list[str] = []
+    strings: list[str] = []
+    stream = io.BytesIO(data)
+    try:
+        while stream.tell() < len(data):  # legacy torch files: several pickles, then raw storage bytes
+            for opcode, arg, _ in pickletools.genops(stream):
+                if opcode.name in ("GLOBAL", "INST"):
+                    names.append(str(arg).replace(" ", "."))
+                elif opcode.name == "STACK_GLOBAL" and len(strings) >= 2:
+                    names.append(f"{strings[-2]}.{strings[-1]}")
+                if isinstance(arg, str):
+                    strings.append(arg)
+    except Exception:  # noqa: BLE001  (the storage bytes, or a truncated pickle: the names so far)
+        pass
     return names
 
 
-#: a weights-only failure, across torch 2.1-2.13 ("Weights only load failed", "WeightsUnpickler error")
-_WEIGHTS_ONLY_FAILURE = re.compile(r"weights.only load failed|weightsunpickler", re.IGNORECASE)
 #: the global a refusal names: "Unsupported global: GLOBAL m.f was not an allowed global" (2.1-2.12),
 #: "Trying to load unsupported GLOBAL m.f whose module m is blocked" (2.13)
 _REFUSED_GLOBAL = re.compile(r"\bGLOBAL ([A-Za-z_][\w.]*)")
@@ -127,10 +146,24 @@ _TORCH_GLOBALS = ("torch.", "collections.OrderedDict", "builtins.set", "builtins
                   "_codecs.encode")
 
 
-def _refused_global(err: Exception, path: Path) -> str | None:
-    """The Python object a weights-only refusal is about (from torch's message, else from the pickle's
-    own opcodes), None when ``err`` is no refusal (a truncated or foreign file)."""
-    if not isinstance(err, pickle.UnpicklingError) or not _WEIGHTS_ONLY_FAILURE.search(str(err)):
+def load_weights_only(path: Path):
+    """``torch.load(path, weights_only=True)`` on the CPU: tensors and plain values, nothing run."""
+    with warnings.catch_warnings():  # a crafted file's pickle protocol: torch asks to report it to them
+        warnings.filterwarnings("ignore", message="Detected pickle protocol", category=UserWarning)
+        return torch.load(path, weights_only=True, map_location="cpu")
+
+
+def refused_object(err: Exception, path: Path) -> str | None:
+    """The Python object (``module.name``) that ``torch.load(path, weights_only=True)`` refused to build,
+    None when ``err`` is no such refusal (a truncated or foreign file).
+
+    The exception's type and the file decide, not torch's wording (which changed between versions, and
+    comes with advice to load the file unsafely): torch raises every refusal of its weights-only
+    unpickler as ``pickle.UnpicklingError``, whatever the reason; the object is the one torch's message
+    names, else the first non-torch global in the file's pickles (torch 2.13 refuses a plain pickle at
+    its first unsupported opcode, before reaching any global). A pickle naming no such global cannot
+    build anything to run (text, or a pickle torch cannot read): None."""
+    if not isinstance(err, pickle.UnpicklingError):
         return None
     named = _REFUSED_GLOBAL.search(str(err))
     if named:
@@ -184,9 +217,9 @@ def read_amp_state(path: str | Path) -> dict:
     if not path.is_file():
         raise AMPStateError(f"no AMP state file {str(path)!r}")
     try:
-        state = torch.load(path, weights_only=True, map_location="cpu")
+        state = load_weights_only(path)
     except Exception as err:  # noqa: BLE001  (truncated or foreign files surface as many types)
-        refused = _refused_global(err, path)
+        refused = refused_object(err, path)
         if refused is not None:
             raise AMPStateError(
                 f"{path}: refused: it asks to build the Python object {refused}, and AMP states hold only "

@@ -38,7 +38,7 @@ from torch import nn
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, plain_config
-from stairenv.style.wrappers import AMPStyleReward
+from stairenv.style.wrappers import AMPStyleReward, load_weights_only, refused_object
 from stairenv.tasks import curriculum
 from stairenv.training.config import TrainConfig
 from stairenv.training.distributed import LOCAL, Local
@@ -627,8 +627,13 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise CheckpointError(f"no checkpoint file {str(path)!r}")
     try:
-        state = torch.load(path, weights_only=True, map_location="cpu")
+        state = load_weights_only(path)
     except Exception as err:  # noqa: BLE001  (truncated or foreign files surface as many types)
+        refused = refused_object(err, path)
+        if refused is not None:
+            raise CheckpointError(f"{path}: refused: it asks to build the Python object {refused}, and a "
+                                  "lean-trainer checkpoint holds only tensors and plain values; nothing in it "
+                                  "was run") from None
         raise CheckpointError(f"{path}: not a readable lean-trainer checkpoint ({type(err).__name__}); "
                               "nothing in it was run") from None
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
