@@ -10,9 +10,12 @@ recompilation). Sample (i, j) sits at x = -L/2 + j c, y = -L/2 + i c.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
+from stairenv.numba_jit import jit
 from stairenv.validation import check_choice, check_number
 from stairenv.world.scenes import (
     FlatPatchConfig,
@@ -52,17 +55,36 @@ def terrain_heights(kind: str, rng: np.random.Generator, size: float = 16.0, cel
 
 def bilinear_height(heights: np.ndarray, size: float, xy: np.ndarray) -> np.ndarray:
     """Terrain height at world points (..., 2), bilinear between samples (0 outside)."""
+    xy = np.asarray(xy, dtype=np.float64)
+    flat = np.ascontiguousarray(xy.reshape(-1, 2))
+    out = np.empty(flat.shape[0])
+    bilinear_heights(heights, size, flat, out)
+    return out.reshape(xy.shape[:-1])
+
+
+@jit
+def bilinear_at(heights, size, x, y):
+    """``bilinear_height`` of one point (x, y): the same operations in the same order, so the same bits."""
     n = heights.shape[0]
     cell = size / (n - 1)
-    u = (np.asarray(xy)[..., 0] + size / 2) / cell
-    v = (np.asarray(xy)[..., 1] + size / 2) / cell
-    inside = (u >= 0) & (u <= n - 1) & (v >= 0) & (v <= n - 1)
-    u, v = np.clip(u, 0, n - 1.000001), np.clip(v, 0, n - 1.000001)
-    j, i = np.floor(u).astype(int), np.floor(v).astype(int)
+    u = (x + size / 2) / cell
+    v = (y + size / 2) / cell
+    if not (u >= 0 and u <= n - 1 and v >= 0 and v <= n - 1):
+        return 0.0
+    top = n - 1.000001
+    u, v = min(u, top), min(v, top)  # (inside: u, v >= 0 already)
+    j, i = int(math.floor(u)), int(math.floor(v))
     fu, fv = u - j, v - i
-    h = ((1 - fv) * ((1 - fu) * heights[i, j] + fu * heights[i, j + 1])
-         + fv * ((1 - fu) * heights[i + 1, j] + fu * heights[i + 1, j + 1]))
-    return np.where(inside, h, 0.0)
+    return ((1 - fv) * ((1 - fu) * heights[i, j] + fu * heights[i, j + 1])
+            + fv * ((1 - fu) * heights[i + 1, j] + fu * heights[i + 1, j + 1]))
+
+
+@jit
+def bilinear_heights(heights, size, xy, out):
+    """``bilinear_at`` of each row of ``xy`` (P, 2) into ``out`` (P,); returns ``out``."""
+    for p in range(xy.shape[0]):
+        out[p] = bilinear_at(heights, size, xy[p, 0], xy[p, 1])
+    return out
 
 
 class HeightfieldSlot:
