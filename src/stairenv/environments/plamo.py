@@ -266,35 +266,83 @@ class PlaMoEnv(HumanoidEnv):
         head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
         return self.data.xpos[self._idx.head_id] + head_mat @ HEAD_CENTRE_OFFSET, head_mat
 
-    def _step_outcome(self, state) -> StepOutcome:
-        t = self._steps * self.dt
-        root = state.body_pos[0, PELVIS]
-        root_mat = state.body_mat[0, PELVIS]
-        root_yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-        ground = self.ground_height(np.vstack((root[:2], state.body_pos[0, HEAD, :2])))
-        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                                 np.array([root[2] - ground[0]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-        points = task.heightmap_points(root[:2], root_yaw, self.heightmap_size, self.heightmap_extent)
-        heightmap = self.ground_height(points) - root[2]
-        head, head_mat = self._head()
-        path_obs = task.path_observation(self.path, t, head, root_yaw, NUM_WAYPOINTS, WAYPOINT_SPACING)
-        obs = np.concatenate((proprio, heightmap, path_obs))
+    BATCH_OUTCOMES = True
 
-        k = self.path.index(t)
-        target = self.path.at(t)
-        forward = head_mat[:, 0]
-        head_yaw = math.atan2(forward[1], forward[0])
-        head_pitch = math.atan2(forward[2], math.hypot(forward[0], forward[1]))
-        max_body_z = max(float(state.body_pos[0, :, 2].max()), float(head[2]))
-        terms = task.path_reward_terms(target, head, self.path.yaw[k], self.path.pitch[k], head_yaw, head_pitch,
-                                       max_body_z)
-        xy_error = float(np.hypot(*(target[:2] - head[:2])))
-        head_clearance = float(head[2] - self.ground_height(head[:2]))
-        # the two reasons an episode ends early, each in info: the head at the ground, the path lost
-        fell, off_path = head_clearance < self.min_head_height, xy_error > self.max_xy_error
-        return StepOutcome(obs, float(terms.sum()), dict(zip(task.REWARD_TERMS, terms.tolist())),
-                           bool(fell or off_path), {"xy_error": xy_error, "z_error": float(abs(target[2] - head[2])),
-                                                    "fell": bool(fell), "off_path": bool(off_path)})
+    def _step_outcome(self, state) -> StepOutcome:
+        """``_step_outcomes`` of this world alone."""
+        return self._step_outcomes([self], state)[0]
+
+    @classmethod
+    def _step_outcomes(cls, envs: list[PlaMoEnv], state) -> list[StepOutcome]:
+        """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
+        k): what is the same for every world as arrays over the batch (the head centres, the highest
+        bodies, the proprioception in one compiled call), then per world, each with its own terrain and
+        path, its heightmap and path targets (compiled, written into its row of the observations) and its
+        reward terms and ends in Python floats: the operations of the numpy forms in their order
+        (``stairenv.tasks.plamo``), so a world's outcome has the same bits alone or in any batch."""
+        first = envs[0]
+        n, hm = len(envs), first.heightmap_size ** 2
+        body_pos, body_mat = state.body_pos, state.body_mat
+        heads = body_pos[:, HEAD] + np.matmul(body_mat[:, HEAD], HEAD_CENTRE_OFFSET)
+        max_body_z = np.maximum(body_pos[:, :, 2].max(axis=1), heads[:, 2]).tolist()
+        obs = np.empty((n, PROPRIOCEPTION_SIZE + hm + 3 * NUM_WAYPOINTS))
+        heightmaps, path_obs = obs[:, PROPRIOCEPTION_SIZE:PROPRIOCEPTION_SIZE + hm], obs[:, PROPRIOCEPTION_SIZE + hm:]
+        root_height = np.empty(n)
+        roots = body_pos[:, PELVIS]
+        root_axes = body_mat[:, PELVIS, :2, 0].tolist()   # (R00, R10): the root's yaw
+        forwards = body_mat[:, HEAD, :, 0].tolist()      # the head's forward axis
+        head_rows = heads.tolist()
+        rows = []
+        for k, env in enumerate(envs):
+            t = env._steps * env.dt
+            root, head = roots[k], heads[k]
+            r00, r10 = root_axes[k]
+            root_yaw = math.atan2(r10, r00)
+            c, s = math.cos(root_yaw), math.sin(root_yaw)
+            root_ground, head_ground = env._terrain_samples(heightmaps[k], root, c, s, head)
+            root_height[k] = root[2] - root_ground
+            path = env.path
+            target = task.write_path_observation(path_obs[k], path.points, path.dt, t, head, c, s, WAYPOINT_SPACING)
+            i = path.index(t)
+            fx, fy, fz = forwards[k]
+            head_yaw = math.atan2(fy, fx)
+            head_pitch = math.atan2(fz, math.hypot(fx, fy))
+            hx, hy, hz = head_rows[k]
+            terms = task.path_reward_values(target, head_rows[k], float(path.yaw[i]), float(path.pitch[i]),
+                                            head_yaw, head_pitch, max_body_z[k])
+            rows.append((terms, target[0] - hx, target[1] - hy, abs(target[2] - hz), hz - head_ground))
+        obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                                                      root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
+        xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
+        outcomes = []
+        for k, env in enumerate(envs):
+            terms, _, _, z_error, head_clearance = rows[k]
+            xy_error = xy_errors[k]
+            # the two reasons an episode ends early, each in info: the head at the ground, the path lost
+            fell, off_path = head_clearance < env.min_head_height, xy_error > env.max_xy_error
+            outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
+                                        dict(zip(task.REWARD_TERMS, terms)), fell or off_path,
+                                        {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}))
+        return outcomes
+
+    def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
+                         head: np.ndarray) -> tuple[float, float]:
+        """The heightmap around ``root`` (c, s: the cosine and sine of its yaw; terrain height minus root
+        height) written to ``out``, and the terrain height under the root and under ``head``: compiled on
+        this env's height field, else (a subclass's own ``ground_height``) one ``ground_height`` call."""
+        if type(self).ground_height is PlaMoEnv.ground_height:
+            return task.write_terrain_heightmap(out, self._heights, self._terrain_slot.size, root, c, s,
+                                                self.heightmap_size, self.heightmap_extent, head)
+        if getattr(self, "_heightmap_offsets", None) is None:
+            self._heightmap_offsets = task.heightmap_offsets(self.heightmap_size, self.heightmap_extent)
+        gx, gy = self._heightmap_offsets
+        points = np.empty((len(gx) + 2, 2))
+        points[0], points[-1] = root[:2], head[:2]
+        points[1:-1, 0] = root[0] + c * gx - s * gy
+        points[1:-1, 1] = root[1] + s * gx + c * gy
+        ground = self.ground_height(points)
+        out[:] = ground[1:-1] - root[2]
+        return float(ground[0]), float(ground[-1])
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "terrain": self.terrain,

@@ -249,15 +249,22 @@ class PlaMoSceneEnv(PlaMoEnv):
         if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
             self._maybe_replan(self._steps * self.dt)
 
-    def _step_outcome(self, state) -> StepOutcome:
+    #: world by world in a batched env: each world's scene is its own model (its bodies differ in number), so
+    #: their states cannot be read as one batch
+    BATCH_OUTCOMES = False
+
+    @classmethod
+    def _step_outcomes(cls, envs: list[PlaMoSceneEnv], state) -> list[StepOutcome]:
         """PlaMo's, and success: the head within ``success_radius`` of the last landmark after its
         planned arrival (never at the episode's start)."""
-        outcome = super()._step_outcome(state)
-        head, _ = self._head()
-        success = self._steps > 0 and self._steps * self.dt >= self._trajectory.end_time - 1e-9 and \
-            float(np.hypot(*(head[:2] - self._goal_xy))) < self.success_radius
-        return outcome._replace(terminated=bool(outcome.terminated or success),
-                                results={**outcome.results, "success": bool(success)})
+        outcomes = super()._step_outcomes(envs, state)
+        for k, env in enumerate(envs):
+            success = env._steps > 0 and env._steps * env.dt >= env._trajectory.end_time - 1e-9 and \
+                float(np.hypot(*(env._head()[0][:2] - env._goal_xy))) < env.success_radius
+            outcome = outcomes[k]
+            outcomes[k] = outcome._replace(terminated=bool(outcome.terminated or success),
+                                           results={**outcome.results, "success": bool(success)})
+        return outcomes
 
     def _render_lines(self) -> tuple:
         """The followed path's next waypoints (PlaMo's, green) and the whole planned route (blue),
