@@ -286,3 +286,35 @@ def test_speed_curriculum_levels_in_the_batched_env():
     venv.set_attr("curriculum_level", [4, 2, 1])
     assert list(venv.get_attr("curriculum_level")) == [4, 2, 1]
     venv.close()
+
+
+def test_compiled_step_pieces_equal_the_numpy_forms():
+    """The compiled pieces of a step (``bilinear_height``'s kernel, ``write_terrain_heightmap``,
+    ``write_path_observation``) give the bits of the numpy forms, out-of-field points included."""
+    rng = np.random.default_rng(4)
+    heights = terrain_heights("mixed", rng, 16.0, 0.1)
+    xy = rng.uniform(-9.0, 9.0, (5000, 2))
+    n, cell = heights.shape[0], 16.0 / (heights.shape[0] - 1)
+    u, v = (xy[:, 0] + 8.0) / cell, (xy[:, 1] + 8.0) / cell
+    inside = (u >= 0) & (u <= n - 1) & (v >= 0) & (v <= n - 1)
+    u, v = np.clip(u, 0, n - 1.000001), np.clip(v, 0, n - 1.000001)
+    j, i = np.floor(u).astype(int), np.floor(v).astype(int)
+    fu, fv = u - j, v - i
+    expected = np.where(inside, (1 - fv) * ((1 - fu) * heights[i, j] + fu * heights[i, j + 1])
+                        + fv * ((1 - fu) * heights[i + 1, j] + fu * heights[i + 1, j + 1]), 0.0)
+    np.testing.assert_array_equal(bilinear_height(heights, 16.0, xy), expected)
+    path = task.random_head_path(task.PathConfig(), rng, 16.0, np.zeros(2), 0.3,
+                                 lambda p: bilinear_height(heights, 16.0, p), arena_half=6.5)
+    for t in (0.0, 0.2667, 3.1, 15.9, 40.0):
+        root, head = rng.uniform(-8.5, 8.5, 3), rng.uniform(-8.5, 8.5, 3)
+        yaw = float(rng.uniform(-math.pi, math.pi))
+        c, s = math.cos(yaw), math.sin(yaw)
+        heightmap = np.empty(12 * 12)
+        grounds = task.write_terrain_heightmap(heightmap, heights, 16.0, root, c, s, 12, 2.5, head)
+        points = task.heightmap_points(root[:2], yaw, 12, 2.5)
+        np.testing.assert_array_equal(heightmap, bilinear_height(heights, 16.0, points) - root[2])
+        assert grounds == (bilinear_height(heights, 16.0, root[:2]), bilinear_height(heights, 16.0, head[:2]))
+        targets = np.empty(30)
+        target = task.write_path_observation(targets, path.points, path.dt, t, head, c, s, 0.5)
+        np.testing.assert_array_equal(targets, task.path_observation(path, t, head, yaw, 10, 0.5))
+        np.testing.assert_array_equal(np.array(target), path.at(t))

@@ -255,18 +255,21 @@ def test_gymnasium_amp_wrapper_runs_on_the_batched_env(physics):
         assert reward.shape == (2,) and "style_reward" in info
 
 
-def test_interlevel_batch_outcomes_equal_per_world_finish():
-    """InterLevel's batch-first finish (one compiled call for all worlds) against each world's own
-    ``_finish_step``, with resets and falls inside; exact."""
+@pytest.mark.parametrize("env_id", ["InterSceneStairs-v0", "PlaMo-v0"])
+def test_batch_outcomes_equal_per_world_finish(env_id):
+    """The batch-first finish (InterLevel: one compiled call for all worlds; PlaMo: the batch's arrays, then
+    each world's terrain and path) against each world's own ``_finish_step``, with resets and falls inside;
+    exact."""
     runs = []
     for flag in (True, False):
-        vec = batched("InterSceneStairs-v0", 4, batch_outcomes=flag, max_episode_steps=15)
+        vec = batched(env_id, 4, batch_outcomes=flag, max_episode_steps=15)
         assert vec.batch_outcomes is flag
         vec.reset(seed=2)
         rng = np.random.default_rng(3)
         runs.append([vec.step(rng.uniform(-1, 1, (4, 28))) for _ in range(40)])
     assert_same(runs[0], runs[1])
-    assert batched("PlaMo-v0", 1).batch_outcomes is False
+    assert batched(env_id, 1).batch_outcomes is True
+    assert batched("PlaMoScene-v0", 1).batch_outcomes is False  # its worlds' models differ: world by world
 
 
 def test_batch_evaluation_is_a_deprecated_name_of_batch_outcomes():
