@@ -14,17 +14,20 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
    steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
-   For InterLevel (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
+   For InterLevel and PlaMo (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
    the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
-   read as one batch (``read_states``), the task in one compiled call (``InterLevelEnv._step_outcomes``,
-   which the single env calls with one world) and the style features in one; the other envs run ``_finish_step`` per world in the physics thread
-   right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
+   read as one batch (``read_states``), the task in one call (``InterLevelEnv._step_outcomes``: one compiled
+   call; ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path; the
+   single env calls them with one world) and the style features in one; the other envs run ``_finish_step``
+   per world in the physics thread right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
    is bit-identical to a single env's with the same seed.
 
 Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
-PlaMo, PlaMoScene and SIMS the whole finish; for InterLevel the divergence check's time and warning
-counts, ``mj_kinematics``, the reward terms' dicts and ``info``. Batched: the action checks, the
-physics, InterLevel's step outcomes, the assembly of obs / reward / flags / info.
+PlaMoScene (its worlds' models differ) and SIMS the whole finish; for InterLevel the divergence check's
+time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
+heightmap and path targets (compiled, on the world's own height field and path) and reward terms. Batched:
+the action checks, the physics, InterLevel's and PlaMo's step outcomes, the assembly of obs / reward /
+flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -119,7 +122,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
         self._world_changed = getattr(self.physics, "world_changed", None)
         #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
-        #: (``BATCH_OUTCOMES``: InterLevel), else world by world
+        #: (``BATCH_OUTCOMES``: InterLevel, PlaMo), else world by world
         self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
