@@ -126,29 +126,32 @@ def random_head_path(config: PathConfig, rng: np.random.Generator, duration: flo
         speed = fraction * cap
     speed = speed * config.speed_scale  # (x * 1.0 is x: the default paths are unchanged to the bit)
     turn = _smooth_levels(rng, times, config, lambda prev: rng.uniform(-1, 1) * config.max_turn_rate)
-    # The walk in Python floats (float64 operations as numpy's, one at a time: the same bits, ~10x faster).
-    x, y = (float(value) for value in np.asarray(start_xy, dtype=np.float64))
-    heading = float(start_yaw)
-    xs, ys, yaws = [x], [y], [heading]
-    dt = config.dt
-    for v, w in zip(speed[:-1].tolist(), turn[:-1].tolist()):
-        heading = heading + w * dt
-        step = v * dt
-        if arena_half is not None:
-            # Steer back towards the centre when the next point would leave the arena.
-            if abs(x + step * math.cos(heading)) > arena_half or abs(y + step * math.sin(heading)) > arena_half:
-                heading = math.atan2(-y, -x)
-        x, y = x + step * math.cos(heading), y + step * math.sin(heading)
-        xs.append(x)
-        ys.append(y)
-        yaws.append(heading)
-    xy = np.column_stack((xs, ys))
-    yaw = np.array(yaws)
+    xy = np.empty((len(times), 2))
+    yaw = np.empty(len(times))
+    start_x, start_y = np.asarray(start_xy, dtype=np.float64)
+    walk_path(speed, turn, config.dt, start_x, start_y, start_yaw, math.inf if arena_half is None else arena_half,
+              xy, yaw)
     ground = ground_height(xy)
     points = np.column_stack((xy, ground + head))
     rise = np.gradient(points[:, 2], config.dt)
     pitch = np.arctan2(rise, np.maximum(speed, 1e-6))
     return PathSamples(points, head, speed, yaw, pitch, config.dt)
+
+
+@jit
+def walk_path(speed, turn, dt, x, y, heading, arena_half, xy, yaw):
+    """``random_head_path``'s walk from (x, y) facing ``heading``: point k + 1 is ``speed[k] * dt`` on from
+    point k, turned by ``turn[k] * dt``, or towards the centre where it would leave the arena (``arena_half``,
+    inf: none); written to ``xy`` (T, 2) and ``yaw`` (T,). (The libm functions CPython's ``math`` calls.)"""
+    xy[0, 0], xy[0, 1], yaw[0] = x, y, heading
+    for k in range(1, yaw.shape[0]):
+        heading = heading + turn[k - 1] * dt
+        step = speed[k - 1] * dt
+        # Steer back towards the centre when the next point would leave the arena.
+        if abs(x + step * math.cos(heading)) > arena_half or abs(y + step * math.sin(heading)) > arena_half:
+            heading = math.atan2(-y, -x)
+        x, y = x + step * math.cos(heading), y + step * math.sin(heading)
+        xy[k, 0], xy[k, 1], yaw[k] = x, y, heading
 
 
 def path_observation(path: PathSamples, t: float, head_pos: np.ndarray, root_yaw: float,
