@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -119,12 +120,17 @@ def _check_patch_shape(shape: tuple[int, int], cell_size: float) -> tuple[int, i
     return rows, cols
 
 
+@functools.lru_cache(maxsize=64)
 def _patch_xy(shape: tuple[int, int], cell_size: float) -> tuple[np.ndarray, np.ndarray]:
-    """x, y (h, w) of the cell centres relative to the patch centre (m)."""
+    """x, y (h, w) of the cell centres relative to the patch centre (m); read-only, made once per shape
+    and cell size (a terrain of many patches of one size asks for the same grid every time)."""
     rows, cols = shape
     x = (np.arange(cols) + 0.5 - 0.5 * cols) * cell_size
     y = (np.arange(rows) + 0.5 - 0.5 * rows) * cell_size
-    return np.meshgrid(x, y)
+    grid = np.meshgrid(x, y)
+    for axis in grid:
+        axis.flags.writeable = False
+    return tuple(grid)
 
 
 def _fitted_footprint_depth(rng: np.random.Generator, shape: tuple[int, int], cell_size: float,
