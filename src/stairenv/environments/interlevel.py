@@ -365,7 +365,8 @@ class InterLevelEnv(HumanoidEnv):
         # Python floats from here on: one tolist() per array instead of numpy calls per value.
         rows = results.tolist()
         if first.reward_name == "interlevel":
-            terms_rows = [row[:3] for row in rows]
+            num_terms = task.NUM_REWARD_TERMS
+            terms_rows = [row[:num_terms] for row in rows]
         else:
             terms_rows = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt).tolist()
         no_terms = [0.0] * len(first._term_names)

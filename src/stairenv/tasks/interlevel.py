@@ -69,6 +69,7 @@ OBSERVATION_STRUCTURE: dict[str, slice] = {
     "stairs_angle": slice(117, 118),         # heading yaw - ascent yaw, in [-pi, pi)
 }
 REWARD_TERMS: tuple[str, ...] = ("reward_location", "reward_facing", "reward_velocity")
+NUM_REWARD_TERMS = len(REWARD_TERMS)
 # Where the observation kernel writes the task's entries (compile-time constants).
 _OBS_TARGET_OFFSET = OBSERVATION_STRUCTURE["target_offset"].start
 _OBS_MARKER_DISTANCE = OBSERVATION_STRUCTURE["marker_distance"].start
@@ -179,6 +180,7 @@ class StepResults(NamedTuple):
 
 
 STEP_RESULTS: tuple[str, ...] = StepResults._fields
+assert STEP_RESULTS[:NUM_REWARD_TERMS] == REWARD_TERMS  # the terms first, in order
 
 
 @dataclass(frozen=True)
@@ -412,7 +414,7 @@ def interlevel_observation(state: HumanoidState, goal: StairsGoal) -> np.ndarray
 @jit
 def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, target_local, bottom_local, dt,
                    reward, out):
-    """The weighted terms into ``out`` (B, 3) in ``REWARD_TERMS`` order; ``reward`` is
+    """The weighted terms into ``out`` (B, NUM_REWARD_TERMS) in ``REWARD_TERMS`` order; ``reward`` is
     ``InterLevelReward.as_array()``."""
     root = body_pos[:, PELVIS]
     location = location_reward(to_stairs_frame(root, origin, rotation), target_local, bottom_local,
@@ -431,8 +433,9 @@ def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, targ
 def interlevel_reward_terms(
     state: HumanoidState, prev_root: np.ndarray, goal: StairsGoal, cfg: InterLevelReward, dt: float
 ) -> np.ndarray:
-    """The weighted terms of Eq. (1), (B, 3) in ``REWARD_TERMS`` order (location, facing, velocity)."""
-    out = np.empty((state.body_pos.shape[0], 3))
+    """The weighted terms of Eq. (1), (B, NUM_REWARD_TERMS) in ``REWARD_TERMS`` order (location, facing,
+    velocity)."""
+    out = np.empty((state.body_pos.shape[0], NUM_REWARD_TERMS))
     return _reward_kernel(state.body_pos, state.body_mat, prev_root, goal.origin, goal.rotation, goal.target,
                           goal.target_local, goal.bottom_local, dt, cfg.as_array(), out)
 
@@ -442,8 +445,7 @@ def interlevel_reward_terms(
 # fills one result array (a tuple argument would cost ~15 us a call in numba's dispatcher).
 (_G_TARGET, _G_BOTTOM, _G_ORIGIN, _, _G_YAW, _G_MARKER_DISTANCE, _G_TARGET_LOCAL, _G_BOTTOM_LOCAL, _G_TOP_HEIGHT, _G_STEP_DEPTH,
  _G_NUM_STEPS, _G_LANDING_END, _G_HALF_WIDTH) = (GOAL_LAYOUT[name].start for name in GOAL_COLUMNS)
-(_R_REWARD_LOCATION, _R_REWARD_FACING, _R_REWARD_VELOCITY, _R_FELL, _R_SUCCESS, _R_PROGRESS, _R_HEIGHT_PROGRESS,
- _R_DISTANCE_TO_TARGET) = range(len(STEP_RESULTS))
+_R_FELL, _R_SUCCESS, _R_PROGRESS, _R_HEIGHT_PROGRESS, _R_DISTANCE_TO_TARGET = range(NUM_REWARD_TERMS, len(STEP_RESULTS))
 
 
 @jit
@@ -459,7 +461,8 @@ def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_r
     _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, goal[:, _G_MARKER_DISTANCE],
                         goal[:, _G_YAW], obs)
     terms = _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, _vec3(goal, _G_TARGET_LOCAL),
-                           _vec3(goal, _G_BOTTOM_LOCAL), dt, reward, np.empty((body_pos.shape[0], 3)))
+                           _vec3(goal, _G_BOTTOM_LOCAL), dt, reward,
+                           np.empty((body_pos.shape[0], NUM_REWARD_TERMS)))
     root = body_pos[:, PELVIS]
     fell = has_fallen(body_pos, termination_height)
     success = reached_top(root, target, goal[:, _G_TOP_HEIGHT], success_radius)
@@ -467,9 +470,8 @@ def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_r
                                        goal[:, _G_LANDING_END], goal[:, _G_HALF_WIDTH])
     root_progress = progress(root, bottom, target)
     for b in range(root.shape[0]):
-        results[b, _R_REWARD_LOCATION] = terms[b, 0]
-        results[b, _R_REWARD_FACING] = terms[b, 1]
-        results[b, _R_REWARD_VELOCITY] = terms[b, 2]
+        for i in range(NUM_REWARD_TERMS):
+            results[b, i] = terms[b, i]
         results[b, _R_FELL] = fell[b]
         results[b, _R_SUCCESS] = success[b]
         results[b, _R_PROGRESS] = stairs_progress[b]
