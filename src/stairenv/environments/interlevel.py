@@ -159,15 +159,16 @@ class InterLevelEnv(HumanoidEnv):
     def __init__(
         self,
         reward: str = "interlevel",
-        progress_scaling: bool = True,
-        w_location: float = 3.0,
-        w_facing: float = 0.1,
-        w_velocity: float = 0.4,
-        sigma_before: float = 2.0,
-        sigma_after: float = 0.5,
-        sigma_across: float = 0.5,
-        w_scale: float | None = None,
-        target_speed: float = 1.0,
+        progress_scaling: bool = task.InterLevelReward.progress_scaling,
+        # the reward's defaults are InterLevelReward's, the one place that holds them
+        w_location: float = task.InterLevelReward.w_location,
+        w_facing: float = task.InterLevelReward.w_facing,
+        w_velocity: float = task.InterLevelReward.w_velocity,
+        sigma_before: float = task.InterLevelReward.sigma_before,
+        sigma_after: float = task.InterLevelReward.sigma_after,
+        sigma_across: float = task.InterLevelReward.sigma_across,
+        w_scale: float | None = task.InterLevelReward.w_scale,
+        target_speed: float = task.InterLevelReward.target_speed,
         success_reward: float = 10.0,
         failure_reward: float = -1.0,
         success_radius: float = 0.5,
@@ -213,7 +214,7 @@ class InterLevelEnv(HumanoidEnv):
             **weights, w_scale=None if w_scale is None else check_float("w_scale", w_scale),
             progress_scaling=check_bool("progress_scaling", progress_scaling),
         )
-        self._reward_params = self.reward_config.params()
+        self._reward_array = self.reward_config.as_array()  # what the compiled step takes
         self.success_reward = check_float("success_reward", success_reward)
         self.failure_reward = check_float("failure_reward", failure_reward)
         self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
@@ -358,13 +359,14 @@ class InterLevelEnv(HumanoidEnv):
             packed = np.concatenate([env._packed_goal for env in envs])
             goal = task.StairsGoal.unpack(packed)
         obs, results = task.interlevel_outcome_columns(
-            state, prev_root, packed, goal.rotation, first._reward_params, first.dt, first.termination_height,
+            state, prev_root, packed, goal.rotation, first._reward_array, first.dt, first.termination_height,
             first.success_radius,
         )
         # Python floats from here on: one tolist() per array instead of numpy calls per value.
         rows = results.tolist()
         if first.reward_name == "interlevel":
-            terms_rows = [row[:3] for row in rows]
+            num_terms = task.NUM_REWARD_TERMS
+            terms_rows = [row[:num_terms] for row in rows]
         else:
             terms_rows = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt).tolist()
         no_terms = [0.0] * len(first._term_names)

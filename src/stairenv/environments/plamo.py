@@ -12,12 +12,11 @@ from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
 from stairenv.humanoid import load_humanoid_spec
-from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion, nearest_locomotion
 from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.validation import check_bool, check_choice, check_float, check_grid, check_int
 from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
 
@@ -268,26 +267,11 @@ class PlaMoEnv(HumanoidEnv):
 
     def _step_outcome(self, state) -> StepOutcome:
         t = self._steps * self.dt
-        root = state.body_pos[0, PELVIS]
-        root_mat = state.body_mat[0, PELVIS]
-        root_yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-        ground = self.ground_height(np.vstack((root[:2], state.body_pos[0, HEAD, :2])))
-        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                                 np.array([root[2] - ground[0]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-        points = task.heightmap_points(root[:2], root_yaw, self.heightmap_size, self.heightmap_extent)
-        heightmap = self.ground_height(points) - root[2]
         head, head_mat = self._head()
-        path_obs = task.path_observation(self.path, t, head, root_yaw, NUM_WAYPOINTS, WAYPOINT_SPACING)
-        obs = np.concatenate((proprio, heightmap, path_obs))
-
-        k = self.path.index(t)
+        obs = task.plamo_observation(state, self.path, t, head, self.ground_height, self.heightmap_size,
+                                     self.heightmap_extent, NUM_WAYPOINTS, WAYPOINT_SPACING)
         target = self.path.at(t)
-        forward = head_mat[:, 0]
-        head_yaw = math.atan2(forward[1], forward[0])
-        head_pitch = math.atan2(forward[2], math.hypot(forward[0], forward[1]))
-        max_body_z = max(float(state.body_pos[0, :, 2].max()), float(head[2]))
-        terms = task.path_reward_terms(target, head, self.path.yaw[k], self.path.pitch[k], head_yaw, head_pitch,
-                                       max_body_z)
+        terms = task.head_reward_terms(self.path, t, target, head, head_mat, state.body_pos[0])
         xy_error = float(np.hypot(*(target[:2] - head[:2])))
         head_clearance = float(head[2] - self.ground_height(head[:2]))
         # the two reasons an episode ends early, each in info: the head at the ground, the path lost

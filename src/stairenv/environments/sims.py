@@ -23,10 +23,9 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
-from stairenv.rotations import yaw_matrix
 from stairenv.tasks import curriculum
 from stairenv.tasks import sims as task
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
 from stairenv.world.furniture import (
     FAMILIES,
@@ -859,30 +858,13 @@ class SIMSEnv(HumanoidEnv):
 
     def _step_outcome(self, state) -> StepOutcome:
         goal = self.goal
-        root = state.body_pos[0, PELVIS]
-        root_mat = state.body_mat[0, PELVIS]
-        yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-        heading = yaw_matrix(yaw)
-        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                                 np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-        heightmap = self._heights.egocentric(root, yaw, self.heightmap_size, self.heightmap_extent)
-        joints = state.body_pos[0]
-        targets = goal.targets(joints)
-        mask = goal.mask
-        rel = (targets - root) * mask[:, None]
-        rel = rel @ heading  # into the heading frame
-        obs = np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), self._z))
-
-        vel = state.root_lin_vel[0, :2]
-        facing = heading[:2, 0].copy()
-        if goal.skill == "walk":
-            terms = task.walk_reward_terms(goal.root_target, root, vel, self._prev_root_vel, facing,
-                                           self._target_speed)
-            error = float(np.hypot(*(goal.root_target[:2] - root[:2])))
-        else:
-            terms = task.contact_reward_terms(goal.root_target, root, vel, facing, self._target_speed,
-                                              targets, joints, mask)
-            error = float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
+        frame = task.root_frame(state)
+        root = frame.position
+        targets = goal.targets(state.body_pos[0])
+        obs = task.skill_observation(state, frame, goal, targets, self._heights, self.heightmap_size,
+                                     self.heightmap_extent, self._z)
+        terms = task.skill_reward_terms(state, frame, goal, targets, self._prev_root_vel, self._target_speed)
+        error = task.skill_error(goal, targets, state.body_pos[0])
         success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
         self._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
         fell = bool(state.body_pos[0, HEAD, 2] < self.fall_height)
