@@ -17,6 +17,7 @@ from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import curriculum
+from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_numbers, check_pair
@@ -338,7 +339,7 @@ class InterLevelEnv(HumanoidEnv):
 
     def _start_tracking(self, state) -> None:
         self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._approach_distance, self._approach_step = math.inf, 0
+        self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
 
     BATCH_OUTCOMES = True
 
@@ -379,7 +380,7 @@ class InterLevelEnv(HumanoidEnv):
             fell_k = started and row[_FELL] != 0.0
             success_k = started and row[_SUCCESS] != 0.0
             distance = row[_DISTANCE_TO_TARGET]
-            stalled = env._stalled(distance)
+            stalled = env._stall.stalled(distance, env._steps)
             terms, reward = {}, 0.0
             # A fall replaces the task terms by the failure reward.
             for key, value in zip(env._term_names, no_terms if fell_k else terms_rows[k]):
@@ -400,13 +401,6 @@ class InterLevelEnv(HumanoidEnv):
                 "distance_to_target": distance,
             }))
         return outcomes
-
-    def _stalled(self, distance: float) -> bool:
-        """Whether the episode has come no ``stall_distance`` closer to M_T than at its last such
-        approach (the first: its start) for more than ``stall_seconds``; False without ``stall_seconds``."""
-        if distance < self._approach_distance - self.stall_distance or self._approach_distance == math.inf:
-            self._approach_distance, self._approach_step = distance, self._steps
-        return self.stall_seconds is not None and (self._steps - self._approach_step) * self.dt > self.stall_seconds
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
