@@ -199,6 +199,14 @@ def combine(strips: list[Image.Image], max_width: int, max_bytes: int) -> tuple[
         width = int(width * 0.85)
 
 
+def write_combined(strips: list[Image.Image], path: Path, max_width: int, max_kb: float) -> None:
+    """``combine`` the strips and write the PNG to ``path`` (its folder made)."""
+    _, png = combine(strips, max_width, int(max_kb * 1000))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(png)
+    print(f"wrote {path} ({len(png) / 1000:.0f} KB)")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -235,10 +243,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {path} ({strip.width}x{strip.height}): {episode.caption()}")
     except ValueError as error:
         parser.error(str(error))
-    _, png = combine(strips, args.combined_width, int(args.combined_max_kb * 1000))
-    args.combined.parent.mkdir(parents=True, exist_ok=True)
-    args.combined.write_bytes(png)
-    print(f"wrote {args.combined} ({len(png) / 1000:.0f} KB)")
+    write_combined(strips, args.combined, args.combined_width, args.combined_max_kb)
     return 0
 
 

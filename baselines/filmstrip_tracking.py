@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 import stairenv  # noqa: E402,F401  (registers the envs)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the strip layout is filmstrip_climb's, beside us
-from filmstrip_climb import combine, filmstrip, frame_indices  # noqa: E402
+from filmstrip_climb import filmstrip, frame_indices, write_combined  # noqa: E402
 from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS  # noqa: E402
 from stairenv.policy_loading import load_policy  # noqa: E402
 
@@ -100,10 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         strips.append(filmstrip([images[k] for k in keep], [times[k] for k in keep],
                                 f"{locomotion} on {args.terrain}: {tail}"))
         print(f"{locomotion}: {tail}")
-    sheet, data = combine(strips, args.combined_width, int(args.combined_max_kb * 1024))
-    args.combined.parent.mkdir(parents=True, exist_ok=True)
-    args.combined.write_bytes(data)
-    print(f"wrote {args.combined} ({sheet.width}x{sheet.height}, {len(data) // 1024} KB)")
+    write_combined(strips, args.combined, args.combined_width, args.combined_max_kb)
     return 0
 
 

@@ -418,8 +418,8 @@ def test_fused_step_kernel_matches_the_separate_functions():
     goal = env._goal
     packed = goal.pack()
     assert packed.shape == (1, task.GOAL_SIZE)
-    obs, res = task.interlevel_step(state, prev, packed, goal.rotation, env.reward_config.as_array(), env.dt,
-                                    0.2, 0.5)
+    obs, res = task.interlevel_outcome_columns(state, prev, packed, goal.rotation, env.reward_config.as_array(),
+                                               env.dt, 0.2, 0.5)
     np.testing.assert_allclose(obs, task.interlevel_observation(state, goal), atol=0)
     np.testing.assert_allclose(res[:, :3], task.interlevel_reward_terms(state, prev, goal, env.reward_config, env.dt))
     root = state.body_pos[:, 0]

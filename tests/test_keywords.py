@@ -403,6 +403,7 @@ KINDS = {
         "interaction_start_fraction": lambda s: UNIT if s["skill"] in NEAR_START_SKILLS else Number(0.0, 0.0),
         "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in NEAR_START_SKILLS
                                                   and s["scene"] == "object" else 0, integer=True),
+        "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
     },
 }
 # Tried on every keyword: wrong for most, valid for some (True for a bool, None for an optional, ...).

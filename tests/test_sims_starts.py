@@ -196,3 +196,42 @@ def test_the_evaluation_drops_both_aids(baseline_script):
     assert train_ppo.evaluation_kwargs(kwargs) == {"start_distance": (1.0, 4.0)}
     assert "start_distance_levels" in curriculum.LEVEL_KEYWORDS
     assert math.isclose(START_PENETRATION, 0.01)
+
+
+# --- stall termination (training aid) ---------------------------------------------------------------
+def test_a_stalled_sims_episode_ends_with_its_reason():
+    env = SIMSEnv(skill="sit", stall_seconds=0.2, **FAST)
+    env.reset(seed=1)
+    env._stall.approach_distance = -1.0  # no approach can count from here on
+    for steps in range(1, 30):
+        _, reward, terminated, _, info = env.step(np.zeros(28))
+        if terminated:
+            break
+    assert terminated and info["stalled"] and not info["fell"] and not info["success"]
+    assert steps * env.dt > 0.2 and steps * env.dt < 0.2 + 2 * env.dt  # at the first step past 0.2 s
+    assert reward == pytest.approx(sum(v for k, v in info.items() if k.startswith("reward_")))
+
+
+def test_stall_termination_is_off_by_default_and_leaves_info_unchanged():
+    plain = SIMSEnv(skill="sit", **FAST)
+    plain.reset(seed=1)
+    _, _, _, _, info = plain.step(np.zeros(28))
+    assert "stalled" not in info and plain.stall_seconds is None
+    with pytest.raises(ValueError, match="stall_seconds"):
+        SIMSEnv(skill="sit", stall_seconds=0.0, **FAST)
+    with pytest.raises(ValueError, match="stall_distance"):
+        SIMSEnv(skill="sit", stall_distance=-1.0, **FAST)
+
+
+def test_a_succeeding_episode_does_not_stall():
+    env = SIMSEnv(skill="sit", stall_seconds=0.2, interaction_start_fraction=1.0, **FAST)
+    env.reset(seed=4)  # starts seated (measured: succeeding for the first 20 steps under zero actions)
+    env._stall.approach_distance = -1.0  # the clock runs from the start: past 0.2 s every step stalls...
+    succeeded = 0
+    for steps in range(1, 40):
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        assert not (info["stalled"] and info["success"])  # ...unless it is succeeding
+        succeeded += info["success"] and steps * env.dt > 0.2
+        if terminated:
+            break
+    assert succeeded > 0

@@ -111,34 +111,35 @@ def test_batched_stairs_starts_equal_single_envs():
 
 # --- stall termination (the other training aid) ----------------------------------------------------
 def test_stall_clock_restarts_on_each_approach():
+    from stairenv.tasks.stall import StallWatch
+
+    dt = 1.0 / 30.0
+    watch = StallWatch(1.0, 0.2, dt)
+    steps_per_second = round(1.0 / dt)
+    assert not watch.stalled(5.0, 0)  # the first evaluation sets the reference distance
+    for step in range(1, steps_per_second + 1):  # 1 s closer by less than 0.2 m: not yet
+        assert not watch.stalled(5.0 - 0.19 * step / steps_per_second, step)
+    step = steps_per_second + 1
+    assert watch.stalled(4.85, step)  # more than 1 s without a 0.2 m approach
+    step += 1
+    assert not watch.stalled(4.79, step)  # 0.21 m closer than the start: the clock restarts
+    step += steps_per_second
+    assert not watch.stalled(4.70, step)
+    step += 1
+    assert watch.stalled(4.70, step)
+    watch.restart()  # a new episode
+    assert not watch.stalled(9.0, 0)
+    assert not StallWatch(None, 0.2, dt).stalled(5.0, 10_000)  # off without seconds
     env = gym.make("InterLevel-v0", stall_seconds=1.0, stall_distance=0.2).unwrapped
     env.reset(seed=0)
-    steps_per_second = round(1.0 / env.dt)
-    env._steps, env._approach_distance = 0, float("inf")  # as at an episode's start
-    assert not env._stalled(5.0)  # the first evaluation sets the reference distance
-    for step in range(1, steps_per_second + 1):  # 1 s closer by less than 0.2 m: not yet
-        env._steps = step
-        assert not env._stalled(5.0 - 0.19 * step / steps_per_second)
-    env._steps += 1
-    assert env._stalled(4.85)  # more than 1 s without a 0.2 m approach
-    env._steps += 1
-    assert not env._stalled(4.79)  # 0.21 m closer than the start: the clock restarts
-    env._steps += steps_per_second
-    assert not env._stalled(4.70)
-    env._steps += 1
-    assert env._stalled(4.70)
-    plain = gym.make("InterLevel-v0").unwrapped
-    plain.reset(seed=0)
-    plain._steps = 10_000
-    assert not plain._stalled(5.0)  # off by default
+    assert (env._stall.seconds, env._stall.distance, env._stall.dt) == (1.0, 0.2, env.dt)  # the env's own
     env.close()
-    plain.close()
 
 
 def test_a_stalled_episode_terminates_without_a_reward_of_its_own():
     env = gym.make("InterLevel-v0", stall_seconds=0.2).unwrapped
     env.reset(seed=1)
-    env._approach_distance = -1.0  # no approach can count from here on
+    env._stall.approach_distance = -1.0  # no approach can count from here on
     for _ in range(20):
         _, reward, terminated, truncated, info = env.step(np.zeros(28))
         if terminated:

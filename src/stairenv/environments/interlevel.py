@@ -17,6 +17,7 @@ from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import curriculum
+from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_numbers, check_pair
@@ -159,15 +160,16 @@ class InterLevelEnv(HumanoidEnv):
     def __init__(
         self,
         reward: str = "interlevel",
-        progress_scaling: bool = True,
-        w_location: float = 3.0,
-        w_facing: float = 0.1,
-        w_velocity: float = 0.4,
-        sigma_before: float = 2.0,
-        sigma_after: float = 0.5,
-        sigma_across: float = 0.5,
-        w_scale: float | None = None,
-        target_speed: float = 1.0,
+        progress_scaling: bool = task.InterLevelReward.progress_scaling,
+        # the reward's defaults are InterLevelReward's, the one place that holds them
+        w_location: float = task.InterLevelReward.w_location,
+        w_facing: float = task.InterLevelReward.w_facing,
+        w_velocity: float = task.InterLevelReward.w_velocity,
+        sigma_before: float = task.InterLevelReward.sigma_before,
+        sigma_after: float = task.InterLevelReward.sigma_after,
+        sigma_across: float = task.InterLevelReward.sigma_across,
+        w_scale: float | None = task.InterLevelReward.w_scale,
+        target_speed: float = task.InterLevelReward.target_speed,
         success_reward: float = 10.0,
         failure_reward: float = -1.0,
         success_radius: float = 0.5,
@@ -213,7 +215,7 @@ class InterLevelEnv(HumanoidEnv):
             **weights, w_scale=None if w_scale is None else check_float("w_scale", w_scale),
             progress_scaling=check_bool("progress_scaling", progress_scaling),
         )
-        self._reward_params = self.reward_config.params()
+        self._reward_array = self.reward_config.as_array()  # what the compiled step takes
         self.success_reward = check_float("success_reward", success_reward)
         self.failure_reward = check_float("failure_reward", failure_reward)
         self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
@@ -337,7 +339,7 @@ class InterLevelEnv(HumanoidEnv):
 
     def _start_tracking(self, state) -> None:
         self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._approach_distance, self._approach_step = math.inf, 0
+        self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
 
     BATCH_OUTCOMES = True
 
@@ -358,13 +360,14 @@ class InterLevelEnv(HumanoidEnv):
             packed = np.concatenate([env._packed_goal for env in envs])
             goal = task.StairsGoal.unpack(packed)
         obs, results = task.interlevel_outcome_columns(
-            state, prev_root, packed, goal.rotation, first._reward_params, first.dt, first.termination_height,
+            state, prev_root, packed, goal.rotation, first._reward_array, first.dt, first.termination_height,
             first.success_radius,
         )
         # Python floats from here on: one tolist() per array instead of numpy calls per value.
         rows = results.tolist()
         if first.reward_name == "interlevel":
-            terms_rows = [row[:3] for row in rows]
+            num_terms = task.NUM_REWARD_TERMS
+            terms_rows = [row[:num_terms] for row in rows]
         else:
             terms_rows = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt).tolist()
         no_terms = [0.0] * len(first._term_names)
@@ -377,7 +380,7 @@ class InterLevelEnv(HumanoidEnv):
             fell_k = started and row[_FELL] != 0.0
             success_k = started and row[_SUCCESS] != 0.0
             distance = row[_DISTANCE_TO_TARGET]
-            stalled = env._stalled(distance)
+            stalled = env._stall.stalled(distance, env._steps)
             terms, reward = {}, 0.0
             # A fall replaces the task terms by the failure reward.
             for key, value in zip(env._term_names, no_terms if fell_k else terms_rows[k]):
@@ -398,13 +401,6 @@ class InterLevelEnv(HumanoidEnv):
                 "distance_to_target": distance,
             }))
         return outcomes
-
-    def _stalled(self, distance: float) -> bool:
-        """Whether the episode has come no ``stall_distance`` closer to M_T than at its last such
-        approach (the first: its start) for more than ``stall_seconds``; False without ``stall_seconds``."""
-        if distance < self._approach_distance - self.stall_distance or self._approach_distance == math.inf:
-            self._approach_distance, self._approach_step = distance, self._steps
-        return self.stall_seconds is not None and (self._steps - self._approach_step) * self.dt > self.stall_seconds
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}

@@ -23,10 +23,10 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
-from stairenv.rotations import yaw_matrix
 from stairenv.tasks import curriculum
+from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
 from stairenv.world.furniture import (
     FAMILIES,
@@ -255,10 +255,12 @@ class SIMSEnv(HumanoidEnv):
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states (None: "builtin:sims"; walk and idle clips) |
     | interaction_start_fraction | 0.0 | sit, lie, reach: share of episodes that start in a frame of the skill's clip made for their piece (training) |
     | start_distance_levels | 0 | sit, lie, reach in object scenes: levels of a success-driven curriculum growing ``start_distance`` (training); 0 = off |
+    | stall_seconds | None | end an episode whose contact error has not fallen by ``stall_distance`` for this long (training); None = never |
+    | stall_distance | 0.2 | least fall of the contact error (m) that counts as progress for ``stall_seconds`` |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
 
-    Training aids (both off by default; evaluations leave them off, ``baselines/train_ppo.py``'s
+    Training aids (off by default; evaluations leave them off, ``baselines/train_ppo.py``'s
     ``TRAINING_AIDS``):
 
     - Interaction starts (``interaction_start_fraction``, sit, lie and reach): in that share of the
@@ -280,6 +282,11 @@ class SIMSEnv(HumanoidEnv):
       the goal's root target; episodes cut by the trainer (``reset(options={"episode_cut": True})``)
       and interaction starts are not judged. The level carries over resets, seeded ones too: training
       state that the trainers log (``curriculum/level``) and save with their checkpoints.
+    - Stall termination (``stall_seconds``, ``stairenv.tasks.stall``), as InterLevel's: an episode whose
+      contact error (``info["contact_error"]``; walk: the root's distance to its target) has not come
+      ``stall_distance`` below that of its last such approach (the first: its start) for
+      ``stall_seconds`` ends (terminated, ``info["stalled"] = True``, present only with the aid), unless
+      it is succeeding at that step. Standing still then no longer pays for the whole episode.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
@@ -312,6 +319,8 @@ class SIMSEnv(HumanoidEnv):
         hybrid_fraction: float = 0.5,
         interaction_start_fraction: float = 0.0,
         start_distance_levels: int = 0,
+        stall_seconds: float | None = None,
+        stall_distance: float = 0.2,
         pd_gains: str = "soft",
         frame_skip: int = 8,
         amp_history: int = 2,
@@ -357,6 +366,9 @@ class SIMSEnv(HumanoidEnv):
                              f"{list(NEAR_START_SKILLS)} (start_distance places those starts); leave it 0")
         #: this world's level of the start-distance curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
+        self.stall_seconds = None if stall_seconds is None else check_float(
+            "stall_seconds", stall_seconds, 0.0, 3600.0, low_open=True)
+        self.stall_distance = check_float("stall_distance", stall_distance, 0.0, 100.0)
         self._interaction_start = False
         self._start_goal: task.ContactGoal | None = None
         self._root_distance = self._start_root_distance = 0.0
@@ -566,6 +578,7 @@ class SIMSEnv(HumanoidEnv):
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
         root, target = state.body_pos[0, PELVIS], self.goal.root_target
         self._start_root_distance = self._root_distance = math.hypot(target[0] - root[0], target[1] - root[1])
+        self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
 
     def embed_text(self, text: str) -> np.ndarray:
         """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
@@ -859,39 +872,25 @@ class SIMSEnv(HumanoidEnv):
 
     def _step_outcome(self, state) -> StepOutcome:
         goal = self.goal
-        root = state.body_pos[0, PELVIS]
-        root_mat = state.body_mat[0, PELVIS]
-        yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-        heading = yaw_matrix(yaw)
-        proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                                 np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-        heightmap = self._heights.egocentric(root, yaw, self.heightmap_size, self.heightmap_extent)
-        joints = state.body_pos[0]
-        targets = goal.targets(joints)
-        mask = goal.mask
-        rel = (targets - root) * mask[:, None]
-        rel = rel @ heading  # into the heading frame
-        obs = np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), self._z))
-
-        vel = state.root_lin_vel[0, :2]
-        facing = heading[:2, 0].copy()
-        if goal.skill == "walk":
-            terms = task.walk_reward_terms(goal.root_target, root, vel, self._prev_root_vel, facing,
-                                           self._target_speed)
-            error = float(np.hypot(*(goal.root_target[:2] - root[:2])))
-        else:
-            terms = task.contact_reward_terms(goal.root_target, root, vel, facing, self._target_speed,
-                                              targets, joints, mask)
-            error = float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
+        frame = task.root_frame(state)
+        root = frame.position
+        targets = goal.targets(state.body_pos[0])
+        obs = task.skill_observation(state, frame, goal, targets, self._heights, self.heightmap_size,
+                                     self.heightmap_extent, self._z)
+        terms = task.skill_reward_terms(state, frame, goal, targets, self._prev_root_vel, self._target_speed)
+        error = task.skill_error(goal, targets, state.body_pos[0])
         success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
         self._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
         fell = bool(state.body_pos[0, HEAD, 2] < self.fall_height)
         self._targets = targets
         self._prev_root_vel = state.root_lin_vel[0, :2].copy()
         self._success_once |= success
-        return StepOutcome(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())),
-                          fell or (self.terminate_on_success and success),
-                          {"contact_error": error, "success": success, "fell": fell})
+        results = {"contact_error": error, "success": success, "fell": fell}
+        ended = fell or (self.terminate_on_success and success)
+        if self.stall_seconds is not None:  # only with the aid: the default info is unchanged
+            results["stalled"] = self._stall.stalled(error, self._steps) and not (fell or success)
+            ended = ended or results["stalled"]
+        return StepOutcome(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())), ended, results)
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         goal = self.goal

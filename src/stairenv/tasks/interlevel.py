@@ -46,7 +46,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -69,6 +69,7 @@ OBSERVATION_STRUCTURE: dict[str, slice] = {
     "stairs_angle": slice(117, 118),         # heading yaw - ascent yaw, in [-pi, pi)
 }
 REWARD_TERMS: tuple[str, ...] = ("reward_location", "reward_facing", "reward_velocity")
+NUM_REWARD_TERMS = len(REWARD_TERMS)
 # Where the observation kernel writes the task's entries (compile-time constants).
 _OBS_TARGET_OFFSET = OBSERVATION_STRUCTURE["target_offset"].start
 _OBS_MARKER_DISTANCE = OBSERVATION_STRUCTURE["marker_distance"].start
@@ -158,25 +159,6 @@ GOAL_LAYOUT: dict[str, slice] = _layout(GOAL_SHAPES)
 GOAL_SIZE = GOAL_LAYOUT[GOAL_COLUMNS[-1]].stop
 
 
-class RewardParams(NamedTuple):
-    """``InterLevelReward`` as the step kernel takes it (``InterLevelReward.params()``)."""
-
-    w_location: float
-    w_facing: float
-    w_velocity: float
-    sigma_before: float
-    sigma_after: float
-    sigma_across: float
-    w_scale: float
-    target_speed: float
-    progress_scaling: bool
-
-    @classmethod
-    def from_array(cls, reward: np.ndarray) -> RewardParams:
-        """From ``InterLevelReward.as_array()`` (the flag stored as 0.0 or 1.0)."""
-        return cls(*(float(v) for v in reward[:8]), bool(reward[8] > 0.5))
-
-
 class StepResults(NamedTuple):
     """Per-world results of the step kernel, each (B,): the three weighted reward terms of Eq. (1),
     the episode's end (``fell``, ``success``), the progress up the stairs (``surface_progress``), the
@@ -198,6 +180,7 @@ class StepResults(NamedTuple):
 
 
 STEP_RESULTS: tuple[str, ...] = StepResults._fields
+assert STEP_RESULTS[:NUM_REWARD_TERMS] == REWARD_TERMS  # the terms first, in order
 
 
 @dataclass(frozen=True)
@@ -225,16 +208,19 @@ class InterLevelReward:
         object.__setattr__(self, "target_speed", check_number("target_speed", self.target_speed, 0.0, 10.0))
         object.__setattr__(self, "progress_scaling", bool(self.progress_scaling))
 
-    def as_tuple(self) -> tuple:
-        return (self.w_location, self.w_facing, self.w_velocity, self.sigma_before, self.sigma_after,
-                self.sigma_across, self.w_scale, self.target_speed, self.progress_scaling)
-
     def as_array(self) -> np.ndarray:
-        return np.array(self.as_tuple(), dtype=np.float64)
+        """What the compiled kernels take: the fields in ``REWARD_FIELDS`` order as one float64 array
+        (``progress_scaling`` as 1.0 or 0.0), read there by the named indices ``_P_*``."""
+        return np.array([getattr(self, name) for name in REWARD_FIELDS], dtype=np.float64)
 
-    def params(self) -> RewardParams:
-        """The step kernel's argument."""
-        return RewardParams(*self.as_tuple())
+
+# The kernels' reward array: InterLevelReward's fields in order, and where each one is (compile-time
+# constants, so the kernel takes one array instead of nine scalars).
+REWARD_FIELDS: tuple[str, ...] = tuple(field.name for field in fields(InterLevelReward))
+(_P_W_LOCATION, _P_W_FACING, _P_W_VELOCITY, _P_SIGMA_BEFORE, _P_SIGMA_AFTER, _P_SIGMA_ACROSS, _P_W_SCALE,
+ _P_TARGET_SPEED, _P_PROGRESS_SCALING) = range(len(REWARD_FIELDS))
+assert REWARD_FIELDS == ("w_location", "w_facing", "w_velocity", "sigma_before", "sigma_after", "sigma_across",
+                         "w_scale", "target_speed", "progress_scaling")
 
 
 def equal_peak_scale(sigma_before: float, sigma_after: float) -> float:
@@ -427,14 +413,16 @@ def interlevel_observation(state: HumanoidState, goal: StairsGoal) -> np.ndarray
 # --- the whole step -------------------------------------------------------------
 @jit
 def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, target_local, bottom_local, dt,
-                   w_location, w_facing, w_velocity, sigma_before, sigma_after, sigma_across, w_scale,
-                   target_speed, progress_scaling, out):
-    """The weighted terms into ``out`` (B, 3) in ``REWARD_TERMS`` order; the parameters are ``RewardParams``'."""
+                   reward, out):
+    """The weighted terms into ``out`` (B, NUM_REWARD_TERMS) in ``REWARD_TERMS`` order; ``reward`` is
+    ``InterLevelReward.as_array()``."""
     root = body_pos[:, PELVIS]
     location = location_reward(to_stairs_frame(root, origin, rotation), target_local, bottom_local,
-                               sigma_before, sigma_after, sigma_across, w_scale, progress_scaling)
+                               reward[_P_SIGMA_BEFORE], reward[_P_SIGMA_AFTER], reward[_P_SIGMA_ACROSS],
+                               reward[_P_W_SCALE], reward[_P_PROGRESS_SCALING] > 0.5)
     facing = facing_reward(body_mat[:, PELVIS, :2, 0], root, target)
-    velocity = velocity_reward(speed_towards(prev_root, root, target, dt), target_speed)
+    velocity = velocity_reward(speed_towards(prev_root, root, target, dt), reward[_P_TARGET_SPEED])
+    w_location, w_facing, w_velocity = reward[_P_W_LOCATION], reward[_P_W_FACING], reward[_P_W_VELOCITY]
     for b in range(root.shape[0]):
         out[b, 0] = w_location * location[b]
         out[b, 1] = w_facing * facing[b]
@@ -445,10 +433,11 @@ def _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, targ
 def interlevel_reward_terms(
     state: HumanoidState, prev_root: np.ndarray, goal: StairsGoal, cfg: InterLevelReward, dt: float
 ) -> np.ndarray:
-    """The weighted terms of Eq. (1), (B, 3) in ``REWARD_TERMS`` order (location, facing, velocity)."""
-    out = np.empty((state.body_pos.shape[0], 3))
+    """The weighted terms of Eq. (1), (B, NUM_REWARD_TERMS) in ``REWARD_TERMS`` order (location, facing,
+    velocity)."""
+    out = np.empty((state.body_pos.shape[0], NUM_REWARD_TERMS))
     return _reward_kernel(state.body_pos, state.body_mat, prev_root, goal.origin, goal.rotation, goal.target,
-                          goal.target_local, goal.bottom_local, dt, *cfg.params(), out)
+                          goal.target_local, goal.bottom_local, dt, cfg.as_array(), out)
 
 
 # Where the step kernel finds each goal field in ``StairsGoal.pack()`` (from ``GOAL_LAYOUT``) and puts
@@ -456,8 +445,7 @@ def interlevel_reward_terms(
 # fills one result array (a tuple argument would cost ~15 us a call in numba's dispatcher).
 (_G_TARGET, _G_BOTTOM, _G_ORIGIN, _, _G_YAW, _G_MARKER_DISTANCE, _G_TARGET_LOCAL, _G_BOTTOM_LOCAL, _G_TOP_HEIGHT, _G_STEP_DEPTH,
  _G_NUM_STEPS, _G_LANDING_END, _G_HALF_WIDTH) = (GOAL_LAYOUT[name].start for name in GOAL_COLUMNS)
-(_R_REWARD_LOCATION, _R_REWARD_FACING, _R_REWARD_VELOCITY, _R_FELL, _R_SUCCESS, _R_PROGRESS, _R_HEIGHT_PROGRESS,
- _R_DISTANCE_TO_TARGET) = range(len(STEP_RESULTS))
+_R_FELL, _R_SUCCESS, _R_PROGRESS, _R_HEIGHT_PROGRESS, _R_DISTANCE_TO_TARGET = range(NUM_REWARD_TERMS, len(STEP_RESULTS))
 
 
 @jit
@@ -467,16 +455,14 @@ def _vec3(goal, at):
 
 @jit
 def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_root, goal, rotation, dt,
-                 termination_height, success_radius, w_location, w_facing, w_velocity, sigma_before, sigma_after,
-                 sigma_across, w_scale, target_speed, progress_scaling, obs, results):
-    """``goal`` packed, ``rotation`` its (B, 3, 3) field; the reward parameters are ``RewardParams``' fields."""
+                 termination_height, success_radius, reward, obs, results):
+    """``goal`` packed, ``rotation`` its (B, 3, 3) field, ``reward`` ``InterLevelReward.as_array()``."""
     target, bottom, origin = _vec3(goal, _G_TARGET), _vec3(goal, _G_BOTTOM), _vec3(goal, _G_ORIGIN)
     _observation_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, target, goal[:, _G_MARKER_DISTANCE],
                         goal[:, _G_YAW], obs)
     terms = _reward_kernel(body_pos, body_mat, prev_root, origin, rotation, target, _vec3(goal, _G_TARGET_LOCAL),
-                           _vec3(goal, _G_BOTTOM_LOCAL), dt, w_location, w_facing, w_velocity, sigma_before,
-                           sigma_after, sigma_across, w_scale, target_speed, progress_scaling,
-                           np.empty((body_pos.shape[0], 3)))
+                           _vec3(goal, _G_BOTTOM_LOCAL), dt, reward,
+                           np.empty((body_pos.shape[0], NUM_REWARD_TERMS)))
     root = body_pos[:, PELVIS]
     fell = has_fallen(body_pos, termination_height)
     success = reached_top(root, target, goal[:, _G_TOP_HEIGHT], success_radius)
@@ -484,9 +470,8 @@ def _step_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, prev_r
                                        goal[:, _G_LANDING_END], goal[:, _G_HALF_WIDTH])
     root_progress = progress(root, bottom, target)
     for b in range(root.shape[0]):
-        results[b, _R_REWARD_LOCATION] = terms[b, 0]
-        results[b, _R_REWARD_FACING] = terms[b, 1]
-        results[b, _R_REWARD_VELOCITY] = terms[b, 2]
+        for i in range(NUM_REWARD_TERMS):
+            results[b, i] = terms[b, i]
         results[b, _R_FELL] = fell[b]
         results[b, _R_SUCCESS] = success[b]
         results[b, _R_PROGRESS] = stairs_progress[b]
@@ -501,48 +486,33 @@ def interlevel_outcome(
     state: HumanoidState,
     prev_root: np.ndarray,
     goal: StairsGoal,
-    cfg: RewardParams,
+    cfg: InterLevelReward,
     dt: float,
     termination_height: float,
     success_radius: float,
     packed_goal: np.ndarray | None = None,
 ) -> tuple[np.ndarray, StepResults]:
     """Everything a step needs in one compiled call: the observation (B, 118) and the named
-    per-world ``StepResults``. ``cfg = InterLevelReward.params()``; ``packed_goal``: ``goal.pack()``
-    if the caller keeps it (an env does, for the episode).
+    per-world ``StepResults``. ``packed_goal``: ``goal.pack()`` if the caller keeps it (an env does,
+    for the episode).
 
     It calls the same kernels as ``interlevel_observation``, ``interlevel_reward_terms``,
     ``has_fallen``, ``reached_top``, ``surface_progress`` and ``progress``.
     """
     obs, results = interlevel_outcome_columns(state, prev_root, goal.pack() if packed_goal is None else packed_goal,
-                                               goal.rotation, cfg, dt, termination_height, success_radius)
+                                               goal.rotation, cfg.as_array(), dt, termination_height, success_radius)
     return obs, StepResults.from_columns(results)
 
 
-def interlevel_step(
-    state: HumanoidState,
-    prev_root: np.ndarray,
-    packed_goal: np.ndarray,
-    rotation: np.ndarray,
-    reward: np.ndarray,
-    dt: float,
-    termination_height: float,
-    success_radius: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """``interlevel_outcome`` with the goal packed (``goal.pack()``; ``rotation`` is ``goal.rotation``) and
-    the reward config as ``cfg.as_array()``; the results as (B, 8) columns in ``STEP_RESULTS`` order."""
-    return interlevel_outcome_columns(state, prev_root, packed_goal, rotation, RewardParams.from_array(reward), dt,
-                                       termination_height, success_radius)
-
-
-def interlevel_outcome_columns(state, prev_root, packed_goal, rotation, cfg, dt, termination_height, success_radius):
+def interlevel_outcome_columns(state, prev_root, packed_goal, rotation, reward, dt, termination_height, success_radius):
     """The step kernel's call (what an env calls each step): the observation (B, 118) and the results
-    (B, 8) in ``STEP_RESULTS`` order; ``packed_goal`` is ``goal.pack()``, ``cfg`` a ``RewardParams``."""
+    (B, 8) in ``STEP_RESULTS`` order; ``packed_goal`` is ``goal.pack()``, ``rotation`` ``goal.rotation``,
+    ``reward`` ``InterLevelReward.as_array()`` (an env keeps both for the episode)."""
     batch = state.body_pos.shape[0]
     obs = np.empty((batch, OBSERVATION_SIZE))
     results = np.empty((batch, len(STEP_RESULTS)))
     _step_kernel(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel, prev_root,
-                 packed_goal, rotation, dt, termination_height, success_radius, *cfg, obs, results)
+                 packed_goal, rotation, dt, termination_height, success_radius, reward, obs, results)
     return obs, results
 
 

@@ -16,7 +16,12 @@ Reward (paper Sec. 3.2), with s the head, tau_t the path point due now:
     r^tau = exp(-c_pos |tau^xy - s^xy|^2) + exp(-c_height (tau^z - s^z)^2)
             + exp(-c_dir |tau^(yaw,pitch) - s^(yaw,pitch)|^2) + c_body (z_head - max_body z)
 
-with c_pos = 2, c_height = 10, c_dir = 20, c_body = 0.1 (yaw difference wrapped).
+with c_pos = 2, c_height = 10, c_dir = 20, c_body = 0.1 (yaw difference wrapped). Those numbers
+are held in one place, ``PathReward`` (``PATH_REWARD``); each term is a small pure function
+(``position_term``, ...) named and weighed in ``TERMS``. ``plamo_observation`` and
+``head_reward_terms`` are one world's observation and reward; ``PlaMoEnv._step_outcomes`` computes the
+same bits for a batch of worlds with their compiled pieces (``write_terrain_heightmap``,
+``write_path_observation``) and ``path_reward_values`` (Python floats).
 """
 
 from __future__ import annotations
@@ -27,13 +32,64 @@ from typing import NamedTuple
 
 import numpy as np
 
+from stairenv.humanoid.state import HEAD, PELVIS, HumanoidState
 from stairenv.numba_jit import jit
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
+from stairenv.tasks.terms import RewardTerm, term_names, weighted_terms, weighted_values
 from stairenv.validation import check_number, check_range
 from stairenv.world.terrain import bilinear_at
 
 Z_MIN, Z_KNEE, V_MAX = 0.4, 1.2, 5.0
 C_POS, C_HEIGHT, C_DIR, C_BODY = 2.0, 10.0, 20.0, 0.1
-REWARD_TERMS = ("reward_position", "reward_height", "reward_direction", "reward_body")
+
+
+@dataclass(frozen=True)
+class PathReward:
+    """The weights (``w_*``) and sharpnesses (``c_*``) of r^tau, the one place that holds them."""
+
+    w_position: float = 1.0
+    w_height: float = 1.0
+    w_direction: float = 1.0
+    w_body: float = C_BODY
+    c_position: float = C_POS
+    c_height: float = C_HEIGHT
+    c_direction: float = C_DIR
+
+
+PATH_REWARD = PathReward()
+
+
+class PathRewardInputs(NamedTuple):
+    """What the terms of r^tau are computed from, for one world (squared errors in m^2 and rad^2)."""
+
+    position_error2: float   # |tau^xy - s^xy|^2
+    height_error2: float     # (tau^z - s^z)^2
+    direction_error2: float  # |tau^(yaw,pitch) - s^(yaw,pitch)|^2, the yaw difference wrapped
+    head_above_body: float   # z_head - max body z (<= 0)
+
+
+def position_term(x: PathRewardInputs, w: PathReward) -> float:
+    return math.exp(-w.c_position * x.position_error2)
+
+
+def height_term(x: PathRewardInputs, w: PathReward) -> float:
+    return math.exp(-w.c_height * x.height_error2)
+
+
+def direction_term(x: PathRewardInputs, w: PathReward) -> float:
+    return math.exp(-w.c_direction * x.direction_error2)
+
+
+def body_term(x: PathRewardInputs, w: PathReward) -> float:
+    """Keeping the head the highest body: z_head - max body z."""
+    return x.head_above_body
+
+
+TERMS = (RewardTerm("reward_position", position_term, "w_position"),
+         RewardTerm("reward_height", height_term, "w_height"),
+         RewardTerm("reward_direction", direction_term, "w_direction"),
+         RewardTerm("reward_body", body_term, "w_body"))
+REWARD_TERMS = term_names(TERMS)
 
 
 def coupled_max_speed(head_height: np.ndarray, z_min: float = Z_MIN, v_max: float = V_MAX) -> np.ndarray:
@@ -180,23 +236,59 @@ def heightmap_points(root_xy: np.ndarray, root_yaw: float, size: int, extent: fl
 
 
 def path_reward_terms(target: np.ndarray, head: np.ndarray, target_yaw: float, target_pitch: float,
-                      head_yaw: float, head_pitch: float, max_body_z: float) -> np.ndarray:
-    """The four terms of r^tau (position, height, direction, body) for one world: (4,)."""
-    return np.array(path_reward_values(target, head, target_yaw, target_pitch, head_yaw, head_pitch, max_body_z))
+                      head_yaw: float, head_pitch: float, max_body_z: float,
+                      reward: PathReward = PATH_REWARD) -> np.ndarray:
+    """The four weighted terms of r^tau (position, height, direction, body) for one world: (4,)."""
+    return weighted_terms(path_reward_inputs(target, head, target_yaw, target_pitch, head_yaw, head_pitch,
+                                             max_body_z), reward, TERMS)
 
 
 def path_reward_values(target, head, target_yaw: float, target_pitch: float, head_yaw: float, head_pitch: float,
-                       max_body_z: float) -> tuple[float, float, float, float]:
-    """``path_reward_terms`` as a tuple (``target``, ``head``: any 3 numbers, Python floats the fastest). The
-    operations of the numpy form in its order (a square as x * x, the squared distance dx^2 + dy^2), so
-    the same bits."""
+                       max_body_z: float, reward: PathReward = PATH_REWARD) -> tuple[float, ...]:
+    """``path_reward_terms`` as a tuple of floats (what the env's step uses, world by world)."""
+    return weighted_values(path_reward_inputs(target, head, target_yaw, target_pitch, head_yaw, head_pitch,
+                                              max_body_z), reward, TERMS)
+
+
+def path_reward_inputs(target, head, target_yaw: float, target_pitch: float, head_yaw: float, head_pitch: float,
+                       max_body_z: float) -> PathRewardInputs:
+    """What r^tau's terms are computed from (``target``, ``head``: any 3 numbers, Python floats the fastest):
+    the numpy form's operations in its order (a square as x * x, the squared distance dx^2 + dy^2, as
+    ``np.sum(np.square(...))`` adds them), so the same bits whatever the numbers' types."""
     dx, dy = target[0] - head[0], target[1] - head[1]
-    dxy2 = dx * dx + dy * dy
-    dz2 = (target[2] - head[2]) ** 2
     dyaw = (target_yaw - head_yaw + math.pi) % (2 * math.pi) - math.pi
-    ddir2 = dyaw * dyaw + (target_pitch - head_pitch) ** 2
-    return (math.exp(-C_POS * dxy2), math.exp(-C_HEIGHT * dz2), math.exp(-C_DIR * ddir2),
-            C_BODY * (head[2] - max_body_z))
+    return PathRewardInputs(dx * dx + dy * dy, (target[2] - head[2]) ** 2,
+                            dyaw * dyaw + (target_pitch - head_pitch) ** 2, head[2] - max_body_z)
+
+
+def head_reward_terms(path: PathSamples, t: float, target: np.ndarray, head: np.ndarray, head_mat: np.ndarray,
+                      body_pos: np.ndarray) -> np.ndarray:
+    """r^tau's weighted terms with the head at ``head`` turned by ``head_mat`` (its direction: the
+    forward axis), ``target`` the path point due at t (``path.at(t)``) and ``body_pos`` (15, 3) one
+    world's bodies (the max body z includes the head)."""
+    k = path.index(t)
+    forward = head_mat[:, 0]
+    head_yaw = math.atan2(forward[1], forward[0])
+    head_pitch = math.atan2(forward[2], math.hypot(forward[0], forward[1]))
+    max_body_z = max(float(body_pos[:, 2].max()), float(head[2]))
+    return path_reward_terms(target, head, path.yaw[k], path.pitch[k], head_yaw, head_pitch, max_body_z)
+
+
+def plamo_observation(state: HumanoidState, path: PathSamples, t: float, head: np.ndarray, ground_height,
+                      heightmap_size: int, heightmap_extent: float, num: int, spacing: float) -> np.ndarray:
+    """World 0's observation (``PlaMoEnv``'s docstring): proprioception with the root height above the
+    terrain (``ground_height(xy (N, 2)) -> (N,)``), the egocentric heightmap and the next ``num`` head
+    targets every ``spacing`` s (``path_observation``) relative to the head at ``head``."""
+    root = state.body_pos[0, PELVIS]
+    root_mat = state.body_mat[0, PELVIS]
+    root_yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
+    ground = ground_height(np.vstack((root[:2], state.body_pos[0, HEAD, :2])))
+    proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                             np.array([root[2] - ground[0]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
+    points = heightmap_points(root[:2], root_yaw, heightmap_size, heightmap_extent)
+    heightmap = ground_height(points) - root[2]
+    path_obs = path_observation(path, t, head, root_yaw, num, spacing)
+    return np.concatenate((proprio, heightmap, path_obs))
 
 
 # --- compiled pieces of a step (one world per call: each world has its own terrain and path) ----------

@@ -21,6 +21,11 @@ The paper writes the facing term as |d*.f|^2; the public implementations clamp t
 product at 0 so that walking backwards earns nothing, and so do we (the two agree when
 the character faces the target's half-plane). The get-up reward is the contact reward
 with the pelvis target at standing height in front of the furniture.
+
+Each term is a small pure function of ``SkillRewardInputs`` (``near_term``, ``far_term``,
+``still_term``), named and weighed in ``WALK_TERMS`` / ``CONTACT_TERMS``; the weights are held in
+one place, ``WALK_WEIGHTS`` and ``CONTACT_WEIGHTS``. ``skill_observation`` and ``skill_reward_terms``
+are what ``SIMSEnv`` calls each step.
 """
 
 from __future__ import annotations
@@ -28,11 +33,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
-from stairenv.tasks.kernels import jit
+from stairenv.humanoid.state import PELVIS, HumanoidState
+from stairenv.rotations import yaw_matrix
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, proprioception
+from stairenv.tasks.terms import RewardTerm, term_names, weighted_terms
 from stairenv.world.furniture import PlacedFurniture
 
 SKILLS: tuple[str, ...] = ("walk", "sit", "lie", "reach", "getup")
@@ -50,9 +59,6 @@ NEAR_SQUARED_DISTANCE = 0.5
 CONTACT_CLEARANCE: dict[str, float] = {"pelvis": 0.10, "torso": 0.12, "head": 0.10,
                                        "right_hand": 0.04, "left_hand": 0.04}
 
-WALK_REWARD_TERMS = ("reward_near", "reward_far", "reward_still")
-CONTACT_REWARD_TERMS = ("reward_near", "reward_far")
-
 # Which part each skill targets by default, per family (schema parts map here too).
 SIT_PART = {"chair": "seat", "armchair": "seat", "stool": "seat", "sofa": "seat",
             "bed": "bed_surface", "double_bed": "bed_surface"}
@@ -68,6 +74,59 @@ REACH_HEIGHT = (0.3, 1.7)  # a standing character's hand reaches targets at thes
 
 
 # --- rewards -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SkillRewardWeights:
+    """The weights of a skill's reward (supplement Eq. 7-13), the one place that holds them: those of
+    its terms (``near``, ``far``, ``still``) and those inside the far term (``far_*``)."""
+
+    near: float
+    far: float
+    still: float          # walk only: the contact skills have no still term
+    far_position: float
+    far_velocity: float
+    far_facing: float
+
+
+WALK_WEIGHTS = SkillRewardWeights(near=0.4, far=0.5, still=0.1, far_position=0.6, far_velocity=0.2, far_facing=0.2)
+CONTACT_WEIGHTS = SkillRewardWeights(near=0.6, far=0.4, still=0.0, far_position=0.5, far_velocity=0.4, far_facing=0.1)
+
+
+class SkillRewardInputs(NamedTuple):
+    """What the reward terms are computed from, for one world (distances squared, m^2)."""
+
+    dist2: float             # |x* - x|^2 on the ground
+    velocity: float          # exp(-2 (v* - d*.xdot)^2)
+    facing: float            # max(0, d*.f)^2
+    near_error2: float       # walk: |x* - x|^2; contact: sum_j m_j |g_j - x_j|^2 (3-D)
+    velocity_change2: float  # |xdot_t - xdot_{t-1}|^2 on the ground (walk's still term)
+
+
+def near_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
+    """exp(-10 e^2), e the walk's root distance or the contact error (supplement Eq. 8, 13)."""
+    return math.exp(-10.0 * x.near_error2)
+
+
+def far_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
+    """Approaching x*: position, speed towards it and facing it (Eq. 7, 11); its maximum 1 once near."""
+    if x.dist2 > NEAR_SQUARED_DISTANCE:
+        return w.far_position * math.exp(-0.5 * x.dist2) + w.far_velocity * x.velocity + w.far_facing * x.facing
+    return 1.0
+
+
+def still_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
+    """Once near, keeping the root's velocity (exp(-2 |xdot_t - xdot_{t-1}|^2), Eq. 10); 0 while far."""
+    if x.dist2 > NEAR_SQUARED_DISTANCE:
+        return 0.0
+    return math.exp(-2.0 * x.velocity_change2)
+
+
+WALK_TERMS = (RewardTerm("reward_near", near_term, "near"), RewardTerm("reward_far", far_term, "far"),
+              RewardTerm("reward_still", still_term, "still"))
+CONTACT_TERMS = WALK_TERMS[:2]
+WALK_REWARD_TERMS = term_names(WALK_TERMS)
+CONTACT_REWARD_TERMS = term_names(CONTACT_TERMS)
+
+
 def _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed):
     """(|x* - x|^2, velocity term, facing term) on the ground."""
     delta = np.asarray(target_xy, dtype=float)[:2] - np.asarray(root_xy, dtype=float)[:2]
@@ -81,32 +140,76 @@ def _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed):
 
 
 def walk_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
-                      prev_root_vel_xy: np.ndarray, facing_xy: np.ndarray, target_speed: float) -> np.ndarray:
+                      prev_root_vel_xy: np.ndarray, facing_xy: np.ndarray, target_speed: float,
+                      weights: SkillRewardWeights = WALK_WEIGHTS) -> np.ndarray:
     """The walk reward's weighted terms (near, far, still), summing to r (supplement Eq. 7-10)."""
     dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
-    near = math.exp(-10.0 * dist2)
-    if dist2 > NEAR_SQUARED_DISTANCE:
-        far = 0.6 * math.exp(-0.5 * dist2) + 0.2 * velocity + 0.2 * facing
-        return np.array([0.4 * near, 0.5 * far, 0.0])
     dv = np.asarray(root_vel_xy, dtype=float)[:2] - np.asarray(prev_root_vel_xy, dtype=float)[:2]
-    still = math.exp(-2.0 * float(dv @ dv))
-    return np.array([0.4 * near, 0.5, 0.1 * still])
+    return weighted_terms(SkillRewardInputs(dist2, velocity, facing, dist2, float(dv @ dv)), weights, WALK_TERMS)
 
 
 def contact_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
                          facing_xy: np.ndarray, target_speed: float, goals: np.ndarray, joints: np.ndarray,
-                         mask: np.ndarray) -> np.ndarray:
+                         mask: np.ndarray, weights: SkillRewardWeights = CONTACT_WEIGHTS) -> np.ndarray:
     """The contact reward's weighted terms (near, far), summing to r (supplement Eq. 11-13).
 
     ``goals`` and ``joints`` (15, 3): targets g_j and body positions x_j; ``mask`` (15,).
     """
     dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
     err = np.sum(np.square(goals - joints), axis=-1)
-    near = math.exp(-10.0 * float(np.sum(err * np.asarray(mask, dtype=float))))
-    if dist2 > NEAR_SQUARED_DISTANCE:
-        far = 0.5 * math.exp(-0.5 * dist2) + 0.4 * velocity + 0.1 * facing
-        return np.array([0.6 * near, 0.4 * far])
-    return np.array([0.6 * near, 0.4])
+    near_error2 = float(np.sum(err * np.asarray(mask, dtype=float)))
+    return weighted_terms(SkillRewardInputs(dist2, velocity, facing, near_error2, 0.0), weights, CONTACT_TERMS)
+
+
+# --- one step of a skill ------------------------------------------------------------------------
+class RootFrame(NamedTuple):
+    """World 0's root and its heading frame: ``heading`` the yaw rotation (world-from-heading)."""
+
+    position: np.ndarray  # (3,)
+    yaw: float
+    heading: np.ndarray   # (3, 3)
+
+
+def root_frame(state: HumanoidState) -> RootFrame:
+    root_mat = state.body_mat[0, PELVIS]
+    yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
+    return RootFrame(state.body_pos[0, PELVIS], yaw, yaw_matrix(yaw))
+
+
+def skill_observation(state: HumanoidState, frame: RootFrame, goal: ContactGoal, targets: np.ndarray,
+                      heights: SceneHeights, heightmap_size: int, heightmap_extent: float,
+                      text: np.ndarray) -> np.ndarray:
+    """The observation (``SIMSEnv``'s docstring) of world 0 of ``state``: proprioception, the egocentric
+    heightmap, the goal's targets ``targets`` (``goal.targets``) relative to the root in the heading
+    frame (zeros where masked out), the mask, and the text embedding ``text``."""
+    root = frame.position
+    proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                             np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
+    heightmap = heights.egocentric(root, frame.yaw, heightmap_size, heightmap_extent)
+    mask = goal.mask
+    rel = (targets - root) * mask[:, None]
+    rel = rel @ frame.heading  # into the heading frame
+    return np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), text))
+
+
+def skill_reward_terms(state: HumanoidState, frame: RootFrame, goal: ContactGoal, targets: np.ndarray,
+                       prev_root_vel: np.ndarray, target_speed: float) -> np.ndarray:
+    """The weighted reward terms of world 0 of ``state``: ``WALK_REWARD_TERMS`` for walk, else
+    ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` the root's ground velocity a step before."""
+    vel = state.root_lin_vel[0, :2]
+    facing = frame.heading[:2, 0].copy()
+    if goal.skill == "walk":
+        return walk_reward_terms(goal.root_target, frame.position, vel, prev_root_vel, facing, target_speed)
+    return contact_reward_terms(goal.root_target, frame.position, vel, facing, target_speed, targets,
+                                state.body_pos[0], goal.mask)
+
+
+def skill_error(goal: ContactGoal, targets: np.ndarray, joints: np.ndarray) -> float:
+    """The distance (m) that decides success: the root's to x* on the ground for walk, else the
+    primary body's to its target."""
+    if goal.skill == "walk":
+        return float(np.hypot(*(goal.root_target[:2] - joints[PELVIS, :2])))
+    return float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
 
 
 # --- contact goals -----------------------------------------------------------------------------
