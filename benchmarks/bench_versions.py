@@ -2,17 +2,17 @@
 
     git archive <rev> src envs xml | tar -x -C /tmp/before        # the code before (as trajectory_hashes.py)
     python benchmarks/bench_versions.py --before /tmp/before/src [--after src] [--id PlaMo-v0]
-                                        [--n-envs 64] [--steps 40] [--rounds 7] [--physics-threads N]
+                                        [--n-envs 64] [--steps 40] [--rounds 7] [--physics-threads N] [--init I]
 
 Each version runs in a worker process of its own (``PYTHONPATH`` its ``src``) that builds
-``gym.make_vec(id, n, vectorization_mode="vector_entry_point", init="hybrid")`` once; the rounds alternate
+``gym.make_vec(id, n, vectorization_mode="vector_entry_point", init=...)`` (``--init``, "hybrid") once; the rounds alternate
 between the two workers (which goes first flips every round), so load that the machine takes on or sheds
 shifts both alike. In a round each worker times, on the same seeded actions (uniform in [-0.3, 0.3]):
 
 - ``steps``: batched steps, env steps per second (resets inside, as the episodes end);
-- ``task``: the task part alone, ``_step_outcomes`` of all worlds on one read of their states, per
-  world-step (what ``HumanoidEnv._finish_worlds`` calls; ``_step_outcome`` world by world where a class
-  does not batch);
+- ``task``: the task part alone, per world-step: ``_step_outcomes`` of all worlds on one read of their
+  states where the batched env finishes batch-first (what ``HumanoidEnv._finish_worlds`` calls), else
+  ``_step_outcome`` world by world;
 - ``reset``: ``reset(seed=...)`` of the batch, per world.
 
 Where the change keeps every trajectory's bits (``trajectory_hashes.py --check``), both workers do the same
@@ -39,8 +39,9 @@ def worker(args) -> None:
     from stairenv.humanoid.state import read_states
 
     kwargs = {} if args.physics_threads is None else {"physics_threads": args.physics_threads}
-    venv = gym.make_vec(args.id, num_envs=args.n_envs, vectorization_mode="vector_entry_point", init="hybrid",
-                        **kwargs)
+    if args.init:
+        kwargs["init"] = args.init
+    venv = gym.make_vec(args.id, num_envs=args.n_envs, vectorization_mode="vector_entry_point", **kwargs)
     venv.reset(seed=0)
     envs, n = venv.envs, args.n_envs
     for a in np.random.default_rng(0).uniform(-0.3, 0.3, (5, n, 28)):
@@ -53,10 +54,15 @@ def worker(args) -> None:
         for a in actions:
             venv.step(a)
         steps = args.steps * n / (time.perf_counter() - start)
-        state = read_states([env.data for env in envs], envs[0]._idx)
+        if venv.batch_outcomes:
+            state = read_states([env.data for env in envs], envs[0]._idx)
+            outcomes = lambda: type(envs[0])._step_outcomes(envs, state)  # noqa: E731
+        else:
+            states = [env._read_state() for env in envs]
+            outcomes = lambda: [env._step_outcome(s) for env, s in zip(envs, states)]  # noqa: E731
         start = time.perf_counter()
         for _ in range(5):
-            type(envs[0])._step_outcomes(envs, state)
+            outcomes()
         task = (time.perf_counter() - start) / (5 * n)
         start = time.perf_counter()
         venv.reset(seed=1000 + r)
@@ -73,11 +79,12 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=40)
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--physics-threads", type=int, default=None)
+    parser.add_argument("--init", default="hybrid", help='the env\'s init keyword ("": none, for ids without it)')
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         return worker(args)
-    forwarded = [f"--id={args.id}", f"--n-envs={args.n_envs}", f"--steps={args.steps}"]
+    forwarded = [f"--id={args.id}", f"--n-envs={args.n_envs}", f"--steps={args.steps}", f"--init={args.init}"]
     if args.physics_threads is not None:
         forwarded.append(f"--physics-threads={args.physics_threads}")
     workers = {}
