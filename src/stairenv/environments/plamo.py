@@ -25,6 +25,9 @@ PATH_GENERATORS = ("coupled", "naive")
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
+# Where ``_floor_under`` looks around a start: 9 points 0.5 m away (the first and last the same).
+FLOOR_RING = 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
+FLOOR_RING.flags.writeable = False
 # Bound on a height field's samples (terrain_size / terrain_cell_size + 1 per side, squared): 2001^2,
 # e.g. 200 m at 0.1 m or 20 m at 0.01 m. Building one costs ~52 bytes a sample (the spec's
 # zero list, the model's field, the heights; measured), so ~200 MB at the bound.
@@ -259,8 +262,7 @@ class PlaMoEnv(HumanoidEnv):
     # --- pieces -------------------------------------------------------------
     def _floor_under(self, xy: np.ndarray) -> float:
         """The highest ground under a body standing at ``xy`` (so nothing starts inside a slope or a step)."""
-        around = xy + 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
-        return float(np.max(self.ground_height(np.vstack((xy, around)))))
+        return float(np.max(self.ground_height(np.vstack((xy, xy + FLOOR_RING)))))
 
     def _head(self) -> tuple[np.ndarray, np.ndarray]:
         head_mat = self.data.xmat[self._idx.head_id].reshape(3, 3)
