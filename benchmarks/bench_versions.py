@@ -5,9 +5,9 @@
                                         [--n-envs 64] [--steps 40] [--rounds 7] [--physics-threads N] [--init I]
 
 Each version runs in a worker process of its own (``PYTHONPATH`` its ``src``) that builds
-``gym.make_vec(id, n, vectorization_mode="vector_entry_point", init=...)`` (``--init``, "hybrid") once; the rounds alternate
-between the two workers (which goes first flips every round), so load that the machine takes on or sheds
-shifts both alike. In a round each worker times, on the same seeded actions (uniform in [-0.3, 0.3]):
+``gym.make_vec(id, n, vectorization_mode="vector_entry_point", init=...)`` (``--init``, "hybrid") once; the
+rounds alternate between the two workers (which goes first flips every round), so load that the machine
+takes on or sheds shifts both alike. In a round each worker times, on the same seeded actions (uniform in [-0.3, 0.3]):
 
 - ``steps``: batched steps, env steps per second (resets inside, as the episodes end);
 - ``task``: the task part alone, per world-step: ``_step_outcomes`` of all worlds on one read of their

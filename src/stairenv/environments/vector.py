@@ -19,8 +19,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    read as one batch (``read_states``), the task in one call (``InterLevelEnv._step_outcomes``: one compiled
    call; ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path; the
    single env calls them with one world) and the style features in one; the other envs run ``_finish_step``
-   per world in the physics thread right after its physics. Either way the code of the single env's ``step``, so a world's trajectory
-   is bit-identical to a single env's with the same seed.
+   per world in the physics thread right after its physics. Either way the code of the single env's
+   ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
 Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
 PlaMoScene (its worlds' models differ) and SIMS the whole finish; for InterLevel the divergence check's
