@@ -104,3 +104,26 @@ def test_lowest_points_are_the_per_frame_values_bit_for_bit():
     soles = np.array([[humanoid_lowest_z(model, data, feet[k:k + 1]) for k in range(2)]
                       for data in forward_kinematics(qpos)])
     np.testing.assert_array_equal(foot_sole_heights(qpos), soles)
+
+
+@pytest.mark.parametrize("with_bone", [True, False])
+def test_compiled_fit_is_scipys_fit(with_bone):
+    """The compiled bounded fit (``kernels.fit_in_range``, what the importers take) ends where scipy's
+    ``least_squares`` (``_fit_in_range``) ends, bit for bit: the same steps, the same BLAS products."""
+    from stairenv.motion.importers.common import _fit_in_range
+    from stairenv.motion.importers.kernels import fit_in_range
+
+    low, high = np.radians([-60.0, -80.0, -45.0]), np.radians([70.0, 40.0, 90.0])
+    bone = np.array([0.0, 0.0, -1.0]) if with_bone else None
+    targets = Rotation.random(120, rng=7 + with_bone).as_matrix()
+    e1 = Rotation.from_matrix(targets).as_euler("XYZ")
+    e2 = e1 + np.array([np.pi, 0.0, np.pi])
+    e2[:, 1] = np.pi - e1[:, 1]
+    starts = np.concatenate([np.clip(e1, low, high), np.clip(e2, low, high)])
+    targets = np.concatenate([targets, targets])
+    expected = np.array([_fit_in_range(t, s, low, high, bone, 3.0) for t, s in zip(targets, starts)])
+    got = fit_in_range(targets, starts, low, high, np.zeros(3) if bone is None else bone, 3.0,
+                       9 if bone is None else 12)
+    assert np.all((got >= low) & (got <= high))
+    np.testing.assert_array_equal(got, expected)
+    assert np.mean(np.any(got != starts, axis=1)) > 0.5  # most of them moved
