@@ -1,0 +1,150 @@
+"""Importing long motion clips: this tree's importers against earlier ones (issue #23, item 6).
+
+    python benchmarks/bench_importers.py [--motions ../shared/motions] [--frames 20000]
+        [--fit-frames 4000] [--repeats 1] [--before 09d3380~1] [--main main] [--json out.json]
+
+Long clips are made from the shipped motion files (never written into the repository; a
+temporary folder): ``cmu``, CMU 83_32.bvh (120 fps, few joints out of reach) tiled to
+``--frames`` frames, imported at 30 fps; ``fits``, the 60 fps DeepMimic clips whose joints
+leave their ranges (crawl, getting up, jump, roll, zombie walk: every frame fits a joint into
+range) concatenated and tiled to ``--fit-frames`` frames. Each tree (``--before``, the code
+before the first speed-up, 09d3380~1; ``--main``; this tree) is exported with ``git archive``
+and each import runs in a fresh process (``import_motion`` timed alone, numba's load in that
+process included; its compile cache is filled beforehand), the trees interleaved per repeat, so
+that the ratios come from one run on one machine. Reported: the median seconds per tree, the
+ratios before/this and main/this, and the largest difference of the imported qpos (this tree
+against each other tree).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+
+FIT_CLIPS = ("crawl", "getup_facedown", "getup_faceup", "jump", "roll", "zombie_walk")
+
+_RUN = """
+import sys, time
+import numpy as np
+from stairenv.motion.importers import import_motion
+t = time.perf_counter()
+clip = import_motion(sys.argv[1])
+elapsed = time.perf_counter() - t
+np.save(sys.argv[2], clip.qpos)
+print(elapsed)
+"""
+
+_WARM = """
+import numpy as np
+try:
+    from stairenv.motion.importers import kernels
+except ImportError:  # before 09d3380: nothing compiled
+    raise SystemExit
+kernels.viterbi2(np.zeros((3, 2)), np.zeros((2, 2, 2)))
+if hasattr(kernels, "fit_in_range"):
+    kernels.fit_in_range(np.eye(3)[None], np.zeros((1, 3)), -np.ones(3), np.ones(3), np.zeros(3), 3.0, 12)
+"""
+
+
+def long_bvh(motions: Path, frames: int, out: Path) -> Path:
+    """CMU 83_32.bvh with its motion frames repeated up to ``frames`` frames."""
+    lines = (motions / "CMU" / "83_32.bvh").read_text().splitlines()
+    k = next(i for i, line in enumerate(lines) if line.startswith("Frames:"))
+    body = [line for line in lines[k + 2:] if line.strip()]
+    tiled = [body[i % len(body)] for i in range(frames)]
+    path = out / "long_cmu.bvh"
+    path.write_text("\n".join([*lines[:k], f"Frames: {frames}", lines[k + 1], *tiled]) + "\n")
+    return path
+
+
+def long_fits(motions: Path, frames: int, out: Path) -> Path:
+    """The DeepMimic clips of ``FIT_CLIPS`` one after another, repeated up to ``frames`` frames at 60 fps."""
+    pool = []
+    for name in FIT_CLIPS:
+        pool += json.loads((motions / "DeepMimic" / f"humanoid3d_{name}.txt").read_text())["Frames"]
+    tiled = [[1.0 / 60.0, *pool[i % len(pool)][1:]] for i in range(frames)]
+    tiled[-1][0] = 0.0
+    path = out / "long_fits.txt"
+    path.write_text(json.dumps({"Loop": "none", "Frames": tiled}))
+    return path
+
+
+def export(rev: str, out: Path) -> Path:
+    """``git archive`` of the package (and the assets it loads) at ``rev`` into ``out``; its src folder."""
+    out.mkdir(parents=True)
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", rev, "src", "envs", "xml"],
+                             check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(out)], input=archive, check=True)
+    return out / "src"
+
+
+def python(src: Path, code: str, *argv: str) -> str:
+    """Run ``code`` in a fresh interpreter that imports stairenv from ``src``; its standard output."""
+    env = {**os.environ, "PYTHONPATH": str(src)}
+    return subprocess.run([sys.executable, "-c", code, *argv], env=env, check=True, capture_output=True,
+                          text=True).stdout
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--motions", type=Path, default=REPO.parent / "shared" / "motions")
+    parser.add_argument("--frames", type=int, default=20_000, help="frames of the long CMU clip")
+    parser.add_argument("--fit-frames", type=int, default=4_000, help="frames of the long DeepMimic clip")
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--before", default="09d3380~1", help="the code before the first speed-up")
+    parser.add_argument("--main", default="main", help="the current main branch")
+    parser.add_argument("--clips", default="cmu,fits")
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        trees = {"before": export(args.before, tmp / "before"), "main": export(args.main, tmp / "main"),
+                 "this": REPO / "src"}
+        for src in trees.values():  # fill numba's compile caches: compiling is not importing
+            python(src, _WARM)
+        makers = {"cmu": lambda: long_bvh(args.motions, args.frames, tmp),
+                  "fits": lambda: long_fits(args.motions, args.fit_frames, tmp)}
+        results = {}
+        for name in args.clips.split(","):
+            clip = makers[name]()
+            times: dict[str, list[float]] = {tree: [] for tree in trees}
+            for _ in range(args.repeats):
+                for tree, src in trees.items():
+                    out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"))
+                    times[tree].append(float(out.strip().splitlines()[-1]))
+            qpos = {tree: np.load(tmp / f"{name}_{tree}.npy") for tree in trees}
+            median = {tree: statistics.median(t) for tree, t in times.items()}
+            frames = args.frames if name == "cmu" else args.fit_frames
+            results[name] = {
+                "source_frames": frames,
+                "clip_frames": int(len(qpos["this"])),
+                "seconds": median,
+                "ms_per_source_frame": {tree: round(1000 * s / frames, 4) for tree, s in median.items()},
+                "speedup_vs_before": round(median["before"] / median["this"], 2),
+                "speedup_vs_main": round(median["main"] / median["this"], 2),
+                "max_abs_qpos_diff_vs_before": float(np.abs(qpos["this"] - qpos["before"]).max()),
+                "max_abs_qpos_diff_vs_main": float(np.abs(qpos["this"] - qpos["main"]).max()),
+            }
+            r = results[name]
+            print(f"{name}: {frames} source frames -> {r['clip_frames']} clip frames; "
+                  + ", ".join(f"{tree} {s:.2f} s" for tree, s in median.items())
+                  + f"; this tree {r['speedup_vs_before']}x faster than before 09d3380, {r['speedup_vs_main']}x than main; "
+                  f"max |qpos diff| vs before {r['max_abs_qpos_diff_vs_before']:.2e}, vs main {r['max_abs_qpos_diff_vs_main']:.2e}",
+                  flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()
