@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid.kinematics import forward_kinematics, humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.model import HumanoidIndices, humanoid_model
+from stairenv.motion.clip import MotionFileError
 from stairenv.motion.importers import (
     ball_joint_angles,
     compose,
@@ -127,3 +128,57 @@ def test_compiled_fit_is_scipys_fit(with_bone):
     assert np.all((got >= low) & (got <= high))
     np.testing.assert_array_equal(got, expected)
     assert np.mean(np.any(got != starts, axis=1)) > 0.5  # most of them moved
+
+
+def _number_texts(rng: np.random.Generator, count: int) -> list[str]:
+    """Decimal numbers as files write them (fixed, exponent, short and long, signs, '5.', '.5')."""
+    texts = []
+    for k in rng.integers(0, 7, count):
+        x = rng.normal() * 10.0 ** rng.integers(-8, 8)
+        texts.append([repr(x), f"{x:.{rng.integers(0, 17)}f}", f"{x:.{rng.integers(0, 19)}e}",
+                      str(rng.integers(-10**6, 10**6)), f"{rng.uniform(-1, 1):.6f}".replace("0.", "."),
+                      f"{rng.integers(0, 1000)}.", f"+{abs(x):.9f}"][k])
+    return texts
+
+
+def test_compiled_bvh_values_are_floats_of_the_text():
+    """``kernels.parse_frames`` gives what ``float()`` gives, bit for bit, or declines (status 2: then
+    the importer reads the line with ``float()``, which names a fault); a line of another length: 1."""
+    from stairenv.motion.importers.kernels import parse_frames
+
+    def parse(text: str, rows: int, columns: int):
+        return parse_frames(np.frombuffer(text.encode("ascii"), dtype=np.uint8), rows, columns)
+
+    texts = _number_texts(np.random.default_rng(5), 24_000)
+    taken = [t for t in texts if parse(t, 1, 1)[1] == 0]
+    assert len(taken) > 0.7 * len(texts)  # the rest: more than 2^53 as digits (repr of most doubles)
+    taken = taken[:len(taken) // 8 * 8]
+    block = "\n".join(" \t".join(taken[i:i + 8]) for i in range(0, len(taken), 8))
+    values, status = parse(block, len(taken) // 8, 8)
+    assert status == 0
+    expected = np.array([float(t) for t in taken]).reshape(-1, 8)
+    np.testing.assert_array_equal(values.view(np.int64), expected.view(np.int64))  # -0.0 too
+    for text in ("1e", "e5", ".", "-", "1.2.3", "1_0", "inf", "nan", "--1", "1e5x", "0x10", "1" * 30, "1e400"):
+        assert parse(text, 1, 1)[1] == 2, text
+    assert parse("1 2", 1, 1)[1] == 1 and parse("1\n2 3", 2, 1)[1] == 1 and parse("1", 2, 1)[1] == 1
+
+
+def test_bvh_frames_parse_the_same_either_way(monkeypatch):
+    from stairenv.motion.importers import bvh
+
+    lines = ["HIERARCHY", "ROOT Hips", "{", "OFFSET 0 0 0",
+             "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
+             "End Site", "{", "OFFSET 0 1 0", "}", "}", "MOTION", "Frames: 600", "Frame Time: .0083333"]
+    texts = [t for t in _number_texts(np.random.default_rng(6), 8000) if len(t) < 17 and abs(float(t)) < 1e5][:3600]
+    text = "\n".join(lines + [" ".join(texts[i:i + 6]) for i in range(0, 3600, 6)]) + "\n"
+    monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 500)
+    compiled = bvh._parse_frames_compiled([(0, t) for t in text.splitlines()[13:]], 600, 6)
+    assert compiled is not None
+    monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 10**9)
+    monkeypatch.delitem(__import__("sys").modules, "numba")
+    plain = bvh.parse_bvh(text).frames
+    np.testing.assert_array_equal(compiled.view(np.int64), plain.view(np.int64))
+    bad = text.replace(texts[700], "1.2.3", 1)  # the plain reader names the fault
+    monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 500)
+    with pytest.raises(MotionFileError, match="'1.2.3' is not a number"):
+        bvh.parse_bvh(bad)

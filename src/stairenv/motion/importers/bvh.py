@@ -64,6 +64,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -74,8 +75,9 @@ from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers.common import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
-                                       compose, euler_rotation, joints_to_qpos, make_clip, read_limited, snap_fps)
+from stairenv.motion.importers.common import (COMPILED_VITERBI_FRAMES, MAX_ABS_VALUE, MAX_JOINTS, body_positions,
+                                              check_timing, check_values, compose, euler_rotation, joints_to_qpos,
+                                              make_clip, read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -283,6 +285,31 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
             f"{path}: 'Frames: {declared}' declared but {len(data_lines)} frame lines follow "
             f"(first extra at line {data_lines[declared][0]})"
         )
+    frames = _parse_frames_compiled(data_lines, declared, channels)
+    if frames is None:
+        frames = _parse_frames(data_lines, declared, channels, path)
+    check_values(path, "frame values", frames)
+    return BvhMotion(joints, frame_time, frames, path)
+
+
+def _parse_frames_compiled(data_lines: list[tuple[int, str]], declared: int, channels: int) -> np.ndarray | None:
+    """The frame values parsed by the compiled ``kernels.parse_frames`` (the same doubles as ``float()``),
+    where the clip is long enough to load numba anyway (as the Viterbi pass does: ``COMPILED_VITERBI_FRAMES``
+    frames, or 500 in a process that has loaded it); None where it is not, or where a line or a number
+    is not of the plain form that parser takes (``_parse_frames`` then reads them, or names the fault)."""
+    if not (declared >= COMPILED_VITERBI_FRAMES or (declared >= 500 and "numba" in sys.modules)):
+        return None
+    block = "\n".join(line for _, line in data_lines)
+    if not block.isascii():
+        return None
+    from stairenv.motion.importers.kernels import parse_frames
+
+    frames, status = parse_frames(np.frombuffer(block.encode("ascii"), dtype=np.uint8), declared, channels)
+    return frames if status == 0 else None
+
+
+def _parse_frames(data_lines: list[tuple[int, str]], declared: int, channels: int, path: str) -> np.ndarray:
+    """The frame values through ``float()``; ``MotionFileError`` naming the line of a fault."""
     tokens: list[str] = []
     for k, (line_no, line) in enumerate(data_lines):
         parts = line.split()
@@ -299,8 +326,7 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
             if bad is not None:
                 raise MotionFileError(f"{path}, line {line_no}: frame {k}: {bad[:30]!r} is not a number") from None
         raise
-    check_values(path, "frame values", frames)
-    return BvhMotion(joints, frame_time, frames, path)
+    return frames
 
 
 def _is_float(text: str) -> bool:

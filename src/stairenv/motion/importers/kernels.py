@@ -443,3 +443,99 @@ def fit_in_range(targets: np.ndarray, starts: np.ndarray, low: np.ndarray, high:
         if _pairwise_sum_squares(f) < _pairwise_sum_squares(r_start):
             out[k] = np.minimum(np.maximum(x, low), high)
     return out
+
+
+# --------------------------------------------------------------------------------------
+# BVH frame values
+# --------------------------------------------------------------------------------------
+_POW10 = np.array([10.0 ** k for k in range(23)])  # exact doubles: 10^0 .. 10^22
+_MAX_EXACT = 2 ** 53
+
+
+@jit
+def parse_frames(text: np.ndarray, rows: int, columns: int) -> tuple[np.ndarray, int]:
+    """The numbers of ``rows`` lines of ASCII ``text`` (uint8; lines joined by newlines), ``columns`` a
+    line, as (rows, columns) doubles, and 0; or a status saying why it did not: 1 where a line holds
+    another number of values (or more lines follow), 2 where a byte or a number falls outside the plain
+    decimal form ``[+-](digits[.digits] | .digits)[(e|E)[+-]digits]`` separated by spaces or tabs, or
+    where a number has more than 2^53 as its digits or a power of ten beyond 1e22. Within those, each
+    value is the exact product or quotient of two exact doubles (its digits and a power of ten), so
+    rounded once: what ``float()`` of the same text gives, bit for bit (Clinger's fast path)."""
+    out = np.empty((rows, columns))
+    n = text.shape[0]
+    i, row, col = 0, 0, 0
+    while i < n:
+        c = text[i]
+        if c == 32 or c == 9:  # space, tab
+            i += 1
+            continue
+        if c == 10:  # newline: the line must be complete
+            if col != columns:
+                return out, 1
+            row += 1
+            col = 0
+            i += 1
+            continue
+        if row >= rows or col >= columns:
+            return out, 1
+        negative = False
+        if c == 43 or c == 45:  # + -
+            negative = c == 45
+            i += 1
+        mantissa, digits, scale, exponent = 0, 0, 0, 0
+        while i < n and 48 <= text[i] <= 57:
+            if mantissa <= _MAX_EXACT:
+                mantissa = mantissa * 10 + (text[i] - 48)
+            else:
+                return out, 2
+            digits += 1
+            i += 1
+        if i < n and text[i] == 46:  # .
+            i += 1
+            while i < n and 48 <= text[i] <= 57:
+                if mantissa <= _MAX_EXACT:
+                    mantissa = mantissa * 10 + (text[i] - 48)
+                else:
+                    return out, 2
+                digits += 1
+                scale += 1
+                i += 1
+        if digits == 0:
+            return out, 2
+        if i < n and (text[i] == 101 or text[i] == 69):  # e E
+            i += 1
+            exp_negative = False
+            if i < n and (text[i] == 43 or text[i] == 45):
+                exp_negative = text[i] == 45
+                i += 1
+            exp_digits = 0
+            while i < n and 48 <= text[i] <= 57:
+                if exponent < 100_000:
+                    exponent = exponent * 10 + (text[i] - 48)
+                exp_digits += 1
+                i += 1
+            if exp_digits == 0:
+                return out, 2
+            if exp_negative:
+                exponent = -exponent
+        if i < n and not (text[i] == 32 or text[i] == 9 or text[i] == 10):
+            return out, 2
+        if mantissa > _MAX_EXACT:
+            return out, 2
+        power = exponent - scale
+        if power > 22 or power < -22:
+            return out, 2
+        value = float(mantissa)
+        if power >= 0:
+            value = value * _POW10[power]
+        else:
+            value = value / _POW10[-power]
+        out[row, col] = -value if negative else value
+        col += 1
+    if col != 0:  # the last line had no newline after it
+        if col != columns:
+            return out, 1
+        row += 1
+    if row != rows:
+        return out, 1
+    return out, 0
