@@ -9,9 +9,11 @@ temporary folder): ``cmu``, CMU 83_32.bvh (120 fps, few joints out of reach) til
 leave their ranges (crawl, getting up, jump, roll, zombie walk: every frame fits a joint into
 range) concatenated and tiled to ``--fit-frames`` frames. Each tree (``--before``, the code
 before the first speed-up, 09d3380~1; ``--main``; this tree) is exported with ``git archive``
-and each import runs in a fresh process (``import_motion`` timed alone, numba's load in that
-process included; its compile cache is filled beforehand), the trees interleaved per repeat, so
-that the ratios come from one run on one machine. Reported: the median seconds per tree, the
+and each import runs in a fresh process (``import_motion`` timed alone; its compile cache is
+filled beforehand), ``fresh``: the first import in that process (numba's load, ~0.5-1 s, included),
+``warm``: after a short clip of the same kind (83_32.bvh, humanoid3d_roll.txt), as in a process that
+imports several clips or has loaded numba already (the envs do); the trees interleaved per repeat,
+so that the ratios come from one run on one machine. Reported: the median seconds per tree, the
 ratios before/this and main/this, and the largest difference of the imported qpos (this tree
 against each other tree).
 """
@@ -37,6 +39,17 @@ _RUN = """
 import sys, time
 import numpy as np
 from stairenv.motion.importers import import_motion
+if len(sys.argv) > 3:  # warm: a short clip of the same kind first (scipy.optimize... loaded), the kernels
+    import_motion(sys.argv[3])
+    try:
+        from stairenv.motion.importers import kernels
+    except ImportError:  # before 09d3380: nothing compiled
+        kernels = None
+    for name, args in (("viterbi2", (np.zeros((3, 2)), np.zeros((2, 2, 2)))),
+                       ("fit_in_range", (np.eye(3)[None], np.zeros((1, 3)), -np.ones(3), np.ones(3), np.zeros(3), 3.0, 12)),
+                       ("parse_frames", (np.frombuffer(b"1 2", dtype=np.uint8), 1, 2))):
+        if hasattr(kernels, name):
+            getattr(kernels, name)(*args)
 t = time.perf_counter()
 clip = import_motion(sys.argv[1])
 elapsed = time.perf_counter() - t
@@ -44,16 +57,8 @@ np.save(sys.argv[2], clip.qpos)
 print(elapsed)
 """
 
-_WARM = """
-import numpy as np
-try:
-    from stairenv.motion.importers import kernels
-except ImportError:  # before 09d3380: nothing compiled
-    raise SystemExit
-kernels.viterbi2(np.zeros((3, 2)), np.zeros((2, 2, 2)))
-if hasattr(kernels, "fit_in_range"):
-    kernels.fit_in_range(np.eye(3)[None], np.zeros((1, 3)), -np.ones(3), np.ones(3), np.zeros(3), 3.0, 12)
-"""
+_WARM = _RUN.split("t = time.perf_counter()")[0].replace("len(sys.argv) > 3", "True").replace(
+    "import_motion(sys.argv[3])", "pass")
 
 
 def long_bvh(motions: Path, frames: int, out: Path) -> Path:
@@ -104,6 +109,9 @@ def main() -> None:
     parser.add_argument("--before", default="09d3380~1", help="the code before the first speed-up")
     parser.add_argument("--main", default="main", help="the current main branch")
     parser.add_argument("--clips", default="cmu,fits")
+    parser.add_argument("--modes", default="fresh,warm",
+                        help="fresh: the import alone in a new process (numba's load included); warm: after "
+                             "importing a short clip of the same kind in that process")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
 
@@ -115,18 +123,20 @@ def main() -> None:
             python(src, _WARM)
         makers = {"cmu": lambda: long_bvh(args.motions, args.frames, tmp),
                   "fits": lambda: long_fits(args.motions, args.fit_frames, tmp)}
+        shorts = {"cmu": args.motions / "CMU" / "83_32.bvh", "fits": args.motions / "DeepMimic" / "humanoid3d_roll.txt"}
         results = {}
-        for name in args.clips.split(","):
+        for name, mode in ((n, m) for n in args.clips.split(",") for m in args.modes.split(",")):
             clip = makers[name]()
+            warm = [str(shorts[name])] if mode == "warm" else []
             times: dict[str, list[float]] = {tree: [] for tree in trees}
             for _ in range(args.repeats):
                 for tree, src in trees.items():
-                    out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"))
+                    out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"), *warm)
                     times[tree].append(float(out.strip().splitlines()[-1]))
             qpos = {tree: np.load(tmp / f"{name}_{tree}.npy") for tree in trees}
             median = {tree: statistics.median(t) for tree, t in times.items()}
             frames = args.frames if name == "cmu" else args.fit_frames
-            results[name] = {
+            results[f"{name}_{mode}"] = {
                 "source_frames": frames,
                 "clip_frames": int(len(qpos["this"])),
                 "seconds": median,
@@ -136,8 +146,8 @@ def main() -> None:
                 "max_abs_qpos_diff_vs_before": float(np.abs(qpos["this"] - qpos["before"]).max()),
                 "max_abs_qpos_diff_vs_main": float(np.abs(qpos["this"] - qpos["main"]).max()),
             }
-            r = results[name]
-            print(f"{name}: {frames} source frames -> {r['clip_frames']} clip frames; "
+            r = results[f"{name}_{mode}"]
+            print(f"{name} ({mode}): {frames} source frames -> {r['clip_frames']} clip frames; "
                   + ", ".join(f"{tree} {s:.2f} s" for tree, s in median.items())
                   + f"; this tree {r['speedup_vs_before']}x faster than before 09d3380, {r['speedup_vs_main']}x than main; "
                   f"max |qpos diff| vs before {r['max_abs_qpos_diff_vs_before']:.2e}, vs main {r['max_abs_qpos_diff_vs_main']:.2e}",

@@ -182,3 +182,21 @@ def test_bvh_frames_parse_the_same_either_way(monkeypatch):
     monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 500)
     with pytest.raises(MotionFileError, match="'1.2.3' is not a number"):
         bvh.parse_bvh(bad)
+
+
+def test_slerp_is_scipys():
+    from scipy.spatial.transform import Slerp
+
+    from stairenv.motion.importers.common import slerp
+
+    rng = np.random.default_rng(4)
+    times = np.cumsum(rng.uniform(0.005, 0.04, 600))
+    rot = Rotation.from_rotvec(np.cumsum(rng.normal(0.0, 0.3, (600, 3)), axis=0))
+    rot = Rotation.from_quat(np.concatenate([rot.as_quat()[:300], Rotation.random(300, rng=4).as_quat()]))
+    rot = Rotation.from_quat(np.concatenate([rot.as_quat(), rot.as_quat()[-1:]]) [1:])  # a repeated pose too
+    at = np.concatenate([[times[0]], np.sort(rng.uniform(times[0], times[-1], 2000)), times[5:9], [times[-1]]])
+    ours, theirs = slerp(times, rot, at), Slerp(times, rot)(at)
+    np.testing.assert_allclose(ours.as_quat(), theirs.as_quat(), atol=2e-15, rtol=0)
+    for bad in (at + 1.0, at - 1.0):
+        with pytest.raises(ValueError):
+            slerp(times, rot, bad)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, DOF_NAMES, JOINTS, NUM_DOFS, dof_ranges, humanoid_model
 from stairenv.humanoid.kinematics import body_positions, foot_sole_heights, lowest_body_point
@@ -42,6 +42,7 @@ __all__ = [
     "lowest_body_point",
     "make_clip",
     "read_limited",
+    "slerp",
     "snap_fps",
 ]
 
@@ -127,6 +128,42 @@ def compose(*rotations: Rotation) -> Rotation:
     for rotation in rotations[1:]:
         quat = _quat_product(quat, rotation.as_quat())
     return Rotation.from_quat(quat)
+
+
+def slerp(times: np.ndarray, rotations: Rotation, at: np.ndarray) -> Rotation:
+    """``Slerp(times, rotations)(at)`` on quaternion arrays, for the intervals ``at`` falls in only:
+    scipy's steps (the relative rotation of each interval as a rotation vector, scaled by the
+    fraction of the interval, after the interval's first rotation) without a ``Rotation`` product per
+    interval of the source (seconds over long clips). Equal to scipy's rotations to rounding (1e-15).
+    ``ValueError`` for times outside [times[0], times[-1]] or not increasing, as scipy's."""
+    times, at = np.asarray(times, dtype=np.float64), np.asarray(at, dtype=np.float64)
+    if len(rotations) < 2 or len(times) != len(rotations):
+        raise ValueError("slerp needs a time per rotation and at least 2 rotations")
+    delta = np.diff(times)
+    if np.any(delta <= 0):
+        raise ValueError("Times must be in strictly increasing order.")
+    ind = np.searchsorted(times, at) - 1
+    ind[at == times[0]] = 0
+    if np.any((ind < 0) | (ind > len(times) - 2)):
+        raise ValueError(f"Interpolation times must be within the range [{times[0]}, {times[-1]}], both inclusive.")
+    quat = rotations.as_quat()
+    start, end = quat[ind], quat[ind + 1]
+    relative = _quat_product(start * np.array([-1.0, -1.0, -1.0, 1.0]), end)
+    relative[relative[:, 3] < 0] *= -1.0  # as_rotvec's canonical half: w >= 0
+    sin_half = np.linalg.norm(relative[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(sin_half, relative[:, 3])
+    small = angle <= 1e-3
+    angle2 = angle ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(small, 2.0 + angle2 / 12.0 + 7.0 * angle2 ** 2 / 2880.0, angle / np.sin(angle / 2.0))
+    rotvec = scale[:, None] * relative[:, :3] * ((at - times[ind]) / delta[ind])[:, None]
+    angle = np.linalg.norm(rotvec, axis=1)
+    small = angle <= 1e-3
+    angle2 = angle ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(small, 0.5 - angle2 / 48.0 + angle2 ** 2 / 3840.0, np.sin(angle / 2.0) / angle)
+    step = np.concatenate((rotvec * scale[:, None], np.cos(angle / 2.0)[:, None]), axis=1)
+    return Rotation.from_quat(_quat_product(start, step))
 
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -459,7 +496,7 @@ def make_clip(
 
     If ``times`` are not already the grid k / fps, the pose is resampled *as rotations*:
     linear interpolation of the root position, slerp of the root and of every joint's
-    local rotation (scipy ``Slerp``), and only then the projection onto our joint angles
+    local rotation (``slerp``: scipy ``Slerp``'s steps), and only then the projection onto our joint angles
     and ranges (``joints_to_qpos``), so Euler angles are never interpolated and resampled
     frames are in range too. Then the clip is put on the floor (``finish_clip``; measured
     on the output frames) and ``meta`` gains the clamping report of the output frames.
@@ -480,8 +517,8 @@ def make_clip(
         if len(times) < 2:
             raise ValueError("cannot resample a single frame")
         root_pos = np.stack([np.interp(grid, times, root_pos[:, k]) for k in range(3)], axis=1)
-        root_rot = Slerp(times, root_rot)(grid)
-        local = {joint: Slerp(times, rot)(grid) for joint, rot in local.items()}
+        root_rot = slerp(times, root_rot, grid)
+        local = {joint: slerp(times, rot, grid) for joint, rot in local.items()}
         meta = {**meta, "resampled": True}
     if projected is not None and not resample:
         qpos, report = projected[0], dict(projected[1])
