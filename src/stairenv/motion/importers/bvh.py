@@ -65,7 +65,7 @@ from __future__ import annotations
 import math
 import re
 import sys
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -350,13 +350,28 @@ def read_bvh(path: str | Path) -> BvhMotion:
 # --------------------------------------------------------------------------------------
 # Forward kinematics of the source
 # --------------------------------------------------------------------------------------
-def forward_kinematics(motion: BvhMotion, frames: np.ndarray | None = None) -> tuple[list[Rotation], np.ndarray]:
-    """World rotations (one (F,) ``Rotation`` per joint) and positions (F, J, 3), file units and axes."""
+def forward_kinematics(motion: BvhMotion, frames: np.ndarray | None = None,
+                       only: Collection[str] | None = None) -> tuple[list[Rotation | None], np.ndarray]:
+    """World rotations (one (F,) ``Rotation`` per joint) and positions (F, J, 3), file units and axes.
+
+    ``only``: the joints wanted (with their ancestors, which they need); the others are skipped
+    (rotation None, position 0), the same values for the rest."""
     frames = motion.frames if frames is None else np.atleast_2d(frames)
     n = frames.shape[0]
-    rotations: list[Rotation] = []
+    wanted = None
+    if only is not None:
+        wanted = set()
+        for name in only:
+            j = motion.index(name)
+            while j >= 0 and j not in wanted:
+                wanted.add(j)
+                j = motion.joints[j].parent
+    rotations: list[Rotation | None] = []
     positions = np.zeros((n, len(motion.joints), 3))
     for j, joint in enumerate(motion.joints):
+        if wanted is not None and j not in wanted:
+            rotations.append(None)
+            continue
         translation = np.repeat(joint.offset[None], n, axis=0)
         angles, order = [], ""
         for k, channel in enumerate(joint.channels):
@@ -661,7 +676,9 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
             f"(file has {motion.names[:8]}...)"
         )
     align = rest_alignment(motion, skeleton)
-    rotations, positions = forward_kinematics(motion, motion.frames[skip:])
+    limb_points = {point for body in LIMBS for point in skeleton.bones[body]}
+    rotations, positions = forward_kinematics(motion, motion.frames[skip:], only={
+        *skeleton.bodies.values(), *skeleton.hips, skeleton.trunk_top, *limb_points})
     c = skeleton.to_z_up
     world = {body: compose(c, rotations[motion.index(joint)], c.inv(), align[body])
              for body, joint in skeleton.bodies.items() if body != "pelvis"}
@@ -695,7 +712,7 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
     root_pos = scale * 0.5 * (left_hip + right_hip)
     qpos, clamping = joints_to_qpos(root_pos, world["pelvis"], local)
     bone_error = limb_direction_error(qpos, {name: c.apply(positions[:, motion.index(name)])
-                                             for name in motion.names}, skeleton)
+                                             for name in limb_points}, skeleton)
     report = {
         "importer": "bvh",
         "skeleton": skeleton.name,

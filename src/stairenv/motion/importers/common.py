@@ -113,12 +113,37 @@ _BONES: dict[str, np.ndarray] = {
 
 def _quat_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton products of (..., 4) x, y, z, w quaternions (broadcast): the rotation ``p`` after ``q``."""
-    px, py, pz, pw = np.moveaxis(p, -1, 0)
-    qx, qy, qz, qw = np.moveaxis(q, -1, 0)
-    return np.stack((pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw,
-                     pw * qw - px * qx - py * qy - pz * qz), axis=-1)
+    px, py, pz, pw = (p[..., k] for k in range(4))
+    qx, qy, qz, qw = (q[..., k] for k in range(4))
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 1] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 2] = pw * qz + px * qy - py * qx + pz * qw
+    out[..., 3] = pw * qw - px * qx - py * qy - pz * qz
+    return out
+
+
+def _axis_product(p: np.ndarray, axis: int, sin: np.ndarray, cos: np.ndarray) -> np.ndarray:
+    """``_quat_product(p, q)`` for q the axis quaternions (sin on ``axis``, cos as w, 0 elsewhere): the
+    same sums without their products with 0 (x + 0 and 0 + x are x), so the same values."""
+    px, py, pz, pw = (p[..., k] for k in range(4))
+    out = np.empty(np.broadcast_shapes(p.shape, sin.shape + (4,)))
+    if axis == 0:
+        out[..., 0] = pw * sin + px * cos
+        out[..., 1] = py * cos + pz * sin
+        out[..., 2] = -(py * sin) + pz * cos
+        out[..., 3] = pw * cos - px * sin
+    elif axis == 1:
+        out[..., 0] = px * cos - pz * sin
+        out[..., 1] = pw * sin + py * cos
+        out[..., 2] = px * sin + pz * cos
+        out[..., 3] = pw * cos - py * sin
+    else:
+        out[..., 0] = px * cos + py * sin
+        out[..., 1] = -(px * sin) + py * cos
+        out[..., 2] = pw * sin + pz * cos
+        out[..., 3] = pw * cos - pz * sin
+    return out
 
 
 def compose(*rotations: Rotation) -> Rotation:
@@ -177,17 +202,16 @@ def euler_rotation(seq: str, angles: np.ndarray, degrees: bool = False) -> Rotat
     if degrees:
         angles = np.deg2rad(angles)
     half = 0.5 * angles
-    quats = []
-    for k, axis in enumerate(seq.lower()):
-        q = np.zeros((*angles.shape[:-1], 4))
-        q[..., _AXES[axis]] = np.sin(half[..., k])
-        q[..., 3] = np.cos(half[..., k])
-        quats.append(q)
+    axes = [_AXES[axis] for axis in seq.lower()]
+    order = list(range(len(axes)))
     if seq.islower():  # extrinsic: the first axis applies first
-        quats.reverse()
-    quat = quats[0]
-    for q in quats[1:]:
-        quat = _quat_product(quat, q)
+        order.reverse()
+    first = order[0]
+    quat = np.zeros((*angles.shape[:-1], 4))
+    quat[..., axes[first]] = np.sin(half[..., first])
+    quat[..., 3] = np.cos(half[..., first])
+    for k in order[1:]:
+        quat = _axis_product(quat, axes[k], np.sin(half[..., k]), np.cos(half[..., k]))
     return Rotation.from_quat(quat)
 
 
