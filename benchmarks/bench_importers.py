@@ -108,6 +108,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--before", default="09d3380~1", help="the code before the first speed-up")
     parser.add_argument("--main", default="main", help="the current main branch")
+    parser.add_argument("--this", help="a commit to time instead of the working tree")
     parser.add_argument("--clips", default="cmu,fits")
     parser.add_argument("--modes", default="fresh,warm",
                         help="fresh: the import alone in a new process (numba's load included); warm: after "
@@ -118,7 +119,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         trees = {"before": export(args.before, tmp / "before"), "main": export(args.main, tmp / "main"),
-                 "this": REPO / "src"}
+                 "this": export(args.this, tmp / "this") if args.this else REPO / "src"}
         for src in trees.values():  # fill numba's compile caches: compiling is not importing
             python(src, _WARM)
         makers = {"cmu": lambda: long_bvh(args.motions, args.frames, tmp),
