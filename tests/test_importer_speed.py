@@ -170,18 +170,26 @@ def test_bvh_frames_parse_the_same_either_way(monkeypatch):
              "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
              "End Site", "{", "OFFSET 0 1 0", "}", "}", "MOTION", "Frames: 600", "Frame Time: .0083333"]
     texts = [t for t in _number_texts(np.random.default_rng(6), 8000) if len(t) < 17 and abs(float(t)) < 1e5][:3600]
-    text = "\n".join(lines + [" ".join(texts[i:i + 6]) for i in range(0, 3600, 6)]) + "\n"
+    rows = [" ".join(texts[i:i + 6]) for i in range(0, 3600, 6)]
+    rows[10:10] = ["", " \t "]  # blank lines are skipped
+    text = "\n".join(lines + rows) + "\n\n"
     monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 500)
-    compiled = bvh._parse_frames_compiled([(0, t) for t in text.splitlines()[13:]], 600, 6)
+    compiled = bvh._parse_frames_compiled(text.splitlines()[13:], 600, 6)
     assert compiled is not None
     monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 10**9)
     monkeypatch.delitem(__import__("sys").modules, "numba")
     plain = bvh.parse_bvh(text).frames
     np.testing.assert_array_equal(compiled.view(np.int64), plain.view(np.int64))
-    bad = text.replace(texts[700], "1.2.3", 1)  # the plain reader names the fault
     monkeypatch.setattr(bvh, "COMPILED_VITERBI_FRAMES", 500)
+    bad = text.replace(texts[700], "1.2.3", 1)  # the plain reader names the fault
     with pytest.raises(MotionFileError, match="'1.2.3' is not a number"):
         bvh.parse_bvh(bad)
+    with pytest.raises(MotionFileError, match="frame 3 has 7 values"):
+        bvh.parse_bvh(text.replace(rows[3], rows[3] + " 1", 1))
+    with pytest.raises(MotionFileError, match="but 601 frame lines follow"):
+        bvh.parse_bvh(text + rows[5] + "\n")
+    with pytest.raises(MotionFileError, match="only 599 frame lines"):
+        bvh.parse_bvh(text.replace(rows[20] + "\n", "", 1))
 
 
 def test_slerp_is_scipys():

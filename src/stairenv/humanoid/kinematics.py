@@ -61,14 +61,31 @@ def humanoid_lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geom_ids: np.n
     return float(np.fmin.reduce(bottom, initial=np.inf))    # NaN ignored, as min() one at a time did
 
 
+def _kinematics_arrays(qpos: np.ndarray, fields: tuple[str, ...]) -> list[np.ndarray]:
+    """``forward_kinematics``'s loop for whole arrays: each of the ``MjData`` arrays ``fields`` (e.g.
+    "xpos") after ``mj_kinematics`` of each frame, stacked (T, ...). A plain copy per frame and array,
+    without a generator step and a gather per frame (a few microseconds a frame over long clips)."""
+    model = humanoid_model()
+    data = mujoco.MjData(model)
+    sources = [getattr(data, name) for name in fields]  # views into data, refreshed in place
+    outs = [np.empty((qpos.shape[0], *source.shape)) for source in sources]
+    frame = data.qpos
+    kinematics = mujoco.mj_kinematics
+    for t in range(qpos.shape[0]):
+        frame[:] = qpos[t]
+        kinematics(model, data)
+        for out, source in zip(outs, sources):
+            out[t] = source
+    return outs
+
+
 def body_positions(qpos: np.ndarray) -> np.ndarray:
     """(T, 15, 3) world positions of our bodies (BODY_NAMES order) for each frame of qpos."""
     model = humanoid_model()
     ids = [model.body(n).id for n in BODY_NAMES]
-    out = np.zeros((qpos.shape[0], len(ids), 3))
-    for t, data in enumerate(forward_kinematics(qpos)):
-        out[t] = data.xpos[ids]
-    return out
+    if qpos.shape[0] == 0:
+        return np.zeros((0, len(ids), 3))
+    return _kinematics_arrays(qpos, ("xpos",))[0][:, ids]
 
 
 @lru_cache(maxsize=1)
@@ -89,12 +106,7 @@ def foot_box_geoms() -> np.ndarray:
 def _geom_frames(qpos: np.ndarray, geom_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T, G, 3) world positions and (T, G, 9) orientations of the bare model's geoms ``geom_ids`` in
     each frame of qpos (one FK pass)."""
-    ngeom = humanoid_model().ngeom
-    xpos = np.empty((qpos.shape[0], ngeom, 3))
-    xmat = np.empty((qpos.shape[0], ngeom, 9))
-    for t, data in enumerate(forward_kinematics(qpos)):  # whole arrays: a plain copy, no gather per frame
-        xpos[t] = data.geom_xpos
-        xmat[t] = data.geom_xmat
+    xpos, xmat = _kinematics_arrays(qpos, ("geom_xpos", "geom_xmat"))
     return xpos[:, geom_ids], xmat[:, geom_ids]
 
 

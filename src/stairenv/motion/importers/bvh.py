@@ -275,6 +275,33 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
         raise MotionFileError(f"{path}, line {motion_line + 3}: frame time must be positive, got {frame_time}")
     check_timing(path, declared, 1.0 / frame_time, max(declared - 1, 0) * frame_time)
 
+    frames = _parse_frames_compiled(lines[motion_line + 3:], declared, channels)
+    if frames is None:
+        frames = _parse_frames(lines, motion_line, declared, channels, path)
+    check_values(path, "frame values", frames)
+    return BvhMotion(joints, frame_time, frames, path)
+
+
+def _parse_frames_compiled(lines: list[str], declared: int, channels: int) -> np.ndarray | None:
+    """The frame values parsed by the compiled ``kernels.parse_frames`` (the same doubles as ``float()``),
+    where the clip is long enough to load numba anyway (as the Viterbi pass does: ``COMPILED_VITERBI_FRAMES``
+    frames, or 500 in a process that has loaded it); None where it is not, or where the lines (after
+    the header; blank ones skipped) are not ``declared`` lines of ``channels`` numbers of the plain form
+    that parser takes (``_parse_frames`` then reads them, or names the fault)."""
+    if not (declared >= COMPILED_VITERBI_FRAMES or (declared >= 500 and "numba" in sys.modules)):
+        return None
+    block = "\n".join(lines)
+    if not block.isascii():
+        return None
+    from stairenv.motion.importers.kernels import parse_frames
+
+    frames, status = parse_frames(np.frombuffer(block.encode("ascii"), dtype=np.uint8), declared, channels)
+    return frames if status == 0 else None
+
+
+def _parse_frames(lines: list[str], motion_line: int, declared: int, channels: int, path: str) -> np.ndarray:
+    """The frame values (the lines after the MOTION header, blank ones skipped) through ``float()``;
+    ``MotionFileError`` naming the line of a fault."""
     data_lines = [(n, line) for n, line in enumerate(lines[motion_line + 3:], start=motion_line + 4) if line.strip()]
     if len(data_lines) < declared:
         raise MotionFileError(
@@ -285,31 +312,6 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
             f"{path}: 'Frames: {declared}' declared but {len(data_lines)} frame lines follow "
             f"(first extra at line {data_lines[declared][0]})"
         )
-    frames = _parse_frames_compiled(data_lines, declared, channels)
-    if frames is None:
-        frames = _parse_frames(data_lines, declared, channels, path)
-    check_values(path, "frame values", frames)
-    return BvhMotion(joints, frame_time, frames, path)
-
-
-def _parse_frames_compiled(data_lines: list[tuple[int, str]], declared: int, channels: int) -> np.ndarray | None:
-    """The frame values parsed by the compiled ``kernels.parse_frames`` (the same doubles as ``float()``),
-    where the clip is long enough to load numba anyway (as the Viterbi pass does: ``COMPILED_VITERBI_FRAMES``
-    frames, or 500 in a process that has loaded it); None where it is not, or where a line or a number
-    is not of the plain form that parser takes (``_parse_frames`` then reads them, or names the fault)."""
-    if not (declared >= COMPILED_VITERBI_FRAMES or (declared >= 500 and "numba" in sys.modules)):
-        return None
-    block = "\n".join(line for _, line in data_lines)
-    if not block.isascii():
-        return None
-    from stairenv.motion.importers.kernels import parse_frames
-
-    frames, status = parse_frames(np.frombuffer(block.encode("ascii"), dtype=np.uint8), declared, channels)
-    return frames if status == 0 else None
-
-
-def _parse_frames(data_lines: list[tuple[int, str]], declared: int, channels: int, path: str) -> np.ndarray:
-    """The frame values through ``float()``; ``MotionFileError`` naming the line of a fault."""
     tokens: list[str] = []
     for k, (line_no, line) in enumerate(data_lines):
         parts = line.split()

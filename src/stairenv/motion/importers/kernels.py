@@ -454,9 +454,10 @@ _MAX_EXACT = 2 ** 53
 
 @jit
 def parse_frames(text: np.ndarray, rows: int, columns: int) -> tuple[np.ndarray, int]:
-    """The numbers of ``rows`` lines of ASCII ``text`` (uint8; lines joined by newlines), ``columns`` a
-    line, as (rows, columns) doubles, and 0; or a status saying why it did not: 1 where a line holds
-    another number of values (or more lines follow), 2 where a byte or a number falls outside the plain
+    """The numbers of ``rows`` lines of ASCII ``text`` (uint8; lines joined by newlines; lines of spaces
+    and tabs only are skipped), ``columns`` a line, as (rows, columns) doubles, and 0; or a status saying
+    why it did not: 1 where a line holds another number of values (or other than ``rows`` lines hold
+    values), 2 where a byte or a number falls outside the plain
     decimal form ``[+-](digits[.digits] | .digits)[(e|E)[+-]digits]`` separated by spaces or tabs, or
     where a number has more than 2^53 as its digits or a power of ten beyond 1e22. Within those, each
     value is the exact product or quotient of two exact doubles (its digits and a power of ten), so
@@ -469,11 +470,12 @@ def parse_frames(text: np.ndarray, rows: int, columns: int) -> tuple[np.ndarray,
         if c == 32 or c == 9:  # space, tab
             i += 1
             continue
-        if c == 10:  # newline: the line must be complete
-            if col != columns:
-                return out, 1
-            row += 1
-            col = 0
+        if c == 10:  # newline: a line of values must be complete; blank lines are skipped
+            if col != 0:
+                if col != columns:
+                    return out, 1
+                row += 1
+                col = 0
             i += 1
             continue
         if row >= rows or col >= columns:
