@@ -13,9 +13,10 @@ and each import runs in a fresh process (``import_motion`` timed alone; its comp
 filled beforehand), ``fresh``: the first import in that process (numba's load, ~0.5-1 s, included),
 ``warm``: after a short clip of the same kind (83_32.bvh, humanoid3d_roll.txt), as in a process that
 imports several clips or has loaded numba already (the envs do); the trees interleaved per repeat,
-so that the ratios come from one run on one machine. Reported: the median seconds per tree, the
-ratios before/this and main/this, and the largest difference of the imported qpos (this tree
-against each other tree).
+so that the ratios come from one run on one machine. Reported: the median wall and CPU
+(``time.process_time``: steadier than wall time on a busy machine) seconds per tree, the ratios
+before/this and main/this, and the largest difference of the imported qpos (this tree against
+each other tree).
 """
 
 from __future__ import annotations
@@ -35,30 +36,35 @@ REPO = Path(__file__).resolve().parents[1]
 
 FIT_CLIPS = ("crawl", "getup_facedown", "getup_faceup", "jump", "roll", "zombie_walk")
 
+_KERNELS = """
+try:
+    from stairenv.motion.importers import kernels
+except ImportError:  # before 09d3380: nothing compiled
+    kernels = None
+for name, args in (("viterbi2", (np.zeros((3, 2)), np.zeros((2, 2, 2)))),
+                   ("fit_in_range", (np.eye(3)[None], np.zeros((1, 3)), -np.ones(3), np.ones(3), np.zeros(3), 3.0, 12)),
+                   ("parse_frames", (np.frombuffer(b"1 2", dtype=np.uint8), 1, 2))):
+    if hasattr(kernels, name):
+        getattr(kernels, name)(*args)
+"""
+
+#: numba's compile caches filled (compiling is not importing)
+_WARM = "import numpy as np\n" + _KERNELS
+
+#: argv: the clip, where its qpos go, and for the warm mode a short clip to import first
 _RUN = """
 import sys, time
 import numpy as np
 from stairenv.motion.importers import import_motion
 if len(sys.argv) > 3:  # warm: a short clip of the same kind first (scipy.optimize... loaded), the kernels
     import_motion(sys.argv[3])
-    try:
-        from stairenv.motion.importers import kernels
-    except ImportError:  # before 09d3380: nothing compiled
-        kernels = None
-    for name, args in (("viterbi2", (np.zeros((3, 2)), np.zeros((2, 2, 2)))),
-                       ("fit_in_range", (np.eye(3)[None], np.zeros((1, 3)), -np.ones(3), np.ones(3), np.zeros(3), 3.0, 12)),
-                       ("parse_frames", (np.frombuffer(b"1 2", dtype=np.uint8), 1, 2))):
-        if hasattr(kernels, name):
-            getattr(kernels, name)(*args)
-t = time.perf_counter()
+""" + "\n".join("    " + line for line in _KERNELS.strip().splitlines()) + """
+t, cpu = time.perf_counter(), time.process_time()
 clip = import_motion(sys.argv[1])
-elapsed = time.perf_counter() - t
+elapsed, cpu = time.perf_counter() - t, time.process_time() - cpu
 np.save(sys.argv[2], clip.qpos)
-print(elapsed)
+print(elapsed, cpu)
 """
-
-_WARM = _RUN.split("t = time.perf_counter()")[0].replace("len(sys.argv) > 3", "True").replace(
-    "import_motion(sys.argv[3])", "pass")
 
 
 def long_bvh(motions: Path, frames: int, out: Path) -> Path:
@@ -129,30 +135,35 @@ def main() -> None:
         for name, mode in ((n, m) for n in args.clips.split(",") for m in args.modes.split(",")):
             clip = makers[name]()
             warm = [str(shorts[name])] if mode == "warm" else []
-            times: dict[str, list[float]] = {tree: [] for tree in trees}
+            wall: dict[str, list[float]] = {tree: [] for tree in trees}
+            cpu: dict[str, list[float]] = {tree: [] for tree in trees}
             for _ in range(args.repeats):
                 for tree, src in trees.items():
                     out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"), *warm)
-                    times[tree].append(float(out.strip().splitlines()[-1]))
+                    seconds, cpu_seconds = map(float, out.strip().splitlines()[-1].split())
+                    wall[tree].append(seconds)
+                    cpu[tree].append(cpu_seconds)
             qpos = {tree: np.load(tmp / f"{name}_{tree}.npy") for tree in trees}
-            median = {tree: statistics.median(t) for tree, t in times.items()}
             frames = args.frames if name == "cmu" else args.fit_frames
-            results[f"{name}_{mode}"] = {
+            r = results[f"{name}_{mode}"] = {
                 "source_frames": frames,
                 "clip_frames": int(len(qpos["this"])),
-                "seconds": median,
-                "ms_per_source_frame": {tree: round(1000 * s / frames, 4) for tree, s in median.items()},
-                "speedup_vs_before": round(median["before"] / median["this"], 2),
-                "speedup_vs_main": round(median["main"] / median["this"], 2),
                 "max_abs_qpos_diff_vs_before": float(np.abs(qpos["this"] - qpos["before"]).max()),
                 "max_abs_qpos_diff_vs_main": float(np.abs(qpos["this"] - qpos["main"]).max()),
             }
-            r = results[f"{name}_{mode}"]
-            print(f"{name} ({mode}): {frames} source frames -> {r['clip_frames']} clip frames; "
-                  + ", ".join(f"{tree} {s:.2f} s" for tree, s in median.items())
-                  + f"; this tree {r['speedup_vs_before']}x faster than before 09d3380, {r['speedup_vs_main']}x than main; "
-                  f"max |qpos diff| vs before {r['max_abs_qpos_diff_vs_before']:.2e}, vs main {r['max_abs_qpos_diff_vs_main']:.2e}",
-                  flush=True)
+            line = f"{name} ({mode}): {frames} source frames -> {r['clip_frames']} clip frames"
+            for kind, times in (("wall", wall), ("cpu", cpu)):
+                median = {tree: statistics.median(t) for tree, t in times.items()}
+                r[f"{kind}_seconds"] = median
+                r[f"{kind}_ms_per_source_frame"] = {tree: round(1000 * s / frames, 4) for tree, s in median.items()}
+                r[f"{kind}_speedup_vs_before"] = round(median["before"] / median["this"], 2)
+                r[f"{kind}_speedup_vs_main"] = round(median["main"] / median["this"], 2)
+                line += (f"\n  {kind:4s}: " + ", ".join(f"{tree} {s:.2f} s" for tree, s in median.items())
+                         + f"; this tree {r[f'{kind}_speedup_vs_before']}x faster than before 09d3380, "
+                         f"{r[f'{kind}_speedup_vs_main']}x than main")
+            line += (f"\n  max |qpos diff| vs before {r['max_abs_qpos_diff_vs_before']:.2e}, "
+                     f"vs main {r['max_abs_qpos_diff_vs_main']:.2e}")
+            print(line, flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=2))
 
