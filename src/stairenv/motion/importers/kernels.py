@@ -485,23 +485,21 @@ def parse_frames(text: np.ndarray, rows: int, columns: int) -> tuple[np.ndarray,
             negative = c == 45
             i += 1
         mantissa, digits, scale, exponent = 0, 0, 0, 0
-        while i < n and 48 <= text[i] <= 57:
-            if mantissa <= _MAX_EXACT:
-                mantissa = mantissa * 10 + (text[i] - 48)
-            else:
-                return out, 2
-            digits += 1
-            i += 1
-        if i < n and text[i] == 46:  # .
-            i += 1
-            while i < n and 48 <= text[i] <= 57:
-                if mantissa <= _MAX_EXACT:
-                    mantissa = mantissa * 10 + (text[i] - 48)
-                else:
+        dot = False
+        while i < n:  # digits, with at most one "." among or around them
+            d = text[i]
+            if 48 <= d <= 57:
+                if mantissa > _MAX_EXACT:
                     return out, 2
+                mantissa = mantissa * 10 + (d - 48)
                 digits += 1
-                scale += 1
-                i += 1
+                if dot:
+                    scale += 1
+            elif d == 46 and not dot:
+                dot = True
+            else:
+                break
+            i += 1
         if digits == 0:
             return out, 2
         if i < n and (text[i] == 101 or text[i] == 69):  # e E
