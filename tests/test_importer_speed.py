@@ -208,3 +208,23 @@ def test_slerp_is_scipys():
     for bad in (at + 1.0, at - 1.0):
         with pytest.raises(ValueError):
             slerp(times, rot, bad)
+
+
+def test_body_rotations_are_mujocos():
+    """``body_rotations`` (all frames at once, for the limb-direction check) gives MuJoCo's ``xmat``."""
+    from stairenv.humanoid.kinematics import body_rotations
+
+    model = humanoid_model()
+    rng = np.random.default_rng(8)
+    qpos = np.zeros((300, model.nq))
+    qpos[:, :3] = rng.normal(size=(300, 3))
+    qpos[:, 3:7] = rng.normal(size=(300, 4)) * rng.uniform(0.5, 2.0, (300, 1))  # normalised as MuJoCo does
+    qpos[:, 7:] = rng.normal(0.0, 2.0, (300, model.nq - 7))
+    names = [model.body(b).name for b in range(1, model.nbody)]
+    ours = body_rotations(qpos, ["left_hand", "right_foot"])
+    assert set(ours) == {"pelvis", "torso", "left_upper_arm", "left_lower_arm", "left_hand",
+                         "right_thigh", "right_shin", "right_foot"}
+    ours = body_rotations(qpos, names)
+    mujocos = np.array([data.xmat.copy() for data in forward_kinematics(qpos)]).reshape(300, -1, 3, 3)
+    for name in names:
+        np.testing.assert_allclose(ours[name], mujocos[:, model.body(name).id], atol=5e-15, rtol=0)

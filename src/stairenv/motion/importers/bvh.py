@@ -74,10 +74,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
+from stairenv.humanoid.kinematics import body_rotations
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers.common import (COMPILED_VITERBI_FRAMES, MAX_ABS_VALUE, MAX_JOINTS, body_positions,
-                                              check_timing, check_values, compose, euler_rotation, joints_to_qpos,
-                                              make_clip, read_limited, snap_fps)
+from stairenv.motion.importers.common import (COMPILED_VITERBI_FRAMES, MAX_ABS_VALUE, MAX_JOINTS, check_timing,
+                                              check_values, compose, euler_rotation, joints_to_qpos, make_clip,
+                                              read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -744,13 +745,15 @@ def limb_direction_error(qpos: np.ndarray, source: Mapping[str, np.ndarray],
     An FK check that does not depend on bone lengths: for the upper and lower arms, thighs
     and shins, the direction from the body to its child body in our FK versus the
     direction between the source points of ``skeleton.bones`` (``source``: name -> (T, 3)
-    world positions in our axes). Returns mean, max and the worst limb.
+    world positions in our axes). Returns mean, max and the worst limb. Our directions come from
+    ``body_rotations`` (all frames at once; MuJoCo's to rounding), not a per-frame FK loop.
     """
-    positions = body_positions(qpos)
+    model = humanoid_model()
+    rotations = body_rotations(qpos, list(LIMBS))
     errors = {}
     for body in LIMBS:
         child = BODY_NAMES[PARENT_INDICES.index(BODY_NAMES.index(body))]
-        ours = positions[:, BODY_NAMES.index(child)] - positions[:, BODY_NAMES.index(body)]
+        ours = rotations[body] @ model.body_pos[model.body(child).id]  # the child's position less the body's
         start, end = skeleton.bones[body]
         theirs = source[end] - source[start]
         cos = np.sum(ours * theirs, axis=1) / (np.linalg.norm(ours, axis=1) * np.linalg.norm(theirs, axis=1))
