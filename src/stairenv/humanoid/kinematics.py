@@ -130,9 +130,19 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def _axis_angle_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """(T, 3, 3) rotations by ``angle`` (T,) about the unit ``axis`` (3,) (Rodrigues)."""
-    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
+    """(T, 3, 3) rotations by ``angle`` (T,) about the unit ``axis`` (3,) (Rodrigues; written out for
+    a coordinate axis, the humanoid's hinges)."""
     k = np.asarray(axis, dtype=np.float64)
+    if np.count_nonzero(k) == 1 and abs(k.sum()) == 1.0:
+        i = int(np.flatnonzero(k)[0])
+        j, l = (i + 1) % 3, (i + 2) % 3
+        c, s = np.cos(angle), np.sin(angle) * k[i]
+        out = np.zeros((len(angle), 3, 3))
+        out[:, i, i] = 1.0
+        out[:, j, j] = out[:, l, l] = c
+        out[:, j, l], out[:, l, j] = -s, s
+        return out
+    c, s = np.cos(angle)[:, None, None], np.sin(angle)[:, None, None]
     cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     return c * np.eye(3) + s * cross + (1.0 - c) * np.outer(k, k)
 
