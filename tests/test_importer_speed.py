@@ -228,3 +228,11 @@ def test_body_rotations_are_mujocos():
     mujocos = np.array([data.xmat.copy() for data in forward_kinematics(qpos)]).reshape(300, -1, 3, 3)
     for name in names:
         np.testing.assert_allclose(ours[name], mujocos[:, model.body(name).id], atol=5e-15, rtol=0)
+
+
+def test_sum3_adds_as_numpy():
+    from stairenv.motion.importers.common import _sum3
+
+    x = np.random.default_rng(9).normal(size=(4, 5000, 2, 3)) * 10.0 ** np.arange(-8, 8, 4)[:, None, None, None]
+    np.testing.assert_array_equal(_sum3(x ** 2), np.sum(x ** 2, axis=-1))
+    np.testing.assert_array_equal(_sum3(x[:, 0, 0]), x[:, 0, 0].sum(axis=-1))
