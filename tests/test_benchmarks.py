@@ -50,3 +50,16 @@ def test_bench_libraries_runs(tmp_path):
         ran = any(line.startswith(f"round 0: {name} ") for line in lines)
         skipped = any(line.startswith(f"note: {name} skipped") for line in lines)
         assert ran != skipped, f"{name}: neither a rate nor a skip note ({library})\n{done.stdout}"
+
+
+@pytest.mark.slow
+def test_bench_importers_runs(tmp_path):
+    """Tiny clips, every tree the checkout's HEAD (no history needed); needs the shipped motion files."""
+    if not (BENCHMARKS.parents[1] / "shared" / "motions" / "CMU" / "83_32.bvh").is_file():
+        pytest.skip("motion files (../shared/motions) absent")
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    done = subprocess.run([sys.executable, str(BENCHMARKS / "bench_importers.py"), "--frames", "600",
+                           "--fit-frames", "60", "--before", "HEAD", "--main", "HEAD"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.count("faster than before") == 8, done.stdout  # 2 clips x 2 modes x wall, CPU

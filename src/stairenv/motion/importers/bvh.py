@@ -64,7 +64,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+import sys
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -73,9 +74,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
+from stairenv.humanoid.kinematics import body_rotations
 from stairenv.motion.clip import MotionClip, MotionFileError
-from stairenv.motion.importers.common import (MAX_ABS_VALUE, MAX_JOINTS, body_positions, check_timing, check_values,
-                                       compose, euler_rotation, joints_to_qpos, make_clip, read_limited, snap_fps)
+from stairenv.motion.importers.common import (COMPILED_VITERBI_FRAMES, MAX_ABS_VALUE, MAX_JOINTS, check_timing,
+                                              check_values, compose, euler_rotation, joints_to_qpos, make_clip,
+                                              read_limited, snap_fps)
 
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
@@ -273,6 +276,33 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
         raise MotionFileError(f"{path}, line {motion_line + 3}: frame time must be positive, got {frame_time}")
     check_timing(path, declared, 1.0 / frame_time, max(declared - 1, 0) * frame_time)
 
+    frames = _parse_frames_compiled(lines[motion_line + 3:], declared, channels)
+    if frames is None:
+        frames = _parse_frames(lines, motion_line, declared, channels, path)
+    check_values(path, "frame values", frames)
+    return BvhMotion(joints, frame_time, frames, path)
+
+
+def _parse_frames_compiled(lines: list[str], declared: int, channels: int) -> np.ndarray | None:
+    """The frame values parsed by the compiled ``kernels.parse_frames`` (the same doubles as ``float()``),
+    where the clip is long enough to load numba anyway (as the Viterbi pass does: ``COMPILED_VITERBI_FRAMES``
+    frames, or 500 in a process that has loaded it); None where it is not, or where the lines (after
+    the header; blank ones skipped) are not ``declared`` lines of ``channels`` numbers of the plain form
+    that parser takes (``_parse_frames`` then reads them, or names the fault)."""
+    if not (declared >= COMPILED_VITERBI_FRAMES or (declared >= 500 and "numba" in sys.modules)):
+        return None
+    block = "\n".join(lines)
+    if not block.isascii():
+        return None
+    from stairenv.motion.importers.kernels import parse_frames
+
+    frames, status = parse_frames(np.frombuffer(block.encode("ascii"), dtype=np.uint8), declared, channels)
+    return frames if status == 0 else None
+
+
+def _parse_frames(lines: list[str], motion_line: int, declared: int, channels: int, path: str) -> np.ndarray:
+    """The frame values (the lines after the MOTION header, blank ones skipped) through ``float()``;
+    ``MotionFileError`` naming the line of a fault."""
     data_lines = [(n, line) for n, line in enumerate(lines[motion_line + 3:], start=motion_line + 4) if line.strip()]
     if len(data_lines) < declared:
         raise MotionFileError(
@@ -299,8 +329,7 @@ def parse_bvh(text: str, path: str = "<bvh>") -> BvhMotion:
             if bad is not None:
                 raise MotionFileError(f"{path}, line {line_no}: frame {k}: {bad[:30]!r} is not a number") from None
         raise
-    check_values(path, "frame values", frames)
-    return BvhMotion(joints, frame_time, frames, path)
+    return frames
 
 
 def _is_float(text: str) -> bool:
@@ -324,13 +353,28 @@ def read_bvh(path: str | Path) -> BvhMotion:
 # --------------------------------------------------------------------------------------
 # Forward kinematics of the source
 # --------------------------------------------------------------------------------------
-def forward_kinematics(motion: BvhMotion, frames: np.ndarray | None = None) -> tuple[list[Rotation], np.ndarray]:
-    """World rotations (one (F,) ``Rotation`` per joint) and positions (F, J, 3), file units and axes."""
+def forward_kinematics(motion: BvhMotion, frames: np.ndarray | None = None,
+                       only: Collection[str] | None = None) -> tuple[list[Rotation | None], np.ndarray]:
+    """World rotations (one (F,) ``Rotation`` per joint) and positions (F, J, 3), file units and axes.
+
+    ``only``: the joints wanted (with their ancestors, which they need); the others are skipped
+    (rotation None, position 0), the same values for the rest."""
     frames = motion.frames if frames is None else np.atleast_2d(frames)
     n = frames.shape[0]
-    rotations: list[Rotation] = []
+    wanted = None
+    if only is not None:
+        wanted = set()
+        for name in only:
+            j = motion.index(name)
+            while j >= 0 and j not in wanted:
+                wanted.add(j)
+                j = motion.joints[j].parent
+    rotations: list[Rotation | None] = []
     positions = np.zeros((n, len(motion.joints), 3))
     for j, joint in enumerate(motion.joints):
+        if wanted is not None and j not in wanted:
+            rotations.append(None)
+            continue
         translation = np.repeat(joint.offset[None], n, axis=0)
         angles, order = [], ""
         for k, channel in enumerate(joint.channels):
@@ -635,7 +679,9 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
             f"(file has {motion.names[:8]}...)"
         )
     align = rest_alignment(motion, skeleton)
-    rotations, positions = forward_kinematics(motion, motion.frames[skip:])
+    limb_points = {point for body in LIMBS for point in skeleton.bones[body]}
+    rotations, positions = forward_kinematics(motion, motion.frames[skip:], only={
+        *skeleton.bodies.values(), *skeleton.hips, skeleton.trunk_top, *limb_points})
     c = skeleton.to_z_up
     world = {body: compose(c, rotations[motion.index(joint)], c.inv(), align[body])
              for body, joint in skeleton.bodies.items() if body != "pelvis"}
@@ -669,7 +715,7 @@ def retarget(motion: BvhMotion, skeleton: SourceSkeleton | str = "cmu",
     root_pos = scale * 0.5 * (left_hip + right_hip)
     qpos, clamping = joints_to_qpos(root_pos, world["pelvis"], local)
     bone_error = limb_direction_error(qpos, {name: c.apply(positions[:, motion.index(name)])
-                                             for name in motion.names}, skeleton)
+                                             for name in limb_points}, skeleton)
     report = {
         "importer": "bvh",
         "skeleton": skeleton.name,
@@ -699,13 +745,15 @@ def limb_direction_error(qpos: np.ndarray, source: Mapping[str, np.ndarray],
     An FK check that does not depend on bone lengths: for the upper and lower arms, thighs
     and shins, the direction from the body to its child body in our FK versus the
     direction between the source points of ``skeleton.bones`` (``source``: name -> (T, 3)
-    world positions in our axes). Returns mean, max and the worst limb.
+    world positions in our axes). Returns mean, max and the worst limb. Our directions come from
+    ``body_rotations`` (all frames at once; MuJoCo's to rounding), not a per-frame FK loop.
     """
-    positions = body_positions(qpos)
+    model = humanoid_model()
+    rotations = body_rotations(qpos, list(LIMBS))
     errors = {}
     for body in LIMBS:
         child = BODY_NAMES[PARENT_INDICES.index(BODY_NAMES.index(body))]
-        ours = positions[:, BODY_NAMES.index(child)] - positions[:, BODY_NAMES.index(body)]
+        ours = rotations[body] @ model.body_pos[model.body(child).id]  # the child's position less the body's
         start, end = skeleton.bones[body]
         theirs = source[end] - source[start]
         cos = np.sum(ours * theirs, axis=1) / (np.linalg.norm(ours, axis=1) * np.linalg.norm(theirs, axis=1))

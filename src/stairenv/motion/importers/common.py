@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from stairenv.humanoid import BODY_NAMES, DOF_NAMES, JOINTS, NUM_DOFS, dof_ranges, humanoid_model
 from stairenv.humanoid.kinematics import body_positions, foot_sole_heights, lowest_body_point
@@ -42,6 +42,7 @@ __all__ = [
     "lowest_body_point",
     "make_clip",
     "read_limited",
+    "slerp",
     "snap_fps",
 ]
 
@@ -112,12 +113,37 @@ _BONES: dict[str, np.ndarray] = {
 
 def _quat_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton products of (..., 4) x, y, z, w quaternions (broadcast): the rotation ``p`` after ``q``."""
-    px, py, pz, pw = np.moveaxis(p, -1, 0)
-    qx, qy, qz, qw = np.moveaxis(q, -1, 0)
-    return np.stack((pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw,
-                     pw * qw - px * qx - py * qy - pz * qz), axis=-1)
+    px, py, pz, pw = (p[..., k] for k in range(4))
+    qx, qy, qz, qw = (q[..., k] for k in range(4))
+    out = np.empty(np.broadcast_shapes(p.shape, q.shape))
+    out[..., 0] = pw * qx + px * qw + py * qz - pz * qy
+    out[..., 1] = pw * qy - px * qz + py * qw + pz * qx
+    out[..., 2] = pw * qz + px * qy - py * qx + pz * qw
+    out[..., 3] = pw * qw - px * qx - py * qy - pz * qz
+    return out
+
+
+def _axis_product(p: np.ndarray, axis: int, sin: np.ndarray, cos: np.ndarray) -> np.ndarray:
+    """``_quat_product(p, q)`` for q the axis quaternions (sin on ``axis``, cos as w, 0 elsewhere): the
+    same sums without their products with 0 (x + 0 and 0 + x are x), so the same values."""
+    px, py, pz, pw = (p[..., k] for k in range(4))
+    out = np.empty(np.broadcast_shapes(p.shape, sin.shape + (4,)))
+    if axis == 0:
+        out[..., 0] = pw * sin + px * cos
+        out[..., 1] = py * cos + pz * sin
+        out[..., 2] = -(py * sin) + pz * cos
+        out[..., 3] = pw * cos - px * sin
+    elif axis == 1:
+        out[..., 0] = px * cos - pz * sin
+        out[..., 1] = pw * sin + py * cos
+        out[..., 2] = px * sin + pz * cos
+        out[..., 3] = pw * cos - py * sin
+    else:
+        out[..., 0] = px * cos + py * sin
+        out[..., 1] = -(px * sin) + py * cos
+        out[..., 2] = pw * sin + pz * cos
+        out[..., 3] = pw * cos - pz * sin
+    return out
 
 
 def compose(*rotations: Rotation) -> Rotation:
@@ -127,6 +153,42 @@ def compose(*rotations: Rotation) -> Rotation:
     for rotation in rotations[1:]:
         quat = _quat_product(quat, rotation.as_quat())
     return Rotation.from_quat(quat)
+
+
+def slerp(times: np.ndarray, rotations: Rotation, at: np.ndarray) -> Rotation:
+    """``Slerp(times, rotations)(at)`` on quaternion arrays, for the intervals ``at`` falls in only:
+    scipy's steps (the relative rotation of each interval as a rotation vector, scaled by the
+    fraction of the interval, after the interval's first rotation) without a ``Rotation`` product per
+    interval of the source (seconds over long clips). Equal to scipy's rotations to rounding (1e-15).
+    ``ValueError`` for times outside [times[0], times[-1]] or not increasing, as scipy's."""
+    times, at = np.asarray(times, dtype=np.float64), np.asarray(at, dtype=np.float64)
+    if len(rotations) < 2 or len(times) != len(rotations):
+        raise ValueError("slerp needs a time per rotation and at least 2 rotations")
+    delta = np.diff(times)
+    if np.any(delta <= 0):
+        raise ValueError("Times must be in strictly increasing order.")
+    ind = np.searchsorted(times, at) - 1
+    ind[at == times[0]] = 0
+    if np.any((ind < 0) | (ind > len(times) - 2)):
+        raise ValueError(f"Interpolation times must be within the range [{times[0]}, {times[-1]}], both inclusive.")
+    quat = rotations.as_quat()
+    start, end = quat[ind], quat[ind + 1]
+    relative = _quat_product(start * np.array([-1.0, -1.0, -1.0, 1.0]), end)
+    relative[relative[:, 3] < 0] *= -1.0  # as_rotvec's canonical half: w >= 0
+    sin_half = np.linalg.norm(relative[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(sin_half, relative[:, 3])
+    small = angle <= 1e-3
+    angle2 = angle ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(small, 2.0 + angle2 / 12.0 + 7.0 * angle2 ** 2 / 2880.0, angle / np.sin(angle / 2.0))
+    rotvec = scale[:, None] * relative[:, :3] * ((at - times[ind]) / delta[ind])[:, None]
+    angle = np.linalg.norm(rotvec, axis=1)
+    small = angle <= 1e-3
+    angle2 = angle ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(small, 0.5 - angle2 / 48.0 + angle2 ** 2 / 3840.0, np.sin(angle / 2.0) / angle)
+    step = np.concatenate((rotvec * scale[:, None], np.cos(angle / 2.0)[:, None]), axis=1)
+    return Rotation.from_quat(_quat_product(start, step))
 
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -140,17 +202,16 @@ def euler_rotation(seq: str, angles: np.ndarray, degrees: bool = False) -> Rotat
     if degrees:
         angles = np.deg2rad(angles)
     half = 0.5 * angles
-    quats = []
-    for k, axis in enumerate(seq.lower()):
-        q = np.zeros((*angles.shape[:-1], 4))
-        q[..., _AXES[axis]] = np.sin(half[..., k])
-        q[..., 3] = np.cos(half[..., k])
-        quats.append(q)
+    axes = [_AXES[axis] for axis in seq.lower()]
+    order = list(range(len(axes)))
     if seq.islower():  # extrinsic: the first axis applies first
-        quats.reverse()
-    quat = quats[0]
-    for q in quats[1:]:
-        quat = _quat_product(quat, q)
+        order.reverse()
+    first = order[0]
+    quat = np.zeros((*angles.shape[:-1], 4))
+    quat[..., axes[first]] = np.sin(half[..., first])
+    quat[..., 3] = np.cos(half[..., first])
+    for k in order[1:]:
+        quat = _axis_product(quat, axes[k], np.sin(half[..., k]), np.cos(half[..., k]))
     return Rotation.from_quat(quat)
 
 
@@ -166,7 +227,13 @@ def _wrap_towards(angles: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.n
 
 
 def _violation(angles: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    return (np.maximum(low - angles, 0.0) + np.maximum(angles - high, 0.0)).sum(axis=-1)
+    return _sum3(np.maximum(low - angles, 0.0) + np.maximum(angles - high, 0.0))
+
+
+def _sum3(x: np.ndarray) -> np.ndarray:
+    """``np.sum(x, axis=-1)`` for a last axis of 3, as numpy adds them (first to last: numpy's sum of
+    fewer than 8 values; the speed test holds it to that), without the reduction's overhead."""
+    return (x[..., 0] + x[..., 1]) + x[..., 2]
 
 
 def ball_joint_angles(
@@ -210,16 +277,16 @@ def ball_joint_angles(
     cands = np.stack((np.clip(e1, low, high), np.clip(e2, low, high)), axis=1)  # (T, 2, 3)
     mats = rot.as_matrix()
     if fit:
-        for t in np.flatnonzero((v1 > 1e-12) & (v2 > 1e-12)):
-            for k in range(2):
-                cands[t, k] = _fit_in_range(mats[t], cands[t, k], low, high, bone, bone_weight)
+        rows = np.flatnonzero((v1 > 1e-12) & (v2 > 1e-12))
+        if rows.size:
+            cands[rows] = _fit_all_in_range(mats[rows], cands[rows], low, high, bone, bone_weight)
     diff = euler_rotation("XYZ", cands.reshape(-1, 3)).as_matrix().reshape(n, 2, 3, 3) - mats[:, None]
     error = np.sum(diff ** 2, axis=(2, 3))
     if bone is not None:
-        error += bone_weight ** 2 * np.sum((diff @ bone) ** 2, axis=2)
+        error += bone_weight ** 2 * _sum3((diff @ bone) ** 2)
     # Viterbi over the two candidates per frame: the transition costs of all frames at once
     # (previous choice, current choice), then the compiled pass along the clip.
-    step = smoothness * np.sum((cands[1:, None, :, :] - cands[:-1, :, None, :]) ** 2, axis=3)
+    step = smoothness * _sum3((cands[1:, None, :, :] - cands[:-1, :, None, :]) ** 2)
     choice = _viterbi2(np.ascontiguousarray(error), np.ascontiguousarray(step))
     return cands[np.arange(n), choice], raw
 
@@ -270,6 +337,28 @@ def _viterbi2(error: np.ndarray, step: np.ndarray) -> np.ndarray:
     return choice
 
 
+def _fit_all_in_range(
+    targets: np.ndarray,
+    starts: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    bone: np.ndarray | None,
+    bone_weight: float,
+) -> np.ndarray:
+    """``_fit_in_range`` of both candidates ``starts`` (R, 2, 3) of each rotation matrix ``targets``
+    (R, 3, 3) at once: the compiled port of the same scipy fit (``kernels.fit_in_range``; ~7 ms a fit
+    in scipy, well under 0.1 ms compiled), the same steps and the same results (bit for bit in the tests)."""
+    from stairenv.motion.importers.kernels import fit_in_range
+
+    pairs = np.ascontiguousarray(np.repeat(targets, 2, axis=0), dtype=np.float64)
+    flat = np.ascontiguousarray(starts.reshape(-1, 3), dtype=np.float64)
+    weighted = np.zeros(3) if bone is None else np.ascontiguousarray(bone, dtype=np.float64)
+    fitted = fit_in_range(pairs, flat, np.ascontiguousarray(low, dtype=np.float64),
+                          np.ascontiguousarray(high, dtype=np.float64),
+                          weighted, float(bone_weight), 9 if bone is None else 12)
+    return fitted.reshape(starts.shape)
+
+
 def _fit_in_range(
     target: np.ndarray,
     start: np.ndarray,
@@ -278,7 +367,9 @@ def _fit_in_range(
     bone: np.ndarray | None,
     bone_weight: float,
 ) -> np.ndarray:
-    """In-range angles near the rotation matrix ``target``, from ``start`` (see ``ball_joint_angles``)."""
+    """In-range angles near the rotation matrix ``target``, from ``start`` (see ``ball_joint_angles``):
+    scipy's bounded least squares, the reference ``kernels.fit_in_range`` ports (the importers take the
+    compiled one, ``_fit_all_in_range``)."""
     from scipy.optimize import least_squares
 
     lo, hi = low + 1e-9, high - 1e-9
@@ -435,7 +526,7 @@ def make_clip(
 
     If ``times`` are not already the grid k / fps, the pose is resampled *as rotations*:
     linear interpolation of the root position, slerp of the root and of every joint's
-    local rotation (scipy ``Slerp``), and only then the projection onto our joint angles
+    local rotation (``slerp``: scipy ``Slerp``'s steps), and only then the projection onto our joint angles
     and ranges (``joints_to_qpos``), so Euler angles are never interpolated and resampled
     frames are in range too. Then the clip is put on the floor (``finish_clip``; measured
     on the output frames) and ``meta`` gains the clamping report of the output frames.
@@ -456,8 +547,8 @@ def make_clip(
         if len(times) < 2:
             raise ValueError("cannot resample a single frame")
         root_pos = np.stack([np.interp(grid, times, root_pos[:, k]) for k in range(3)], axis=1)
-        root_rot = Slerp(times, root_rot)(grid)
-        local = {joint: Slerp(times, rot)(grid) for joint, rot in local.items()}
+        root_rot = slerp(times, root_rot, grid)
+        local = {joint: slerp(times, rot, grid) for joint, rot in local.items()}
         meta = {**meta, "resampled": True}
     if projected is not None and not resample:
         qpos, report = projected[0], dict(projected[1])
