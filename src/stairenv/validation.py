@@ -277,3 +277,11 @@ def check_fields(config) -> None:
         value = check(check.keyword or field.name, getattr(config, field.name), low)
         object.__setattr__(config, field.name, value)
         values[field.name] = value
+
+
+def checked_config(cls: type) -> type:
+    """``dataclass(frozen=True)`` whose ``__post_init__`` runs ``check_fields`` (unless it has its own,
+    which then calls it)."""
+    if "__post_init__" not in vars(cls):
+        cls.__post_init__ = check_fields
+    return dataclass(frozen=True)(cls)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import tomllib
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ from stairenv.motion import stair_starts
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
 from stairenv.tasks.interlevel import InterLevelReward
-from stairenv.validation import Check, check_fields, checked, field_check
+from stairenv.validation import Check, check_fields, checked, checked_config, field_check
 from stairenv.world.stairs import StairsConfig
 
 REWARDS = ("interlevel", "interscene")
@@ -50,28 +50,22 @@ def _group_of(field: dataclasses.Field) -> type | None:
 
 
 # --- the groups ------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@checked_config
 class PhysicsConfig:
     """The character's servos and the policy rate."""
 
     pd_gains: str = checked("soft", Check("choice", options=tuple(PD_GAINS)), "PD gain preset")
     frame_skip: int = checked(8, Check("int", 1, 100), "physics steps per action (240 Hz physics -> 30 Hz)")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
 
-
-@dataclass(frozen=True)
+@checked_config
 class RenderConfig:
     render_mode: str | None = checked(None, Check("choice", options=RENDER_MODES, optional=True))
     width: int = checked(640, Check("int", 16, 4096), "rgb_array frame width")
     height: int = checked(480, Check("int", 16, 4096), "rgb_array frame height")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
 
-
-@dataclass(frozen=True)
+@checked_config
 class InterLevelRewardConfig:
     """Which reward, its terms' weights (``InterLevelReward``, the kernels' array) and the bonuses."""
 
@@ -81,32 +75,23 @@ class InterLevelRewardConfig:
     success_reward: float = checked(10.0, Check("float"), "bonus on reaching M_T")
     failure_reward: float = checked(-1.0, Check("float"), "reward of the step that ends in a fall")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
 
-
-@dataclass(frozen=True)
+@checked_config
 class InterLevelTermination:
     success_radius: float = checked(0.5, Check("float", 0.0, 10.0, low_open=True),
                                     "horizontal distance to M_T that counts as arrived (m)")
     terminate_on_success: bool = checked(True, Check("bool"), "end the episode on success")
     termination_height: float = checked(0.2, UNIT, "min vertical head-hips and hips-foot gap (m)")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
 
-
-@dataclass(frozen=True)
+@checked_config
 class InterLevelStart:
     start_radius: float = checked(1.0, Check("float", 0.0, 10.0), "start position uniform in this disc (m)")
     random_start_heading: bool = checked(True, Check("bool"), "start heading uniform; False = facing the stairs")
     reset_noise_scale: float = checked(0.05, UNIT, "uniform noise on joint angles at reset (rad)")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
 
-
-@dataclass(frozen=True)
+@checked_config
 class InterLevelTrainingAids:
     """What only shapes training: the final evaluation builds its env without these keywords
     (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
@@ -127,15 +112,12 @@ class InterLevelTrainingAids:
         None, Check("float", 0.0, 1.0, optional=True, low_from="curriculum_demote_below"),
         "also a level up at this progress; None = success only")
 
-    def __post_init__(self) -> None:
-        check_fields(self)
-
 
 # the stairs' fields under the env's keywords (StairsConfig's own errors say "distance", "yaw")
 KEYWORD_NAMES = {("stairs", "distance"): "stairs_distance", ("stairs", "yaw"): "stairs_yaw"}
 
 
-@dataclass(frozen=True)
+@checked_config
 class InterLevelConfig:
     """The whole configuration of an ``InterLevelEnv`` (InterLevel-v0, InterLevel2D-v0,
     InterSceneStairs-v0); ``env.unwrapped.config``. See the module docstring for the keywords."""
