@@ -69,7 +69,10 @@ class InterLevelEnv(HumanoidEnv):
     **Keywords** are checked at construction, each with its type: ``TypeError`` for a wrong type
     (``progress_scaling="False"``, ``frame_skip="4"``), ``ValueError`` for a value out of its range or
     not integral (``frame_skip=2.5``); both name the keyword. ``reference_motion`` is checked (its
-    files loaded) whatever ``init`` is.
+    files loaded) whatever ``init`` is. The keywords are the fields of ``InterLevelConfig``
+    (``stairenv.environments.config``: defaults and ranges live there), and ``config=InterLevelConfig(...)``
+    may be given instead (keywords beside it must agree with it); ``env.unwrapped.config`` is the
+    resolved config. The training aids below are its ``training_aids`` group.
 
     **Episode end**: terminated on success (root within ``success_radius`` of M_T,
     standing on the top floor) or a fall (head or a foot within
