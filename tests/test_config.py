@@ -1,5 +1,5 @@
 """One frozen, typed config per env family (issue #26, item 1): InterLevel's keywords map onto
-``InterLevelConfig``, ``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as
+``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``), ``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as
 the keywords, presets are configs, the errors are those of the keywords, and the final evaluation drops
 the config's training aids."""
 
@@ -18,10 +18,15 @@ from stairenv.assets import asset_dir
 from stairenv.environments.config import (
     InterLevelConfig,
     InterLevelTrainingAids,
+    PlaMoConfig,
+    PlaMoTrainingAids,
     group_keywords,
     keyword_paths,
 )
 from stairenv.environments.interlevel import STAIRS_RANGES, InterLevelEnv
+from stairenv.environments.plamo import PlaMoEnv
+from stairenv.environments.plamo_scene import PlaMoSceneEnv
+from stairenv.planning.locomotion import LOCOMOTIONS
 from stairenv.validation import field_check
 from stairenv.world.stairs import StairsConfig
 
@@ -53,14 +58,18 @@ def test_the_config_holds_the_keywords_resolved():
     env.close()
 
 
-def test_the_signature_is_the_configs_fields():
+@pytest.mark.parametrize("env_cls, config_cls", [(InterLevelEnv, InterLevelConfig), (PlaMoEnv, PlaMoConfig)])
+def test_the_signature_is_the_configs_fields(env_cls, config_cls):
     """The defaults live in the config alone; the env's keywords are its fields."""
-    parameters = inspect.signature(InterLevelEnv.__init__).parameters
-    defaults = InterLevelConfig().keywords()
-    assert set(parameters) - {"self"} == set(defaults) == set(keyword_paths(InterLevelConfig))
+    parameters = inspect.signature(env_cls.__init__).parameters
+    defaults = config_cls().keywords()
+    assert set(parameters) - {"self"} == set(defaults) == set(keyword_paths(config_cls))
     for name, value in defaults.items():
         default = parameters[name].default
         assert default == value or (name == "w_scale" and default is None), name
+
+
+def test_stairs_ranges_are_stairs_configs():
     # every leaf field declares its check, and StairsConfig's ranges are the env's (STAIRS_RANGES)
     stairs_fields = {field.name: field for field in dataclasses.fields(StairsConfig)}
     assert all(field_check(field) is not None for field in stairs_fields.values())
@@ -68,14 +77,20 @@ def test_the_signature_is_the_configs_fields():
     assert STAIRS_RANGES["stairs_distance"] == (distance.low, distance.high) == (0.5, 20.0)
 
 
-@pytest.mark.parametrize("env_id", INTERLEVEL_IDS)
-def test_presets_are_configs_and_config_equals_keywords(env_id):
+CHANGES = {InterLevelConfig: {"w_velocity": 0.5, "num_steps": (3, 5)},
+           PlaMoConfig: {"terrain_size": 12.0, "max_xy_error": 1.5, "locomotion": "walk"}}  # (not a preset keyword)
+
+
+@pytest.mark.parametrize("env_id, config_cls", [(env_id, InterLevelConfig) for env_id in INTERLEVEL_IDS]
+                         + [("PlaMo-v0", PlaMoConfig), ("PlaMoNaivePaths-v0", PlaMoConfig)])
+def test_presets_are_configs_and_config_equals_keywords(env_id, config_cls):
     preset = asset_dir("envs") / f"{env_id}.toml"
     plain = gym.make(env_id)
-    assert InterLevelConfig.from_toml(preset) == plain.unwrapped.config
+    assert config_cls.from_toml(preset) == plain.unwrapped.config
     plain.close()
-    config = InterLevelConfig.from_toml(preset).replace(w_velocity=0.5, num_steps=(3, 5))
-    by_config, by_keywords = gym.make(env_id, config=config), gym.make(env_id, w_velocity=0.5, num_steps=(3, 5))
+    changes = CHANGES[config_cls]
+    config = config_cls.from_toml(preset).replace(**changes)
+    by_config, by_keywords = gym.make(env_id, config=config), gym.make(env_id, **changes)
     assert by_config.unwrapped.config == by_keywords.unwrapped.config == config
     obs_a, _ = by_config.reset(seed=3)
     obs_b, _ = by_keywords.reset(seed=3)
@@ -144,3 +159,34 @@ def test_the_evaluation_drops_the_configs_training_aids(baseline_script):
     trained = InterLevelConfig.from_keywords(**kwargs)
     assert InterLevelConfig.from_keywords(**evaluated) == dataclasses.replace(
         trained, training_aids=InterLevelTrainingAids())
+
+
+def test_plamo_config_holds_the_keywords_resolved():
+    env = gym.make("PlaMoNaivePaths-v0", locomotion="crouch_walk", terrain_size=20, heightmap_size=8.0,
+                   matched_starts=np.bool_(False), speed_levels=4)
+    config = env.unwrapped.config
+    assert config.paths.path_generator == "naive" and config.paths.locomotion is LOCOMOTIONS["crouch-walk"]
+    assert config.terrain.size == 20.0 and config.observation.heightmap_size == 8
+    assert config.training_aids.matched_starts is False and config.training_aids.speed_levels == 4
+    assert PlaMoConfig.from_keywords(**config.keywords()) == config
+    assert env.unwrapped.locomotion is config.paths.locomotion and env.unwrapped.speed_levels == 4
+    env.close()
+    with pytest.raises(ValueError, match=re.escape("terrain_size=200.0 with terrain_cell_size=0.01 makes a")):
+        PlaMoEnv(terrain_size=200.0, terrain_cell_size=0.01)
+    with pytest.raises(TypeError, match=re.escape("locomotion must be None, a name")):
+        PlaMoConfig.from_keywords(locomotion=3)
+    # PlaMoScene builds its path follower from keywords, as before (its own keywords are not in the config)
+    scene = PlaMoSceneEnv(max_xy_error=2.5, heightmap_size=8)
+    assert scene.config.termination.max_xy_error == 2.5 and scene.config.terrain.kind == "flat"
+    scene.close()
+
+
+def test_the_evaluation_drops_plamos_training_aids(baseline_script):
+    train_ppo = baseline_script("train_ppo")
+    aids = group_keywords(PlaMoConfig, "training_aids")
+    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
+    kwargs = {"init": "hybrid", "matched_starts": False, "speed_levels": 3, "terrain": "rough"}
+    evaluated = train_ppo.evaluation_kwargs(kwargs)
+    assert evaluated == {"terrain": "rough"}
+    assert PlaMoConfig.from_keywords(**evaluated) == dataclasses.replace(
+        PlaMoConfig.from_keywords(**kwargs), training_aids=PlaMoTrainingAids())

@@ -200,7 +200,7 @@ class Check:
     | "choice" | ``check_choice`` among ``options`` |
     | "pair" | ``check_pair`` within [low, high] (``integer``: whole numbers) |
     | "numbers" | ``check_numbers`` within [low, high] |
-    | "call" | ``call(value)``, which raises (naming the field) or returns nothing (the value is kept) |
+    | "call" | ``call(value)``, which raises (naming the field) or returns the checked value |
 
     ``optional``: None is valid too. ``low_from``: the low bound is the checked value of that
     other field (checked before this one). ``keyword``: the name the value is given under, where it
@@ -214,7 +214,7 @@ class Check:
     integer: bool = False
     options: tuple = ()
     optional: bool = False
-    call: Callable[[Any], None] | None = None
+    call: Callable[[Any], Any] | None = None
     low_from: str | None = None
     keyword: str | None = None
 
@@ -239,8 +239,7 @@ class Check:
         if kind == "numbers":
             return check_numbers(name, value, low, self.high)
         if kind == "call":
-            self.call(value)
-            return value
+            return self.call(value)
         raise ValueError(f"unknown check kind {kind!r}")
 
     def valid(self) -> str:

@@ -18,19 +18,22 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import tomllib
 from dataclasses import fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 from stairenv.environments.base import INITS, check_reference_motion
 from stairenv.humanoid import PD_GAINS
+from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.motion import stair_starts
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
 from stairenv.tasks.interlevel import InterLevelReward
-from stairenv.validation import Check, check_fields, checked, checked_config, field_check
+from stairenv.validation import Check, check_fields, check_grid, checked, checked_config, field_check
 from stairenv.world.stairs import StairsConfig
+from stairenv.world.terrain import TERRAIN_KINDS
 
 REWARDS = ("interlevel", "interscene")
 UNIT = Check("float", 0.0, 1.0)
@@ -47,6 +50,33 @@ def group(cls: type, checks_keywords: bool = True) -> Any:
 
 def _group_of(field: dataclasses.Field) -> type | None:
     return field.metadata.get(GROUP_KEY)
+
+
+def _reference_motion(value):
+    check_reference_motion(value)
+    return value
+
+
+class EnvConfig:
+    """What every family's config does: built from keywords (or a preset), and back."""
+
+    @classmethod
+    def from_keywords(cls, **keywords) -> Self:
+        return from_keywords(cls, keywords)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Self:
+        """The config of a preset (``envs/*.toml``): its ``[kwargs]`` as keywords."""
+        with Path(path).open("rb") as f:
+            return from_keywords(cls, tomllib.load(f).get("kwargs", {}))
+
+    def keywords(self) -> dict[str, Any]:
+        """Every keyword and its resolved value (``from_keywords(**config.keywords()) == config``)."""
+        return {keyword: _get(self, path) for keyword, path in keyword_paths(type(self)).items()}
+
+    def replace(self, **keywords) -> Self:
+        """This config with some keywords changed (checked as ``from_keywords`` checks them)."""
+        return from_keywords(type(self), {**self.keywords(), **keywords})
 
 
 # --- the groups ------------------------------------------------------------------------------
@@ -92,15 +122,21 @@ class InterLevelStart:
 
 
 @checked_config
-class InterLevelTrainingAids:
-    """What only shapes training: the final evaluation builds its env without these keywords
-    (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
+class ReferenceStarts:
+    """Reference-state starts (``HumanoidEnv._setup_starts``), a training aid of every family."""
 
     init: str = checked("default", Check("choice", options=INITS),
                         'start pose: "default" (standing), "reference", "hybrid"')
-    reference_motion: str | None = checked(None, Check("call", call=check_reference_motion, optional=True),
-                                           "folder / .npz of reference clips; None = the built-in set")
+    reference_motion: str | None = checked(None, Check("call", call=_reference_motion, optional=True),
+                                           "folder / .npz of reference clips; None = the env's built-in set")
     hybrid_fraction: float = checked(0.5, UNIT, 'share of reference starts with init="hybrid"')
+
+
+@checked_config
+class InterLevelTrainingAids(ReferenceStarts):
+    """What only shapes training: the final evaluation builds its env without these keywords
+    (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
+
     stairs_start_fraction: float = checked(0.0, UNIT, "share of episodes that start on a climb of their stairs")
     stall_seconds: float | None = checked(None, Check("float", 0.0, 3600.0, low_open=True, optional=True),
                                           "end an episode that has not come closer to M_T for this long")
@@ -118,13 +154,19 @@ KEYWORD_NAMES = {("stairs", "distance"): "stairs_distance", ("stairs", "yaw"): "
 
 
 @checked_config
-class InterLevelConfig:
-    """The whole configuration of an ``InterLevelEnv`` (InterLevel-v0, InterLevel2D-v0,
-    InterSceneStairs-v0); ``env.unwrapped.config``. See the module docstring for the keywords."""
+class HumanoidConfig(EnvConfig):
+    """What every family's config holds first: the character's physics, rendering and style history."""
 
     physics: PhysicsConfig = group(PhysicsConfig)
     render: RenderConfig = group(RenderConfig)
     amp_history: int = checked(2, Check("int", 1, 100), "frames of AMP features in info['amp_obs']")
+
+
+@checked_config
+class InterLevelConfig(HumanoidConfig):
+    """The whole configuration of an ``InterLevelEnv`` (InterLevel-v0, InterLevel2D-v0,
+    InterSceneStairs-v0); ``env.unwrapped.config``. See the module docstring for the keywords."""
+
     reward: InterLevelRewardConfig = group(InterLevelRewardConfig)
     termination: InterLevelTermination = group(InterLevelTermination)
     start: InterLevelStart = group(InterLevelStart)
@@ -145,23 +187,81 @@ class InterLevelConfig:
         if aids.stairs_start_fraction > 0.0:
             stair_starts.check_staircases(stairs.step_height_set or stairs.step_height, stairs.step_depth)
 
-    @classmethod
-    def from_keywords(cls, **keywords) -> InterLevelConfig:
-        return from_keywords(cls, keywords)
+# --- PlaMo ------------------------------------------------------------------------------------
+PATH_GENERATORS = ("coupled", "naive")
+# Bound on a height field's samples (terrain_size / terrain_cell_size + 1 per side, squared): 2001^2,
+# e.g. 200 m at 0.1 m or 20 m at 0.01 m. Building one costs ~52 bytes a sample (the spec's
+# zero list, the model's field, the heights; measured), so ~200 MB at the bound.
+MAX_TERRAIN_CELLS = 2001 ** 2
+TERRAIN_BYTES_PER_CELL = 52
 
-    @classmethod
-    def from_toml(cls, path: str | Path) -> InterLevelConfig:
-        """The config of a preset (``envs/*.toml``): its ``[kwargs]`` as keywords."""
-        with Path(path).open("rb") as f:
-            return from_keywords(cls, tomllib.load(f).get("kwargs", {}))
 
-    def keywords(self) -> dict[str, Any]:
-        """Every keyword and its resolved value (``from_keywords(**config.keywords()) == config``)."""
-        return {keyword: _get(self, path) for keyword, path in keyword_paths(type(self)).items()}
+def _locomotion(value) -> Locomotion:
+    if not isinstance(value, (str, Locomotion)):
+        raise TypeError(f"locomotion must be None, a name ({sorted(LOCOMOTIONS)}) or a Locomotion, "
+                        f"got {type(value).__name__}")
+    return get_locomotion(value)  # ValueError names it
 
-    def replace(self, **keywords) -> InterLevelConfig:
-        """This config with some keywords changed (checked as ``from_keywords`` checks them)."""
-        return from_keywords(type(self), {**self.keywords(), **keywords})
+
+@checked_config
+class PlaMoTerrain:
+    """The height field: its kind, size and resolution ([2, 200] and [0.01, 1] m, checked by
+    ``HeightfieldSlot``), at most ``MAX_TERRAIN_CELLS`` samples (checked first: it allocates)."""
+
+    kind: str = checked("mixed", Check("choice", options=TERRAIN_KINDS, keyword="terrain"),
+                        '"flat", "slope", "rough", "stairs" or "mixed"')
+    size: float = checked(16.0, Check("float", 0.0, math.inf, low_open=True, keyword="terrain_size"),
+                          "height field side (m)")
+    cell_size: float = checked(0.1, Check("float", 0.0, math.inf, low_open=True, keyword="terrain_cell_size"),
+                               "height field resolution (m)")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        check_grid(("terrain_size", "terrain_cell_size"), (self.size,) * 2, self.cell_size, MAX_TERRAIN_CELLS,
+                   TERRAIN_BYTES_PER_CELL)
+
+
+@checked_config
+class PlaMoPaths:
+    locomotion: str | Locomotion | None = checked(None, Check("call", call=_locomotion, optional=True),
+                                                  "restrict paths to one locomotion; None = any")
+    path_generator: str = checked("coupled", Check("choice", options=PATH_GENERATORS),
+                                  '"coupled" (PlaMo) or "naive" (speed independent of height)')
+    episode_seconds: float = checked(10.0, Check("float", 1.0, 600.0), "path length in time (s)")
+
+
+@checked_config
+class PlaMoObservation:
+    heightmap_size: int = checked(16, Check("int", 1, 128), "egocentric heightmap samples per side")
+    heightmap_extent: float = checked(2.0, Check("float", 0.1, 10.0), "egocentric heightmap extent (m)")
+
+
+@checked_config
+class PlaMoTermination:
+    max_xy_error: float = checked(2.0, Check("float", 0.0, 100.0, low_open=True),
+                                  "head-target distance on the ground that ends the episode (m)")
+    min_head_height: float = checked(0.15, UNIT, "head height above the terrain that ends the episode (m)")
+
+
+@checked_config
+class PlaMoTrainingAids(ReferenceStarts):
+    """What only shapes training (dropped by the final evaluation); off by default."""
+
+    matched_starts: bool = checked(True, Check("bool"), "a reference start is a frame of the path's opening "
+                                   "locomotion (acts only with reference starts)")
+    speed_levels: int = checked(0, Check("int", 0, 100), "levels of the speed curriculum; 0 = off")
+
+
+@checked_config
+class PlaMoConfig(HumanoidConfig):
+    """The whole configuration of a ``PlaMoEnv`` (PlaMo-v0, PlaMoNaivePaths-v0); ``env.unwrapped.config``.
+    (``PlaMoSceneEnv`` builds its path follower from one; its own keywords are not in it yet.)"""
+
+    terrain: PlaMoTerrain = group(PlaMoTerrain)
+    paths: PlaMoPaths = group(PlaMoPaths)
+    observation: PlaMoObservation = group(PlaMoObservation)
+    termination: PlaMoTermination = group(PlaMoTermination)
+    training_aids: PlaMoTrainingAids = group(PlaMoTrainingAids)
 
 
 # --- keywords <-> fields ----------------------------------------------------------------------
@@ -272,6 +372,7 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
     return config
 
 
-__all__ = ["InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart", "InterLevelTermination",
-           "InterLevelTrainingAids", "PhysicsConfig", "RenderConfig", "from_keywords", "group_keywords",
-           "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]
+__all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart", "InterLevelTermination",
+           "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation", "PlaMoPaths", "PlaMoTerrain",
+           "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig", "from_keywords",
+           "group_keywords", "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]
