@@ -1,7 +1,7 @@
 """One frozen, typed config per env family (issue #26, item 1): InterLevel's keywords map onto
-``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``), ``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as
-the keywords, presets are configs, the errors are those of the keywords, and the final evaluation drops
-the config's training aids."""
+``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``), ``env.unwrapped.config`` is the resolved config,
+``config=`` builds the same env as the keywords, presets are configs, the errors are those of the
+keywords, and the final evaluation drops the config's training aids."""
 
 from __future__ import annotations
 
@@ -108,6 +108,9 @@ def test_keywords_beside_a_config_must_agree_with_it():
     with pytest.raises(ValueError, match="progress_scaling=True disagree with config"):
         gym.make("InterLevel-v0", config=config)  # the preset's keyword
     gym.make("InterLevel2D-v0", config=config).close()
+    # judged over the config: its other fields stand (start_radius 2.0 needs stairs 2.5 m away or more)
+    far = InterLevelConfig.from_keywords(start_radius=2.0, stairs_distance=(3.0, 4.0))
+    assert InterLevelEnv(config=far, start_radius=2, frame_skip=8.0).config is far
     with pytest.raises(TypeError, match="config must be a InterLevelConfig"):
         InterLevelEnv(config={"w_velocity": 0.5})
     with pytest.raises(TypeError, match="unexpected keyword"):

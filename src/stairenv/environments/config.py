@@ -26,8 +26,8 @@ from typing import Any, Self
 
 from stairenv.environments.base import INITS, check_reference_motion
 from stairenv.humanoid import PD_GAINS
-from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.motion import stair_starts
+from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
 from stairenv.tasks.interlevel import InterLevelReward
@@ -363,7 +363,9 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
         raise TypeError(f"config must be a {cls.__name__}, got {type(config).__name__}")
     if keywords:
         given = config.keywords()
-        disagree = [k for k, v in from_keywords(cls, keywords).keywords().items() if k in keywords and v != given[k]]
+        # the keywords resolved as they would be over the config (4.0 is 4, None w_scale the ratio)
+        changed = from_keywords(cls, {**given, **keywords}).keywords()
+        disagree = [k for k in keywords if changed[k] != given[k]]
         if disagree:
             raise ValueError(
                 f"keywords {', '.join(f'{k}={keywords[k]!r}' for k in disagree)} disagree with config "
@@ -372,7 +374,7 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
     return config
 
 
-__all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart", "InterLevelTermination",
-           "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation", "PlaMoPaths", "PlaMoTerrain",
-           "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig", "from_keywords",
-           "group_keywords", "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]
+__all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
+           "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation",
+           "PlaMoPaths", "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
+           "from_keywords", "group_keywords", "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]

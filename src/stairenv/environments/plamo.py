@@ -82,10 +82,11 @@ class PlaMoEnv(HumanoidEnv):
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
     given instead (keywords beside it must agree with it), and ``env.unwrapped.config`` is the resolved
-    config (for ``PlaMoSceneEnv``: its path follower's, without the scene's own keywords). **Memory bound**: the height field has
-    ``terrain_size / terrain_cell_size + 1`` samples per side and may hold at most
-    ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m or 20 m at 0.01 m;
-    building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
+    config (for ``PlaMoSceneEnv``: its path follower's, without the scene's own keywords).
+
+    **Memory bound**: the height field has ``terrain_size / terrain_cell_size + 1`` samples per side
+    and may hold at most ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m
+    or 20 m at 0.01 m; building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
     need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
 
     | keyword | default | meaning |
