@@ -104,6 +104,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
 import stairenv  # noqa: F401  (registers the envs)
+from stairenv.environments.config import InterLevelConfig, PlaMoConfig, group_keywords
 from stairenv.environments.sims import SIMSEnv, reference_captions
 from stairenv.evaluation import evaluator_for
 from stairenv.evaluation.cli import env_kwarg_argument
@@ -317,10 +318,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
-#: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol).
-TRAINING_AIDS = ("init", "reference_motion", "stairs_start_fraction", "stall_seconds", "stall_distance",
-                 "step_height_levels", "curriculum_promote_at", "curriculum_demote_below",
-                 "interaction_start_fraction", "start_distance_levels", "speed_levels")
+#: Training aids of the family without a config yet (SIMS'): named here.
+OTHER_TRAINING_AIDS = ("init", "reference_motion", "stall_seconds", "stall_distance",
+                       "interaction_start_fraction", "start_distance_levels")
+#: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol): the
+#: fields of the configs' ``training_aids`` (InterLevel's, PlaMo's), then ``OTHER_TRAINING_AIDS``.
+TRAINING_AIDS = tuple(dict.fromkeys(group_keywords(InterLevelConfig, "training_aids")
+                                    + group_keywords(PlaMoConfig, "training_aids") + OTHER_TRAINING_AIDS))
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:

@@ -6,14 +6,20 @@ out of range ``ValueError``. ``check_number`` and ``check_range`` take anything 
 takes (config objects built from parsed files); ``check_bool``, ``check_int``, ``check_float``,
 ``check_numbers``, ``check_pair``, ``check_str`` and ``check_mapping`` also check the type, and
 ``check_grid`` bounds the memory a grid of samples may ask for.
+
+A config field declares its check once, beside it: ``checked(default, Check(kind, low, high, ...))``;
+``check_fields`` runs the checks of a frozen dataclass's fields (``stairenv.environments.config``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 import reprlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -172,3 +178,109 @@ def _plain(sizes: Sequence[float]):
 
 def _bytes(n: float) -> str:
     return f"{n / 2**30:.3g} GB" if n >= 2**30 else f"{n / 2**20:.3g} MB"
+
+
+# --- checks declared beside config fields ----------------------------------------------------------
+CHECK_KEY = "stairenv.validation.check"
+
+
+@dataclass(frozen=True)
+class Check:
+    """How a config field's value is checked, declared once beside the field (``checked``).
+
+    ``kind`` picks the typed check of this module, with the range or choices given here:
+
+    | kind | check |
+    |---|---|
+    | "float" | ``check_float`` in [low, high] (``low_open``: (low, high]) |
+    | "number" | the type as ``check_float``, then the range as ``check_number`` (a config whose own
+      ``__post_init__`` takes anything ``float()`` takes: its message for a value out of range) |
+    | "int" | ``check_int`` in [low, high] |
+    | "bool" | ``check_bool`` |
+    | "choice" | ``check_choice`` among ``options`` |
+    | "pair" | ``check_pair`` within [low, high] (``integer``: whole numbers) |
+    | "numbers" | ``check_numbers`` within [low, high] |
+    | "call" | ``call(value)``, which raises (naming the field) or returns the checked value |
+
+    ``optional``: None is valid too. ``low_from``: the low bound is the checked value of that
+    other field (checked before this one). ``keyword``: the name the value is given under, where it
+    is not the field's own (errors name it).
+    """
+
+    kind: str
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    integer: bool = False
+    options: tuple = ()
+    optional: bool = False
+    call: Callable[[Any], Any] | None = None
+    low_from: str | None = None
+    keyword: str | None = None
+
+    def __call__(self, name: str, value, low: float | None = None):
+        """``value`` checked under ``name`` (converted: a tuple for a pair, an int for 4.0, ...)."""
+        if value is None and self.optional:
+            return None
+        low = self.low if low is None else low
+        kind = self.kind
+        if kind == "float":
+            return check_float(name, value, low, self.high, self.low_open)
+        if kind == "number":
+            return check_number(name, check_float(name, value), low, self.high, self.low_open)
+        if kind == "int":
+            return check_int(name, value, low, self.high)
+        if kind == "bool":
+            return check_bool(name, value)
+        if kind == "choice":
+            return check_choice(name, value, self.options)
+        if kind == "pair":
+            return check_pair(name, value, low, self.high, integer=self.integer)
+        if kind == "numbers":
+            return check_numbers(name, value, low, self.high)
+        if kind == "call":
+            return self.call(value)
+        raise ValueError(f"unknown check kind {kind!r}")
+
+    def valid(self) -> str:
+        """The valid values in words (a docstring table's column)."""
+        kind, bracket = self.kind, "(" if self.low_open else "["
+        low = self.low_from if self.low_from else f"{self.low:g}"
+        text = {"float": f"{bracket}{low}, {self.high:g}]", "number": f"{bracket}{low}, {self.high:g}]",
+                "int": f"integer in [{low}, {self.high:g}]", "bool": "True or False",
+                "choice": " or ".join(f'"{o}"' for o in self.options),
+                "pair": f"(min, max) {'integers ' if self.integer else ''}within [{low}, {self.high:g}]",
+                "numbers": f"numbers within [{low}, {self.high:g}]", "call": "see the meaning"}[kind]
+        return f"{text}, or None" if self.optional else text
+
+
+def checked(default, check: Check, doc: str = "") -> Any:
+    """A dataclass field with ``default`` whose values ``check`` checks (``field_check``)."""
+    return dataclasses.field(default=default, metadata={CHECK_KEY: check, "doc": doc})
+
+
+def field_check(field: dataclasses.Field) -> Check | None:
+    """The ``Check`` a field was declared with (``checked``), or None."""
+    return field.metadata.get(CHECK_KEY)
+
+
+def check_fields(config) -> None:
+    """Check every ``checked`` field of the frozen dataclass instance ``config`` in field order, under its
+    keyword, and store the checked value (a frozen dataclass's ``__post_init__`` calls it)."""
+    values = {}
+    for field in dataclasses.fields(config):
+        check = field_check(field)
+        if check is None:
+            continue
+        low = None if check.low_from is None else values[check.low_from]
+        value = check(check.keyword or field.name, getattr(config, field.name), low)
+        object.__setattr__(config, field.name, value)
+        values[field.name] = value
+
+
+def checked_config(cls: type) -> type:
+    """``dataclass(frozen=True)`` whose ``__post_init__`` runs ``check_fields`` (unless it has its own,
+    which then calls it)."""
+    if "__post_init__" not in vars(cls):
+        cls.__post_init__ = check_fields
+    return dataclass(frozen=True)(cls)

@@ -10,7 +10,9 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome
+from stairenv.environments.config import KEYWORD_NAMES, InterLevelConfig, keyword_signature, resolve
+from stairenv.environments.config import REWARDS  # noqa: F401 (importable from here, as before)
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.humanoid.state import PELVIS
@@ -20,23 +22,19 @@ from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
-from stairenv.validation import check_bool, check_choice, check_float, check_int, check_numbers, check_pair
+from stairenv.validation import field_check
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
-REWARDS = ("interlevel", "interscene")
 # Columns of the step kernel's results (``task.STEP_RESULTS``), read row by row in ``_step_outcomes``.
 _FELL, _SUCCESS, _PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
     "fell", "success", "progress", "height_progress", "distance_to_target"))
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
-# StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw").
-STAIRS_RANGES = {
-    "step_height": (0.01, 0.40),
-    "step_depth": (0.15, 1.0),
-    "step_width": (0.5, 5.0),
-    "stairs_distance": (0.5, 20.0),
-    "stairs_yaw": (-2.0 * math.pi, 2.0 * math.pi),
-}
+# StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
+# read from its fields' checks.
+STAIRS_RANGES = {keyword: (field_check(field).low, field_check(field).high) for keyword, field in (
+    (KEYWORD_NAMES.get(("stairs", field.name), field.name), field) for field in dataclasses.fields(StairsConfig))
+    if keyword in ("step_height", "step_depth", "step_width", "stairs_distance", "stairs_yaw")}
 
 
 class InterLevelEnv(HumanoidEnv):
@@ -71,7 +69,10 @@ class InterLevelEnv(HumanoidEnv):
     **Keywords** are checked at construction, each with its type: ``TypeError`` for a wrong type
     (``progress_scaling="False"``, ``frame_skip="4"``), ``ValueError`` for a value out of its range or
     not integral (``frame_skip=2.5``); both name the keyword. ``reference_motion`` is checked (its
-    files loaded) whatever ``init`` is.
+    files loaded) whatever ``init`` is. The keywords are the fields of ``InterLevelConfig``
+    (``stairenv.environments.config``: defaults and ranges live there), and ``config=InterLevelConfig(...)``
+    may be given instead (keywords beside it must agree with it); ``env.unwrapped.config`` is the
+    resolved config. The training aids below are its ``training_aids`` group.
 
     **Episode end**: terminated on success (root within ``success_radius`` of M_T,
     standing on the top floor) or a fall (head or a foot within
@@ -157,116 +158,47 @@ class InterLevelEnv(HumanoidEnv):
       its checkpoints (``baselines/train_ppo.py`` does).
     """
 
-    def __init__(
-        self,
-        reward: str = "interlevel",
-        progress_scaling: bool = task.InterLevelReward.progress_scaling,
-        # the reward's defaults are InterLevelReward's, the one place that holds them
-        w_location: float = task.InterLevelReward.w_location,
-        w_facing: float = task.InterLevelReward.w_facing,
-        w_velocity: float = task.InterLevelReward.w_velocity,
-        sigma_before: float = task.InterLevelReward.sigma_before,
-        sigma_after: float = task.InterLevelReward.sigma_after,
-        sigma_across: float = task.InterLevelReward.sigma_across,
-        w_scale: float | None = task.InterLevelReward.w_scale,
-        target_speed: float = task.InterLevelReward.target_speed,
-        success_reward: float = 10.0,
-        failure_reward: float = -1.0,
-        success_radius: float = 0.5,
-        terminate_on_success: bool = True,
-        termination_height: float = 0.2,
-        start_radius: float = 1.0,
-        random_start_heading: bool = True,
-        step_height: tuple[float, float] = (0.05, 0.20),
-        step_height_set: tuple[float, ...] | None = None,
-        step_depth: tuple[float, float] = (0.25, 0.40),
-        step_width: tuple[float, float] = (1.0, 2.0),
-        num_steps: tuple[int, int] = (3, 10),
-        landing_depth: float = 2.0,
-        stairs_distance: tuple[float, float] = (2.0, 3.0),
-        stairs_yaw: tuple[float, float] = (0.0, 2.0 * math.pi),
-        pd_gains: str = "soft",
-        frame_skip: int = 8,
-        reset_noise_scale: float = 0.05,
-        amp_history: int = 2,
-        init: str = "default",
-        reference_motion: str | None = None,
-        hybrid_fraction: float = 0.5,
-        stairs_start_fraction: float = 0.0,
-        stall_seconds: float | None = None,
-        stall_distance: float = 0.2,
-        step_height_levels: int = 0,
-        curriculum_promote_at: float | None = None,
-        curriculum_demote_below: float = curriculum.DEMOTE_BELOW,
-        render_mode: str | None = None,
-        width: int = 640,
-        height: int = 480,
-    ) -> None:
-        frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
-            frame_skip, amp_history, render_mode, width, height, pd_gains)
-        self.reward_name = check_choice("reward", reward, REWARDS)
-        self._term_names = task.REWARD_TERMS if reward == "interlevel" else interscene.REWARD_TERMS
-        # InterLevelReward checks the ranges under the same names; here the types.
-        weights = {name: check_float(name, value) for name, value in (
-            ("w_location", w_location), ("w_facing", w_facing), ("w_velocity", w_velocity),
-            ("sigma_before", sigma_before), ("sigma_after", sigma_after), ("sigma_across", sigma_across),
-            ("target_speed", target_speed))}
-        self.reward_config = task.InterLevelReward(
-            **weights, w_scale=None if w_scale is None else check_float("w_scale", w_scale),
-            progress_scaling=check_bool("progress_scaling", progress_scaling),
-        )
+    def __init__(self, *, config: InterLevelConfig | None = None, **keywords) -> None:
+        # the keywords (signature below: InterLevelConfig's fields) -> the one resolved, checked config
+        self.config = config = resolve(InterLevelConfig, config, keywords)
+        # attributes of the config's values, as before there was one (read by the kernel, the batched
+        # env and the trainers)
+        physics, render, rewards, termination = config.physics, config.render, config.reward, config.termination
+        start, aids = config.start, config.training_aids
+        self.reward_name = rewards.kind
+        self._term_names = task.REWARD_TERMS if rewards.kind == "interlevel" else interscene.REWARD_TERMS
+        self.reward_config = rewards.terms
         self._reward_array = self.reward_config.as_array()  # what the compiled step takes
-        self.success_reward = check_float("success_reward", success_reward)
-        self.failure_reward = check_float("failure_reward", failure_reward)
-        self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
-        self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
-        self.termination_height = check_float("termination_height", termination_height, 0.0, 1.0)
-        self.start_radius = check_float("start_radius", start_radius, 0.0, 10.0)
-        self.random_start_heading = check_bool("random_start_heading", random_start_heading)
-        self.stairs_config = StairsConfig(
-            **{field: check_pair(keyword, value, *STAIRS_RANGES[keyword]) for field, keyword, value in (
-                ("step_height", "step_height", step_height), ("step_depth", "step_depth", step_depth),
-                ("step_width", "step_width", step_width), ("distance", "stairs_distance", stairs_distance),
-                ("yaw", "stairs_yaw", stairs_yaw))},
-            step_height_set=None if step_height_set is None else check_numbers(
-                "step_height_set", step_height_set, *STAIRS_RANGES["step_height"]),
-            num_steps=check_pair("num_steps", num_steps, 1, 30, integer=True),
-            landing_depth=check_float("landing_depth", landing_depth, 1.0, 10.0),
-        )
-        # The character (a disc of ~0.35 m around its root) must start clear of the stairs.
-        if self.stairs_config.distance[0] < self.start_radius + 0.5:
-            raise ValueError(
-                f"stairs_distance min {self.stairs_config.distance[0]} must be at least "
-                f"start_radius + 0.5 = {self.start_radius + 0.5} so the character starts clear of the stairs"
-            )
-        self.reset_noise_scale = check_float("reset_noise_scale", reset_noise_scale, 0.0, 1.0)
-        self.stairs_start_fraction = check_float("stairs_start_fraction", stairs_start_fraction, 0.0, 1.0)
+        self.success_reward, self.failure_reward = rewards.success_reward, rewards.failure_reward
+        self.success_radius = termination.success_radius
+        self.terminate_on_success = termination.terminate_on_success
+        self.termination_height = termination.termination_height
+        self.start_radius, self.random_start_heading = start.start_radius, start.random_start_heading
+        self.reset_noise_scale = start.reset_noise_scale
+        self.stairs_config = config.stairs
+        self.stairs_start_fraction = aids.stairs_start_fraction
         self._stairs_start = False
-        self.stall_seconds = None if stall_seconds is None else check_float(
-            "stall_seconds", stall_seconds, 0.0, 3600.0, low_open=True)
-        self.stall_distance = check_float("stall_distance", stall_distance, 0.0, 100.0)
-        self.step_height_levels = check_int("step_height_levels", step_height_levels, 0, 100)
-        if self.step_height_levels and self.stairs_config.step_height_set is not None:
-            raise ValueError("step_height_levels needs a step_height range; it cannot split step_height_set")
-        self.curriculum_demote_below = check_float("curriculum_demote_below", curriculum_demote_below, 0.0, 1.0)
-        self.curriculum_promote_at = None if curriculum_promote_at is None else check_float(
-            "curriculum_promote_at", curriculum_promote_at, self.curriculum_demote_below, 1.0)
+        self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
+        self.step_height_levels = aids.step_height_levels
+        self.curriculum_demote_below = aids.curriculum_demote_below
+        self.curriculum_promote_at = aids.curriculum_promote_at
         #: this world's level of the step-height curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
-        if self.stairs_start_fraction > 0.0:
-            stair_starts.check_staircases(self.stairs_config.step_height_set or self.stairs_config.step_height,
-                                          self.stairs_config.step_depth)
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
-        self._setup_starts(init, hybrid_fraction, reference_motion)
+        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
 
-        spec = load_humanoid_spec(pd_gains)
+        spec = load_humanoid_spec(physics.pd_gains)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)
-        self._setup(spec, frame_skip, amp_history, render_mode, width, height)
+        self._setup(spec, physics.frame_skip, config.amp_history, render.render_mode, render.width, render.height)
         self._slots.bind(self.model)
         self._camera_distance, self._camera_elevation = 6.0, -20.0
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.OBSERVATION_SIZE,), dtype=np.float64)
         self.observation_structure = dict(task.OBSERVATION_STRUCTURE)
         self.stairs: Staircase | None = None
+
+    # the keywords: InterLevelConfig's fields, defaults included (``config=`` stays out of the signature, which
+    # lists the keywords)
+    __init__.__signature__ = keyword_signature(InterLevelConfig)
 
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -10,29 +10,25 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome
+from stairenv.environments.config import PlaMoConfig, keyword_signature, resolve
+# named here too, as before (the height field's bound is PlaMoTerrain's)
+from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TERRAIN_BYTES_PER_CELL  # noqa: F401
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
-from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion, nearest_locomotion
+from stairenv.planning.locomotion import LOCOMOTIONS, nearest_locomotion
 from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.validation import check_bool, check_choice, check_float, check_grid, check_int
-from stairenv.world.terrain import TERRAIN_KINDS, HeightfieldSlot, bilinear_height, terrain_heights
+from stairenv.world.terrain import HeightfieldSlot, bilinear_height, terrain_heights
 
-PATH_GENERATORS = ("coupled", "naive")
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
 # Where ``_floor_under`` looks around a start: 9 points 0.5 m away (the first and last the same).
 FLOOR_RING = 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
 FLOOR_RING.flags.writeable = False
-# Bound on a height field's samples (terrain_size / terrain_cell_size + 1 per side, squared): 2001^2,
-# e.g. 200 m at 0.1 m or 20 m at 0.01 m. Building one costs ~52 bytes a sample (the spec's
-# zero list, the model's field, the heights; measured), so ~200 MB at the bound.
-MAX_TERRAIN_CELLS = 2001 ** 2
-TERRAIN_BYTES_PER_CELL = 52
 
 
 class PlaMoEnv(HumanoidEnv):
@@ -83,10 +79,14 @@ class PlaMoEnv(HumanoidEnv):
     (``reset(options={"episode_cut": True})``) is not judged. Trainers log and checkpoint the level.
 
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
-    value out of range, both naming the keyword). **Memory bound**: the height field has
-    ``terrain_size / terrain_cell_size + 1`` samples per side and may hold at most
-    ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m or 20 m at 0.01 m;
-    building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
+    value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
+    (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
+    given instead (keywords beside it must agree with it), and ``env.unwrapped.config`` is the resolved
+    config (for ``PlaMoSceneEnv``: its path follower's, without the scene's own keywords).
+
+    **Memory bound**: the height field has ``terrain_size / terrain_cell_size + 1`` samples per side
+    and may hold at most ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m
+    or 20 m at 0.01 m; building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
     need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
 
     | keyword | default | meaning |
@@ -109,53 +109,21 @@ class PlaMoEnv(HumanoidEnv):
     #: PlaMo's reference motion (AMP and reference-state starts): all four locomotion types
     DEFAULT_REFERENCE_MOTION = "builtin:plamo"
 
-    def __init__(
-        self,
-        terrain: str = "mixed",
-        locomotion: str | None = None,
-        path_generator: str = "coupled",
-        episode_seconds: float = 10.0,
-        terrain_size: float = 16.0,
-        terrain_cell_size: float = 0.1,
-        heightmap_size: int = 16,
-        heightmap_extent: float = 2.0,
-        max_xy_error: float = 2.0,
-        min_head_height: float = 0.15,
-        init: str = "default",
-        reference_motion: str | None = None,
-        hybrid_fraction: float = 0.5,
-        matched_starts: bool = True,
-        speed_levels: int = 0,
-        pd_gains: str = "soft",
-        frame_skip: int = 8,
-        amp_history: int = 2,
-        render_mode: str | None = None,
-        width: int = 640,
-        height: int = 480,
-    ) -> None:
-        frame_skip, amp_history, render_mode, width, height = check_humanoid_keywords(
-            frame_skip, amp_history, render_mode, width, height, pd_gains)
-        self.terrain = check_choice("terrain", terrain, TERRAIN_KINDS)
-        self.path_generator = check_choice("path_generator", path_generator, PATH_GENERATORS)
-        if locomotion is not None and not isinstance(locomotion, (str, Locomotion)):
-            raise TypeError(f"locomotion must be None, a name ({sorted(LOCOMOTIONS)}) or a Locomotion, "
-                            f"got {type(locomotion).__name__}")
-        self.locomotion = None if locomotion is None else get_locomotion(locomotion)  # ValueError names it
-        self.episode_seconds = check_float("episode_seconds", episode_seconds, 1.0, 600.0)
-        # HeightfieldSlot checks the documented ranges; the grid bound comes first (it allocates).
-        check_grid(("terrain_size", "terrain_cell_size"),
-                   (check_float("terrain_size", terrain_size, 0.0, math.inf, low_open=True),) * 2,
-                   check_float("terrain_cell_size", terrain_cell_size, 0.0, math.inf, low_open=True),
-                   MAX_TERRAIN_CELLS, TERRAIN_BYTES_PER_CELL)
-        self.heightmap_size = check_int("heightmap_size", heightmap_size, 1, 128)
-        self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
-        self.max_xy_error = check_float("max_xy_error", max_xy_error, 0.0, 100.0, low_open=True)
-        self.min_head_height = check_float("min_head_height", min_head_height, 0.0, 1.0)
+    def __init__(self, *, config: PlaMoConfig | None = None, **keywords) -> None:
+        # the keywords (signature below: PlaMoConfig's fields) -> the one resolved, checked config
+        self.config = config = resolve(PlaMoConfig, config, keywords)
+        terrain, paths, aids = config.terrain, config.paths, config.training_aids
+        self.terrain, self.path_generator, self.locomotion = terrain.kind, paths.path_generator, paths.locomotion
+        self.episode_seconds = paths.episode_seconds
+        self.heightmap_size = config.observation.heightmap_size
+        self.heightmap_extent = config.observation.heightmap_extent
+        self.max_xy_error = config.termination.max_xy_error
+        self.min_head_height = config.termination.min_head_height
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
-        self._setup_starts(init, hybrid_fraction, reference_motion)
-        self.matched_starts = check_bool("matched_starts", matched_starts)
+        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self.matched_starts = aids.matched_starts
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
-        self.speed_levels = check_int("speed_levels", speed_levels, 0, 100)
+        self.speed_levels = aids.speed_levels
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -164,9 +132,11 @@ class PlaMoEnv(HumanoidEnv):
         else:
             self.path_config = task.PathConfig(coupled=self.path_generator == "coupled")
 
-        self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
+        render = config.render
+        self._init_humanoid(config.physics.frame_skip, config.amp_history, render.render_mode, render.width,
+                            render.height)
         self._terrain_dirty = False
-        self._build_initial_world(pd_gains, terrain_size, terrain_cell_size)
+        self._build_initial_world(config.physics.pd_gains, terrain.size, terrain.cell_size)
 
         hm = self.heightmap_size ** 2
         size = PROPRIOCEPTION_SIZE + hm + 3 * NUM_WAYPOINTS
@@ -177,6 +147,9 @@ class PlaMoEnv(HumanoidEnv):
             "path": slice(PROPRIOCEPTION_SIZE + hm, size),
         }
         self.path: task.PathSamples | None = None
+
+    # the keywords: PlaMoConfig's fields, defaults included (``config=`` stays out of the signature)
+    __init__.__signature__ = keyword_signature(PlaMoConfig)
 
     # --- terrain --------------------------------------------------------------
     def _build_initial_world(self, pd_gains: str, terrain_size: float, terrain_cell_size: float) -> None:

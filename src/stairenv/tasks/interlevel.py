@@ -53,7 +53,7 @@ import numpy as np
 
 from stairenv.tasks.kernels import heading_cos_sin, jit, write_heading_vector, write_proprioception
 from stairenv.humanoid.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
-from stairenv.validation import check_number
+from stairenv.validation import Check, check_number, checked, field_check
 from stairenv.world.stairs import Staircase
 
 OBSERVATION_SIZE = 118
@@ -185,28 +185,31 @@ assert STEP_RESULTS[:NUM_REWARD_TERMS] == REWARD_TERMS  # the terms first, in or
 
 @dataclass(frozen=True)
 class InterLevelReward:
-    """Weights and shape parameters of Eq. 1-8 (defaults justified in the env docstring)."""
+    """Weights and shape parameters of Eq. 1-8 (defaults justified in the env docstring), each with its
+    valid range. Built directly it takes anything ``float()`` takes (``check_number``); the env's
+    keywords are also checked for their type (``stairenv.environments.config``)."""
 
-    w_location: float = 3.0
-    w_facing: float = 0.1
-    w_velocity: float = 0.4
-    sigma_before: float = 2.0
-    sigma_after: float = 0.5
-    sigma_across: float = 0.5
-    w_scale: float | None = None  # None: sigma_after / sigma_before (equal peaks)
-    target_speed: float = 1.0
-    progress_scaling: bool = True
+    w_location: float = checked(3.0, Check("number", 0.0))
+    w_facing: float = checked(0.1, Check("number", 0.0))
+    w_velocity: float = checked(0.4, Check("number", 0.0))
+    sigma_before: float = checked(2.0, Check("number", 0.0, low_open=True))
+    sigma_after: float = checked(0.5, Check("number", 0.0, low_open=True))
+    sigma_across: float = checked(0.5, Check("number", 0.0, low_open=True))
+    # None: sigma_after / sigma_before (equal peaks)
+    w_scale: float | None = checked(None, Check("number", 0.0, optional=True))
+    target_speed: float = checked(1.0, Check("number", 0.0, 10.0))
+    progress_scaling: bool = checked(True, Check("bool"))
 
     def __post_init__(self) -> None:
-        for name in ("w_location", "w_facing", "w_velocity"):
-            object.__setattr__(self, name, check_number(name, getattr(self, name), 0.0))
-        for name in ("sigma_before", "sigma_after", "sigma_across"):
-            object.__setattr__(self, name, check_number(name, getattr(self, name), 0.0, low_open=True))
-        if self.w_scale is None:
-            object.__setattr__(self, "w_scale", equal_peak_scale(self.sigma_before, self.sigma_after))
-        object.__setattr__(self, "w_scale", check_number("w_scale", self.w_scale, 0.0))
-        object.__setattr__(self, "target_speed", check_number("target_speed", self.target_speed, 0.0, 10.0))
-        object.__setattr__(self, "progress_scaling", bool(self.progress_scaling))
+        for field in fields(self):
+            check, value = field_check(field), getattr(self, field.name)
+            if field.name == "w_scale" and value is None:  # (the sigmas, checked above, give it)
+                value = equal_peak_scale(self.sigma_before, self.sigma_after)
+            if check.kind == "number":
+                value = check_number(field.name, value, check.low, check.high, check.low_open)
+            else:
+                value = bool(value)
+            object.__setattr__(self, field.name, value)
 
     def as_array(self) -> np.ndarray:
         """What the compiled kernels take: the fields in ``REWARD_FIELDS`` order as one float64 array

@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from stairenv.humanoid import STANDING_ROOT_HEIGHT
-from stairenv.validation import check_number, check_range
+from stairenv.validation import Check, check_number, check_range, checked, field_check
 
 # The four fixed-height evaluation sets of the paper (Tables 1-3, Fig. 9).
 PAPER_TEST_HEIGHTS: tuple[float, ...] = (0.05, 0.10, 0.15, 0.20)
@@ -54,38 +54,40 @@ class StairsConfig:
     | yaw | (0, 2 pi) | within [-2 pi, 2 pi]; ascent direction |
     """
 
-    step_height: tuple[float, float] = (0.05, 0.20)
-    step_height_set: tuple[float, ...] | None = None
-    step_depth: tuple[float, float] = (0.25, 0.40)
-    step_width: tuple[float, float] = (1.0, 2.0)
-    num_steps: tuple[int, int] = (3, 10)
-    landing_depth: float = 2.0
-    distance: tuple[float, float] = (2.0, 3.0)
-    yaw: tuple[float, float] = (0.0, 2.0 * math.pi)
+    # each field's valid range, declared once: checked here, and under the env's keywords by
+    # stairenv.environments.config (typed there)
+    step_height: tuple[float, float] = checked((0.05, 0.20), Check("pair", 0.01, 0.40))
+    step_height_set: tuple[float, ...] | None = checked(None, Check("numbers", 0.01, 0.40, optional=True))
+    step_depth: tuple[float, float] = checked((0.25, 0.40), Check("pair", 0.15, 1.0))
+    step_width: tuple[float, float] = checked((1.0, 2.0), Check("pair", 0.5, 5.0))
+    num_steps: tuple[int, int] = checked((3, 10), Check("pair", 1, 30, integer=True))
+    landing_depth: float = checked(2.0, Check("float", 1.0, 10.0))
+    distance: tuple[float, float] = checked((2.0, 3.0), Check("pair", 0.5, 20.0))
+    yaw: tuple[float, float] = checked((0.0, 2.0 * math.pi), Check("pair", -2.0 * math.pi, 2.0 * math.pi))
 
     def __post_init__(self) -> None:
         # Keyword values may arrive as lists (e.g. from TOML presets): store tuples.
+        bounds = {field.name: (field_check(field).low, field_check(field).high) for field in fields(self)}
         for name in ("step_height", "step_depth", "step_width", "num_steps", "distance", "yaw"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         if self.step_height_set is not None:
             object.__setattr__(self, "step_height_set", tuple(float(h) for h in self.step_height_set))
-        check_range("step_height", self.step_height, 0.01, 0.40)
+        check_range("step_height", self.step_height, *bounds["step_height"])
         if self.step_height_set is not None:
-            if len(self.step_height_set) == 0 or any(
-                not (0.01 <= h <= 0.40) for h in self.step_height_set
-            ):
+            low, high = bounds["step_height_set"]
+            if len(self.step_height_set) == 0 or any(not (low <= h <= high) for h in self.step_height_set):
                 raise ValueError(
-                    f"step_height_set must be a non-empty set of heights in [0.01, 0.40], "
+                    f"step_height_set must be a non-empty set of heights in [{low:.2f}, {high:.2f}], "
                     f"got {self.step_height_set!r}"
                 )
-        check_range("step_depth", self.step_depth, 0.15, 1.0)
-        check_range("step_width", self.step_width, 0.5, 5.0)
-        check_range("num_steps", self.num_steps, 1, 30)
+        check_range("step_depth", self.step_depth, *bounds["step_depth"])
+        check_range("step_width", self.step_width, *bounds["step_width"])
+        check_range("num_steps", self.num_steps, *bounds["num_steps"])
         if any(int(n) != n for n in self.num_steps):
             raise ValueError(f"num_steps must be integers within [1, 30], got {self.num_steps!r}")
-        check_number("landing_depth", self.landing_depth, 1.0, 10.0)
-        check_range("distance", self.distance, 0.5, 20.0)
-        check_range("yaw", self.yaw, -2.0 * math.pi, 2.0 * math.pi)
+        check_number("landing_depth", self.landing_depth, *bounds["landing_depth"])
+        check_range("distance", self.distance, *bounds["distance"])
+        check_range("yaw", self.yaw, *bounds["yaw"])
 
     @property
     def max_steps(self) -> int:

@@ -1,0 +1,195 @@
+"""One frozen, typed config per env family (issue #26, item 1): InterLevel's keywords map onto
+``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``), ``env.unwrapped.config`` is the resolved config,
+``config=`` builds the same env as the keywords, presets are configs, the errors are those of the
+keywords, and the final evaluation drops the config's training aids."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import re
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import stairenv  # noqa: F401  (registers the envs)
+from stairenv.assets import asset_dir
+from stairenv.environments.config import (
+    InterLevelConfig,
+    InterLevelTrainingAids,
+    PlaMoConfig,
+    PlaMoTrainingAids,
+    group_keywords,
+    keyword_paths,
+)
+from stairenv.environments.interlevel import STAIRS_RANGES, InterLevelEnv
+from stairenv.environments.plamo import PlaMoEnv
+from stairenv.environments.plamo_scene import PlaMoSceneEnv
+from stairenv.planning.locomotion import LOCOMOTIONS
+from stairenv.validation import field_check
+from stairenv.world.stairs import StairsConfig
+
+INTERLEVEL_IDS = ("InterLevel-v0", "InterLevel2D-v0", "InterSceneStairs-v0")
+KEYWORDS = {"w_velocity": 0.5, "sigma_after": 1.0, "success_reward": 5, "frame_skip": 4.0,
+            "step_height": [0.1, 0.15], "num_steps": (3, 5), "stairs_distance": (2.5, 3.0),
+            "termination_height": 0.3, "random_start_heading": np.bool_(False), "stall_seconds": 4,
+            "step_height_levels": 3, "curriculum_promote_at": 0.8}
+
+
+def test_the_config_holds_the_keywords_resolved():
+    env = gym.make("InterLevel2D-v0", **KEYWORDS)
+    config = env.unwrapped.config
+    assert isinstance(config, InterLevelConfig)
+    assert config.reward.terms.w_velocity == 0.5 and config.reward.terms.progress_scaling is False  # the preset's
+    assert config.reward.terms.w_scale == 0.5  # None resolved: sigma_after / sigma_before
+    assert config.reward.success_reward == 5.0 and config.physics.frame_skip == 4
+    assert type(config.physics.frame_skip) is int and config.start.random_start_heading is False
+    assert config.stairs.step_height == (0.1, 0.15) and config.stairs.distance == (2.5, 3.0)
+    assert config.termination.termination_height == 0.3
+    assert config.training_aids.stall_seconds == 4.0 and config.training_aids.curriculum_promote_at == 0.8
+    keywords = config.keywords()
+    assert list(keywords) == list(inspect.signature(InterLevelEnv.__init__).parameters)[1:]
+    assert InterLevelConfig.from_keywords(**keywords) == config
+    # the attributes other code reads are the config's values
+    unwrapped = env.unwrapped
+    assert unwrapped.reward_config is config.reward.terms and unwrapped.stairs_config is config.stairs
+    assert unwrapped.stall_seconds == 4.0 and unwrapped.frame_skip == 4 and unwrapped.success_reward == 5.0
+    env.close()
+
+
+@pytest.mark.parametrize("env_cls, config_cls", [(InterLevelEnv, InterLevelConfig), (PlaMoEnv, PlaMoConfig)])
+def test_the_signature_is_the_configs_fields(env_cls, config_cls):
+    """The defaults live in the config alone; the env's keywords are its fields."""
+    parameters = inspect.signature(env_cls.__init__).parameters
+    defaults = config_cls().keywords()
+    assert set(parameters) - {"self"} == set(defaults) == set(keyword_paths(config_cls))
+    for name, value in defaults.items():
+        default = parameters[name].default
+        assert default == value or (name == "w_scale" and default is None), name
+
+
+def test_stairs_ranges_are_stairs_configs():
+    # every leaf field declares its check, and StairsConfig's ranges are the env's (STAIRS_RANGES)
+    stairs_fields = {field.name: field for field in dataclasses.fields(StairsConfig)}
+    assert all(field_check(field) is not None for field in stairs_fields.values())
+    distance = field_check(stairs_fields["distance"])
+    assert STAIRS_RANGES["stairs_distance"] == (distance.low, distance.high) == (0.5, 20.0)
+
+
+CHANGES = {InterLevelConfig: {"w_velocity": 0.5, "num_steps": (3, 5)},
+           PlaMoConfig: {"terrain_size": 12.0, "max_xy_error": 1.5, "locomotion": "walk"}}  # (not a preset keyword)
+
+
+@pytest.mark.parametrize("env_id, config_cls", [(env_id, InterLevelConfig) for env_id in INTERLEVEL_IDS]
+                         + [("PlaMo-v0", PlaMoConfig), ("PlaMoNaivePaths-v0", PlaMoConfig)])
+def test_presets_are_configs_and_config_equals_keywords(env_id, config_cls):
+    preset = asset_dir("envs") / f"{env_id}.toml"
+    plain = gym.make(env_id)
+    assert config_cls.from_toml(preset) == plain.unwrapped.config
+    plain.close()
+    changes = CHANGES[config_cls]
+    config = config_cls.from_toml(preset).replace(**changes)
+    by_config, by_keywords = gym.make(env_id, config=config), gym.make(env_id, **changes)
+    assert by_config.unwrapped.config == by_keywords.unwrapped.config == config
+    obs_a, _ = by_config.reset(seed=3)
+    obs_b, _ = by_keywords.reset(seed=3)
+    np.testing.assert_array_equal(obs_a, obs_b)
+    action = np.full(by_config.action_space.shape, 0.3)
+    for _ in range(3):
+        a, b = by_config.step(action), by_keywords.step(action)
+        np.testing.assert_array_equal(a[0], b[0])
+        assert a[1] == b[1]
+    by_config.close(), by_keywords.close()
+
+
+def test_keywords_beside_a_config_must_agree_with_it():
+    config = InterLevelConfig.from_keywords(progress_scaling=False)
+    with pytest.raises(ValueError, match="progress_scaling=True disagree with config"):
+        gym.make("InterLevel-v0", config=config)  # the preset's keyword
+    gym.make("InterLevel2D-v0", config=config).close()
+    # judged over the config: its other fields stand (start_radius 2.0 needs stairs 2.5 m away or more)
+    far = InterLevelConfig.from_keywords(start_radius=2.0, stairs_distance=(3.0, 4.0))
+    assert InterLevelEnv(config=far, start_radius=2, frame_skip=8.0).config is far
+    with pytest.raises(TypeError, match="config must be a InterLevelConfig"):
+        InterLevelEnv(config={"w_velocity": 0.5})
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        InterLevelConfig.from_keywords(w_speed=1.0)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        config.reward = None
+
+
+# messages as main gave them before the config (issue #26, item 1: the same errors)
+ERRORS = [
+    ({"w_velocity": "garbage"}, TypeError, "w_velocity must be a finite number, got 'garbage' (str)"),
+    ({"w_velocity": -1}, ValueError, "w_velocity must lie in [0.0, inf], got -1.0"),
+    ({"frame_skip": 2.5}, ValueError, "frame_skip must be an integer in [1, 100], got 2.5"),
+    ({"stairs_distance": (0.1, 0.2)}, ValueError, "stairs_distance must lie within [0.5, 20.0], got (0.1, 0.2)"),
+    ({"step_height": (0.5, 0.2)}, ValueError, "step_height: min 0.5 > max 0.2; expected min <= max within [0.01, 0.4]"),
+    ({"progress_scaling": None}, TypeError, "progress_scaling must be a bool (True or False), got None (NoneType)"),
+    ({"reward": "garbage"}, ValueError, "reward must be one of ['interlevel', 'interscene'], got 'garbage'"),
+    ({"curriculum_demote_below": 0.7, "curriculum_promote_at": 0.6}, ValueError,
+     "curriculum_promote_at must lie in [0.7, 1.0], got 0.6"),
+    ({"start_radius": 2.0}, ValueError, "stairs_distance min 2.0 must be at least start_radius + 0.5 = 2.5 so the "
+                                        "character starts clear of the stairs"),
+]
+
+
+@pytest.mark.parametrize("kwargs, error, message", ERRORS)
+def test_errors_are_the_keywords(kwargs, error, message):
+    for make in (lambda: InterLevelEnv(**kwargs), lambda: InterLevelConfig.from_keywords(**kwargs)):
+        with pytest.raises(error, match=re.escape(message) + "$"):
+            make()
+
+
+def test_a_config_built_directly_is_checked_too():
+    with pytest.raises(ValueError, match=re.escape("termination_height must lie in [0.0, 1.0], got 2.0")):
+        dataclasses.replace(InterLevelConfig().termination, termination_height=2.0)
+    with pytest.raises(ValueError, match="stairs_distance min 1.0"):
+        InterLevelConfig(stairs=StairsConfig(distance=(1.0, 2.0)))
+
+
+def test_the_evaluation_drops_the_configs_training_aids(baseline_script):
+    train_ppo = baseline_script("train_ppo")
+    aids = group_keywords(InterLevelConfig, "training_aids")
+    assert aids == tuple(f.name for f in dataclasses.fields(InterLevelTrainingAids))
+    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
+    kwargs = {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
+              "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}
+    evaluated = train_ppo.evaluation_kwargs(kwargs)
+    assert evaluated == {"w_velocity": 0.5}
+    # the evaluated env: the training config with its aids at their defaults (the paper's protocol)
+    trained = InterLevelConfig.from_keywords(**kwargs)
+    assert InterLevelConfig.from_keywords(**evaluated) == dataclasses.replace(
+        trained, training_aids=InterLevelTrainingAids())
+
+
+def test_plamo_config_holds_the_keywords_resolved():
+    env = gym.make("PlaMoNaivePaths-v0", locomotion="crouch_walk", terrain_size=20, heightmap_size=8.0,
+                   matched_starts=np.bool_(False), speed_levels=4)
+    config = env.unwrapped.config
+    assert config.paths.path_generator == "naive" and config.paths.locomotion is LOCOMOTIONS["crouch-walk"]
+    assert config.terrain.size == 20.0 and config.observation.heightmap_size == 8
+    assert config.training_aids.matched_starts is False and config.training_aids.speed_levels == 4
+    assert PlaMoConfig.from_keywords(**config.keywords()) == config
+    assert env.unwrapped.locomotion is config.paths.locomotion and env.unwrapped.speed_levels == 4
+    env.close()
+    with pytest.raises(ValueError, match=re.escape("terrain_size=200.0 with terrain_cell_size=0.01 makes a")):
+        PlaMoEnv(terrain_size=200.0, terrain_cell_size=0.01)
+    with pytest.raises(TypeError, match=re.escape("locomotion must be None, a name")):
+        PlaMoConfig.from_keywords(locomotion=3)
+    # PlaMoScene builds its path follower from keywords, as before (its own keywords are not in the config)
+    scene = PlaMoSceneEnv(max_xy_error=2.5, heightmap_size=8)
+    assert scene.config.termination.max_xy_error == 2.5 and scene.config.terrain.kind == "flat"
+    scene.close()
+
+
+def test_the_evaluation_drops_plamos_training_aids(baseline_script):
+    train_ppo = baseline_script("train_ppo")
+    aids = group_keywords(PlaMoConfig, "training_aids")
+    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
+    kwargs = {"init": "hybrid", "matched_starts": False, "speed_levels": 3, "terrain": "rough"}
+    evaluated = train_ppo.evaluation_kwargs(kwargs)
+    assert evaluated == {"terrain": "rough"}
+    assert PlaMoConfig.from_keywords(**evaluated) == dataclasses.replace(
+        PlaMoConfig.from_keywords(**kwargs), training_aids=PlaMoTrainingAids())
