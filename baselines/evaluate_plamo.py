@@ -20,13 +20,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--terrains", nargs="+", default=list(TERRAINS), choices=TERRAINS)
     parser.add_argument("--locomotions", nargs="+", default=list(LOCOMOTIONS), choices=LOCOMOTIONS)
     parser.add_argument("--max-episode-steps", type=int, default=None)
+    parser.add_argument("--varying-paths", action="store_true",
+                        help="heights and speeds change along a path (as in training) instead of the paper's "
+                             "one height and one speed per path")
     parser.add_argument("--csv")
     parser.add_argument("--json")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error("--episodes must be >= 1")
     report = evaluate(args.policy, args.env, args.episodes, args.seed, max_episode_steps=args.max_episode_steps,
-                      terrains=args.terrains, locomotions=args.locomotions)
+                      terrains=args.terrains, locomotions=args.locomotions, constant_paths=not args.varying_paths)
     print(report.format_table())
     if args.csv:
         report.to_csv(args.csv)

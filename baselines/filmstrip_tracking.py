@@ -3,8 +3,8 @@
 crouch-walk, walk, run), so that one can see whether it crawls on all fours, crouch-walks with a
 low head, walks, and runs with a flight phase.
 
-For each locomotion one episode runs from the same seed with paths restricted to it (env keyword
-``locomotion``) on one terrain (``--terrain``, flat by default). Frames are rendered during the
+For each locomotion one episode runs from the same seed on a path restricted to it (env keyword
+``locomotion``) at one head height and speed (``constant_paths``, the Table 2 protocol) on one terrain (``--terrain``, flat by default). Frames are rendered during the
 episode by the env's follow camera (every ``--every`` steps, the path ahead drawn in green) and
 ``--frames`` of them, spread evenly, make the strip. Each strip is captioned with the locomotion, how
 the episode ended (fell, lost the path, time limit) and its mean XY / Z head error.
@@ -34,7 +34,7 @@ import stairenv  # noqa: E402,F401  (registers the envs)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the strip layout is filmstrip_climb's, beside us
 from filmstrip_climb import filmstrip, frame_indices, write_combined  # noqa: E402
-from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS  # noqa: E402
+from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS, TRACKING_TERRAIN_SIZE  # noqa: E402
 from stairenv.policy_loading import load_policy  # noqa: E402
 
 
@@ -90,8 +90,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     strips = []
     for locomotion in args.locomotions:
-        env = gym.make(args.env, terrain=args.terrain, locomotion=locomotion, render_mode="rgb_array",
-                       width=args.width, height=args.height)
+        env = gym.make(args.env, terrain=args.terrain, locomotion=locomotion, constant_paths=True,
+                       terrain_size=TRACKING_TERRAIN_SIZE,
+                       render_mode="rgb_array", width=args.width, height=args.height)
         env.unwrapped.set_camera(args.elevation, args.distance)
         policy = load_policy(args.policy, env, seed=args.seed)
         images, times, tail = film_episode(env, policy, args.seed, args.every)

@@ -379,7 +379,7 @@ KINDS = {
         "terrain_size": Number(2.0, 200.0), "terrain_cell_size": Number(0.01, 1.0),
         "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
         "max_xy_error": Number(0.0, 100.0, low_open=True), "min_head_height": UNIT, "matched_starts": Bool(),
-        "speed_levels": Number(0, 100, integer=True),
+        "speed_levels": Number(0, 100, integer=True), "constant_paths": Bool(),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

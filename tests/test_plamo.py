@@ -318,3 +318,35 @@ def test_compiled_step_pieces_equal_the_numpy_forms():
         target = task.write_path_observation(targets, path.points, path.dt, t, head, c, s, 0.5)
         np.testing.assert_array_equal(targets, task.path_observation(path, t, head, yaw, 10, 0.5))
         np.testing.assert_array_equal(np.array(target), path.at(t))
+
+
+@pytest.mark.parametrize("locomotion", [None, "crawl", "run"])
+def test_constant_paths_hold_one_height_speed_and_turn_rate(locomotion):
+    # on a 100 m field no path of 16 s (run: 4 m/s at most) turns back at the edge
+    env = PlaMoEnv(constant_paths=True, locomotion=locomotion, terrain="flat", terrain_size=100.0)
+    varying = PlaMoEnv(locomotion=locomotion, terrain="flat")
+    for seed in range(3):
+        env.reset(seed=seed)
+        path = env.path
+        assert np.ptp(path.head) == 0.0 and np.ptp(path.speed) == 0.0
+        if locomotion is not None:
+            low, high = env.locomotion.head_range
+            assert low <= path.head[0] <= high
+        turn = np.diff(np.unwrap(path.yaw))
+        assert np.ptp(turn) < 1e-9
+        varying.reset(seed=seed)
+    assert np.ptp(varying.path.head) > 0.0  # the training paths do change
+
+
+def test_tracking_evaluation_uses_constant_paths_by_default(monkeypatch):
+    from stairenv.evaluation import plamo as evaluation
+
+    made = []
+    real_make = gym.make
+    monkeypatch.setattr(evaluation.gym, "make", lambda *a, **k: made.append(k) or real_make(*a, **k))
+    zero = lambda obs: np.zeros(28)  # noqa: E731
+    evaluation.tracking_errors(zero, terrains=("flat",), locomotions=("walk",), episodes=1, max_episode_steps=5)
+    evaluation.tracking_errors(zero, terrains=("flat",), locomotions=("walk",), episodes=1, max_episode_steps=5,
+                               constant_paths=False)
+    assert [k["constant_paths"] for k in made] == [True, False]
+    assert made[0]["terrain_size"] == evaluation.TRACKING_TERRAIN_SIZE

@@ -228,6 +228,8 @@ class PlaMoPaths:
     path_generator: str = checked("coupled", Check("choice", options=PATH_GENERATORS),
                                   '"coupled" (PlaMo) or "naive" (speed independent of height)')
     episode_seconds: float = checked(10.0, Check("float", 1.0, 600.0), "path length in time (s)")
+    constant_paths: bool = checked(False, Check("bool"), "one head height, speed and turn rate per path "
+                                   "(PlaMo's Table 2 protocol); False = new ones every 2-5 s")
 
 
 @checked_config

@@ -100,6 +100,7 @@ class PlaMoEnv(HumanoidEnv):
     | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
     | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
     | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose as InterLevel; None: builtin:plamo |
+    | constant_paths | False | one head height, speed and turn rate per path (PlaMo's Table 2 protocol) |
     | matched_starts | True | a reference start is a frame of the path's opening locomotion (below) |
     | speed_levels | 0 | levels of a success-driven curriculum scaling path speeds by (k + 1) / N (training); 0 = off |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
@@ -127,10 +128,15 @@ class PlaMoEnv(HumanoidEnv):
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
-            self.path_config = task.PathConfig(head_range=self.locomotion.head_range,
-                                               speed_range=self.locomotion.speed_range)
+            path_config = task.PathConfig(head_range=self.locomotion.head_range,
+                                          speed_range=self.locomotion.speed_range)
         else:
-            self.path_config = task.PathConfig(coupled=self.path_generator == "coupled")
+            path_config = task.PathConfig(coupled=self.path_generator == "coupled")
+        self.constant_paths = config.paths.constant_paths
+        if self.constant_paths:  # one segment longer than any path this env draws: levels drawn once
+            once = self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 2.0
+            path_config = dataclasses.replace(path_config, segment_duration=(once, once), transition=0.0)
+        self.path_config = path_config
 
         render = config.render
         self._init_humanoid(config.physics.frame_skip, config.amp_history, render.render_mode, render.width,

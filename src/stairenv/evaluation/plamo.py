@@ -3,7 +3,8 @@ and the slalom test.
 
 For every terrain (flat, slope, rough, stairs) and locomotion (crawl,
 crouch-walk, walk, run), :func:`tracking_errors` runs ``episodes`` episodes of
-``PlaMo-v0`` with that terrain and paths restricted to that locomotion, and
+``PlaMo-v0`` with that terrain and paths restricted to that locomotion, each path at one
+head height and one speed as in the paper's Table 2 (``constant_paths``; a constant turn rate too), and
 reports the mean horizontal (XY) and vertical (Z) distance between the head and
 the path point due at each step, over all steps of all episodes; :func:`evaluate`
 gives them as a :class:`~stairenv.evaluation.report.Report`. Published
@@ -39,6 +40,11 @@ PAPER_TABLE2: dict[tuple[str, str], tuple[float, float]] = {
     ("stairs", "crawl"): (0.45, 0.13), ("stairs", "crouch-walk"): (0.41, 0.07),
     ("stairs", "walk"): (0.39, 0.27), ("stairs", "run"): (1.01, 0.35),
 }
+
+#: The tracking evaluation's height field side (m): no 10 s path (a run: 4 m/s, 40 m, plus the 5 s the
+#: observation looks ahead) turns back at the field's edge. The policy sees only its egocentric heightmap,
+#: so the field's size is not part of what it was trained on.
+TRACKING_TERRAIN_SIZE = 100.0
 
 #: Columns of the tracking-error rows and their CSV, in order.
 ROW_FIELDS: tuple[str, ...] = (
@@ -90,9 +96,13 @@ def tracking_errors(
     max_episode_steps: int | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
     progress_bar: bool = False,
+    constant_paths: bool = True,
 ) -> list[dict[str, Any]]:
     """One row (:data:`ROW_FIELDS`) per (terrain, locomotion): mean XY and Z error (m), steps,
-    early terminations. ``env_kwargs`` go to every env (``terrain`` and ``locomotion`` are set here)."""
+    early terminations. ``env_kwargs`` go to every env (``terrain``, ``locomotion`` and
+    ``constant_paths`` are set here; ``constant_paths=False``: heights and speeds change along a path
+    within the locomotion's ranges, as in training); the height field is ``TRACKING_TERRAIN_SIZE`` on a
+    side unless ``env_kwargs`` says otherwise."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     from tqdm.auto import tqdm
@@ -103,7 +113,9 @@ def tracking_errors(
     try:
         for terrain in terrains:
             for locomotion in locomotions:
-                kwargs: dict[str, Any] = {**(env_kwargs or {}), "terrain": terrain, "locomotion": locomotion}
+                kwargs: dict[str, Any] = {"terrain_size": TRACKING_TERRAIN_SIZE, **(env_kwargs or {}),
+                                          "terrain": terrain, "locomotion": locomotion,
+                                          "constant_paths": constant_paths}
                 if max_episode_steps is not None:
                     kwargs["max_episode_steps"] = max_episode_steps
                 env = gym.make(env_id, **kwargs)
@@ -146,6 +158,7 @@ def evaluate(
     label: str | None = None,
     terrains: Sequence[str] = TERRAINS,
     locomotions: Sequence[str] = LOCOMOTIONS,
+    constant_paths: bool = True,
 ) -> Report:
     """PlaMo Table 2: :func:`tracking_errors` of ``policy`` (a callable or a spec for
     :func:`~stairenv.policy_loading.load_policy`) as a report."""
@@ -157,9 +170,9 @@ def evaluate(
         finally:
             probe.close()
     rows = tracking_errors(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
-                           progress_bar)
+                           progress_bar, constant_paths)
     settings = {"env_id": env_id, "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
-                "max_episode_steps": max_episode_steps}
+                "max_episode_steps": max_episode_steps, "constant_paths": constant_paths}
     return Report(label, rows, LAYOUT, meta={"table": "tracking", "label": label, "settings": settings})
 
 
@@ -276,7 +289,8 @@ def plot_planned_path(env_kwargs: dict[str, Any] | None = None, seed: int = 0, p
 
 
 __all__ = [
-    "LAYOUT", "LOCOMOTIONS", "PAPER_TABLE2", "ROW_FIELDS", "SCENE_FIELDS", "SCENE_LAYOUT", "TERRAINS", "evaluate",
+    "LAYOUT", "LOCOMOTIONS", "PAPER_TABLE2", "ROW_FIELDS", "SCENE_FIELDS", "SCENE_LAYOUT", "TERRAINS",
+    "TRACKING_TERRAIN_SIZE", "evaluate",
     "format_rows", "format_scene_rows", "plot_planned_path", "scene_episodes", "scene_report", "slalom_comparison",
     "tracking_errors", "write_rows",
 ]

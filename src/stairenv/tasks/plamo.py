@@ -115,7 +115,7 @@ class PathConfig:
         object.__setattr__(self, "head_range", check_range("head_range", self.head_range, 0.2, 2.0))
         if self.speed_range is not None:
             object.__setattr__(self, "speed_range", check_range("speed_range", self.speed_range, 0.0, 10.0))
-        object.__setattr__(self, "segment_duration", check_range("segment_duration", self.segment_duration, 0.2, 60))
+        object.__setattr__(self, "segment_duration", check_range("segment_duration", self.segment_duration, 0.2, 1e4))
         check_number("transition", self.transition, 0.0, 10.0)
         check_number("max_turn_rate", self.max_turn_rate, 0.0, 10.0)
         check_number("dt", self.dt, 0.0, 1.0, low_open=True)
