@@ -18,9 +18,9 @@ Reward (paper Sec. 3.2), with s the head, tau_t the path point due now:
 
 with c_pos = 2, c_height = 10, c_dir = 20, c_body = 0.1 (yaw difference wrapped). Those numbers
 are held in one place, ``PathReward`` (``PATH_REWARD``); each term is a small pure function
-(``position_term``, ...) named and weighed in ``TERMS``. ``plamo_observation`` and
-``head_reward_terms`` are one world's observation and reward; ``PlaMoEnv._step_outcomes`` computes the
-same bits for a batch of worlds with their compiled pieces (``write_terrain_heightmap``,
+(``position_term``, ...) named and weighed in ``TERMS``. ``heightmap_points``, ``path_observation`` and
+``path_reward_terms`` are the numpy forms of the observation and reward; ``PlaMoEnv._step_outcomes``
+computes the same bits for a batch of worlds with their compiled pieces (``write_terrain_heightmap``,
 ``write_path_observation``) and ``path_reward_values`` (Python floats).
 """
 
@@ -32,9 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stairenv.humanoid.state import HEAD, PELVIS, HumanoidState
 from stairenv.numba_jit import jit
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.tasks.terms import RewardTerm, term_names, weighted_terms, weighted_values
 from stairenv.validation import check_number, check_range
 from stairenv.world.terrain import bilinear_at
@@ -259,36 +257,6 @@ def path_reward_inputs(target, head, target_yaw: float, target_pitch: float, hea
     dyaw = (target_yaw - head_yaw + math.pi) % (2 * math.pi) - math.pi
     return PathRewardInputs(dx * dx + dy * dy, (target[2] - head[2]) ** 2,
                             dyaw * dyaw + (target_pitch - head_pitch) ** 2, head[2] - max_body_z)
-
-
-def head_reward_terms(path: PathSamples, t: float, target: np.ndarray, head: np.ndarray, head_mat: np.ndarray,
-                      body_pos: np.ndarray) -> np.ndarray:
-    """r^tau's weighted terms with the head at ``head`` turned by ``head_mat`` (its direction: the
-    forward axis), ``target`` the path point due at t (``path.at(t)``) and ``body_pos`` (15, 3) one
-    world's bodies (the max body z includes the head)."""
-    k = path.index(t)
-    forward = head_mat[:, 0]
-    head_yaw = math.atan2(forward[1], forward[0])
-    head_pitch = math.atan2(forward[2], math.hypot(forward[0], forward[1]))
-    max_body_z = max(float(body_pos[:, 2].max()), float(head[2]))
-    return path_reward_terms(target, head, path.yaw[k], path.pitch[k], head_yaw, head_pitch, max_body_z)
-
-
-def plamo_observation(state: HumanoidState, path: PathSamples, t: float, head: np.ndarray, ground_height,
-                      heightmap_size: int, heightmap_extent: float, num: int, spacing: float) -> np.ndarray:
-    """World 0's observation (``PlaMoEnv``'s docstring): proprioception with the root height above the
-    terrain (``ground_height(xy (N, 2)) -> (N,)``), the egocentric heightmap and the next ``num`` head
-    targets every ``spacing`` s (``path_observation``) relative to the head at ``head``."""
-    root = state.body_pos[0, PELVIS]
-    root_mat = state.body_mat[0, PELVIS]
-    root_yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-    ground = ground_height(np.vstack((root[:2], state.body_pos[0, HEAD, :2])))
-    proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                             np.array([root[2] - ground[0]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-    points = heightmap_points(root[:2], root_yaw, heightmap_size, heightmap_extent)
-    heightmap = ground_height(points) - root[2]
-    path_obs = path_observation(path, t, head, root_yaw, num, spacing)
-    return np.concatenate((proprio, heightmap, path_obs))
 
 
 # --- compiled pieces of a step (one world per call: each world has its own terrain and path) ----------
