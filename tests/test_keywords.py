@@ -380,6 +380,7 @@ KINDS = {
         "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
         "max_xy_error": Number(0.0, 100.0, low_open=True), "min_head_height": UNIT, "matched_starts": Bool(),
         "speed_levels": Number(0, 100, integer=True), "constant_paths": Bool(),
+        "min_root_height": Optional(Number(0.0, 2.0, low_open=True)),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

@@ -350,3 +350,29 @@ def test_tracking_evaluation_uses_constant_paths_by_default(monkeypatch):
                                constant_paths=False)
     assert [k["constant_paths"] for k in made] == [True, False]
     assert made[0]["terrain_size"] == evaluation.TRACKING_TERRAIN_SIZE
+
+
+def test_grounded_termination_ends_a_low_pelvis_on_an_upright_path_only():
+    """``min_root_height`` (training aid): a crawl's start (pelvis 0.17-0.31 m up) on a walk path ends at
+    the first step as grounded; on a crawl path it goes on; without the aid ``info`` has no such key."""
+    from importlib.resources import files
+
+    crawl = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+
+    def first_step(**keywords):
+        env = PlaMoEnv(init="reference", reference_motion=crawl, matched_starts=False, terrain="flat",
+                       max_xy_error=100.0, **keywords)
+        env.reset(seed=2)
+        root_clearance = env.data.qpos[2]
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        return root_clearance, terminated, info
+
+    clearance, terminated, info = first_step(locomotion="walk", min_root_height=0.4)
+    assert clearance < 0.35 and not info["fell"]
+    assert info["grounded"] and terminated
+    _, terminated, info = first_step(locomotion="crawl", min_root_height=0.4)
+    assert not info["grounded"] and not terminated          # a crawl path may keep the pelvis low
+    _, terminated, info = first_step(locomotion="walk")
+    assert "grounded" not in info and not terminated
+    with pytest.raises(ValueError, match="min_root_height"):
+        PlaMoEnv(min_root_height=0.0)

@@ -252,6 +252,10 @@ class PlaMoTrainingAids(ReferenceStarts):
     matched_starts: bool = checked(True, Check("bool"), "a reference start is a frame of the path's opening "
                                    "locomotion (acts only with reference starts)")
     speed_levels: int = checked(0, Check("int", 0, 100), "levels of the speed curriculum; 0 = off")
+    min_root_height: float | None = checked(
+        None, Check("float", 0.0, 2.0, low_open=True, optional=True),
+        "pelvis height above the terrain that ends an episode while the path asks for more than a crawl; "
+        "None = off")
 
 
 @checked_config

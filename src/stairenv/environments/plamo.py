@@ -29,6 +29,9 @@ NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
 # Where ``_floor_under`` looks around a start: 9 points 0.5 m away (the first and last the same).
 FLOOR_RING = 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
 FLOOR_RING.flags.writeable = False
+# ``min_root_height`` acts where the path's head height is above this: midway between the highest crawl
+# and the lowest crouch-walk (0.525 m), so a crawl keeps its low pelvis and a sit on a walk path ends.
+ABOVE_CRAWL_HEAD = (LOCOMOTIONS["crawl"].head_range[1] + LOCOMOTIONS["crouch-walk"].head_range[0]) / 2
 
 
 class PlaMoEnv(HumanoidEnv):
@@ -78,6 +81,11 @@ class PlaMoEnv(HumanoidEnv):
     half of them (``stairenv.tasks.curriculum.next_growing_level``); an episode cut by the trainer
     (``reset(options={"episode_cut": True})``) is not judged. Trainers log and checkpoint the level.
 
+    **Grounded termination** (``min_root_height``, a training aid; None = off): an episode also ends
+    (``info["grounded"]``, present only with the aid) when the pelvis is less than ``min_root_height``
+    above the terrain while the path's head height is above ``ABOVE_CRAWL_HEAD`` (0.525 m, between the
+    highest crawl and the lowest crouch-walk): sitting and scooting along an upright path ends there.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
@@ -103,6 +111,7 @@ class PlaMoEnv(HumanoidEnv):
     | constant_paths | False | one head height, speed and turn rate per path (PlaMo's Table 2 protocol) |
     | matched_starts | True | a reference start is a frame of the path's opening locomotion (below) |
     | speed_levels | 0 | levels of a success-driven curriculum scaling path speeds by (k + 1) / N (training); 0 = off |
+    | min_root_height | None | end an episode when the pelvis is this close to the terrain while the path asks for more than a crawl (training); None = off |
     | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
     | render_mode, width, height | None, 640, 480 | as InterLevel |
     """
@@ -125,6 +134,7 @@ class PlaMoEnv(HumanoidEnv):
         self.matched_starts = aids.matched_starts
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         self.speed_levels = aids.speed_levels
+        self.min_root_height = aids.min_root_height
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -291,19 +301,24 @@ class PlaMoEnv(HumanoidEnv):
             hx, hy, hz = head_rows[k]
             terms = task.path_reward_values(target, head_rows[k], float(path.yaw[i]), float(path.pitch[i]),
                                             head_yaw, head_pitch, max_body_z[k])
-            rows.append((terms, target[0] - hx, target[1] - hy, abs(target[2] - hz), hz - head_ground))
+            rows.append((terms, target[0] - hx, target[1] - hy, abs(target[2] - hz), hz - head_ground,
+                         float(path.head[i])))
         obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                                       root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
         xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
         outcomes = []
         for k, env in enumerate(envs):
-            terms, _, _, z_error, head_clearance = rows[k]
+            terms, _, _, z_error, head_clearance, path_head = rows[k]
             xy_error = xy_errors[k]
             # the two reasons an episode ends early, each in info: the head at the ground, the path lost
             fell, off_path = head_clearance < env.min_head_height, xy_error > env.max_xy_error
+            results = {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}
+            ended = fell or off_path
+            if env.min_root_height is not None:  # the training aid: no sitting where the path asks to stand
+                results["grounded"] = bool(path_head > ABOVE_CRAWL_HEAD and root_height[k] < env.min_root_height)
+                ended = ended or results["grounded"]
             outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
-                                        dict(zip(task.REWARD_TERMS, terms)), fell or off_path,
-                                        {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}))
+                                        dict(zip(task.REWARD_TERMS, terms)), ended, results))
         return outcomes
 
     def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
