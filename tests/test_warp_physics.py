@@ -159,21 +159,29 @@ def test_steps_from_the_same_states_stay_within_tolerance():
 @warp_only
 def test_each_world_keeps_its_own_staircase_on_the_device():
     """Resets write new staircases (per-world sizes and poses) that reach the device, and the characters
-    started on the treads stand on them as with the C back-end."""
+    started on the treads (reference starts on a climb of each world's staircase) stand on them as with
+    the C back-end. (A tread is a static body, whose geom pose MuJoCo Warp never computes: without the
+    host's poses uploaded at reset, these characters sank through the treads, ~0.1 m in 5 steps.)"""
     n = 3
-    kwargs = dict(stairs_start_fraction=1.0)    # every episode starts on the stairs
+    kwargs = dict(stairs_start_fraction=1.0, init="reference")    # every episode starts on its climb
     warp, c = batched(n, physics="warp", **kwargs), batched(n, physics="serial", **kwargs)
     for seed in (0, 100):
         warp.reset(seed=seed)
         c.reset(seed=seed)
+        assert max(e.data.qpos[2] for e in c.envs) > 1.0    # someone starts high up the stairs
         hold = np.zeros((n, 28))
-        for _ in range(2):
+        for _ in range(5):
             warp.step(hold)
             c.step(hold)
         device = warp.physics.model
         for name in ("geom_size", "body_pos", "body_quat", "geom_rbound"):
             got = getattr(device, name).numpy().reshape(n, -1)
             want = np.stack([getattr(env.model, name).reshape(-1) for env in warp.envs])
+            np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-6, err_msg=name)
+        treads = warp.envs[0]._slots.geom_ids
+        for name in ("geom_xpos", "geom_xmat"):    # where the collision detection puts the treads
+            got = getattr(warp.physics.data, name).numpy().reshape(n, warp.envs[0].model.ngeom, -1)[:, treads]
+            want = np.stack([getattr(env.data, name)[treads].reshape(len(treads), -1) for env in warp.envs])
             np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-6, err_msg=name)
         sizes = np.stack([env.model.geom_size for env in warp.envs])
         assert not np.allclose(sizes[0], sizes[1])    # worlds differ

@@ -14,7 +14,10 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
   ``geom_rbound``, ``geom_aabb``) have a world dimension, so each world keeps its own staircase (the same
   number of step boxes in every world, only their sizes and poses differ), rewritten without recompiling;
 - a world marked changed (``world_changed(k)``: the batched env calls it when it resets world k; every
-  world at ``bind``) has those model rows copied from its host ``MjModel`` before the next step;
+  world at ``bind``) has those model rows copied from its host ``MjModel`` before the next step, and the
+  poses of its geoms (``geom_xpos``, ``geom_xmat``) from its host ``MjData``: MuJoCo Warp's kinematics
+  computes the poses of geoms on moving bodies only, so a tread (a static body) would otherwise keep the
+  pose ``put_data`` gave it, and the character would walk through the staircase it stands on;
 - each ``step``: the stepped worlds' state (``qpos``, ``qvel``, ``act``, ``qacc_warmstart``, ``time``)
   and ``ctrl`` up, one copy per field (the host state is the truth: a reset, a push an evaluation
   writes into ``qvel``, a test's forced divergence all reach the device without being announced);
@@ -61,6 +64,9 @@ World = tuple[mujoco.MjModel, mujoco.MjData]
 
 #: model fields that a world's staircase writes (``StairsSlots.place``): given a world dimension on the device
 PER_WORLD_MODEL_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_rbound", "geom_aabb")
+#: geom poses copied up from a changed world's host data: the device never computes them for static
+#: bodies' geoms (the treads); for moving bodies' geoms its kinematics overwrites them at the next substep
+GEOM_POSE_FIELDS = ("geom_xpos", "geom_xmat")
 #: state copied up before and down after every step (``ctrl`` and ``time`` go up too)
 STATE_FIELDS = ("qpos", "qvel", "act", "qacc_warmstart")
 #: MuJoCo's bound on a state value (``mjMAXVAL``): beyond it (or non-finite) C resets the world
@@ -153,6 +159,8 @@ class WarpPhysics:
         self._timestep = float(model0.opt.timestep)
         self._model_host = {name: np.stack([getattr(m, name) for m, _ in worlds]).astype(np.float32)
                             for name in PER_WORLD_MODEL_FIELDS}
+        self._geom_pose_host = {name: np.stack([getattr(d, name) for _, d in worlds]).astype(np.float32)
+                                for name in GEOM_POSE_FIELDS}
         self._state_host = {name: np.zeros((n, getattr(data0, name).size), dtype=np.float32)
                             for name in STATE_FIELDS}
         self._ctrl_host = np.zeros((n, model0.nu), dtype=np.float32)
@@ -214,6 +222,10 @@ class WarpPhysics:
                 for k in changed:
                     host[k] = getattr(self.worlds[k][0], name)
                 self._assign(getattr(self.model, name), host)
+            for name, host in self._geom_pose_host.items():    # the treads' poses (see GEOM_POSE_FIELDS)
+                for k in changed:
+                    host[k] = getattr(self.worlds[k][1], name)
+                self._assign(getattr(self.data, name), host)
             self._changed[:] = False
         datas = [data for _, data in worlds]
         for name, host in self._state_host.items():    # the host's state is the truth (resets, pushes)
