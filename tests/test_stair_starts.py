@@ -257,3 +257,33 @@ def test_curriculum_thresholds_move_levels_on_progress():
         gym.make("InterLevel-v0", step_height_levels=9, curriculum_promote_at=0.2)  # below the demotion bar
     with pytest.raises(ValueError, match="curriculum_demote_below"):
         gym.make("InterLevel-v0", step_height_levels=9, curriculum_demote_below=1.5)
+
+
+def test_fill_cache_on_worker_processes_gives_the_climbs_a_miss_would(monkeypatch):
+    keys = stair_starts.grid_keys((0.105, 0.12), (0.30, 0.30), (3, 3))
+    assert keys == [(h, 30, 3, foot) for h in (11, 12) for foot in ("right", "left")]
+    for key in keys:
+        stair_starts._CLIMBS.pop(key, None)
+    assert stair_starts.fill_cache(keys, workers=2) == 4
+    assert stair_starts.fill_cache(keys, workers=2) == 0          # already there
+    filled = {key: stair_starts._CLIMBS[key] for key in keys}
+    expected = {key: stair_starts._synthesise(*key) for key in keys}    # computed here, in this process
+    monkeypatch.setattr(stair_starts, "_synthesise", lambda *key: pytest.fail(f"synthesised again: {key}"))
+    for (h, d, n, foot), (qpos, qvel) in filled.items():
+        want_qpos, want_qvel = expected[(h, d, n, foot)]
+        np.testing.assert_array_equal(qpos, want_qpos)    # the same bits as a miss in this process
+        np.testing.assert_array_equal(qvel, want_qvel)
+        got = stair_starts.climb_frames(h * 0.01, d * 0.01, n, foot)
+        assert got[0] is qpos and got[1] is qvel          # served from the cache
+
+
+def test_climb_keys_are_the_grid_staircases_the_env_can_draw():
+    assert gym.make("InterLevel-v0").unwrapped.climb_keys() == []    # no stair starts, nothing to synthesise
+    keys = gym.make("InterLevel-v0", stairs_start_fraction=0.5).unwrapped.climb_keys()
+    # 0.05-0.20 m x 0.25-0.40 m on the 1 cm grid, 3-10 steps, either foot: the whole cache
+    assert len(keys) == 16 * 16 * 8 * 2 == stair_starts.CACHE_SIZE
+    env = gym.make("InterLevel-v0", stairs_start_fraction=1.0).unwrapped
+    for seed in range(4):
+        env.reset(seed=seed)
+        s = env.stairs
+        assert (round(s.step_height / 0.01), round(s.step_depth / 0.01), s.num_steps, "right") in keys

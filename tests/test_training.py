@@ -223,6 +223,18 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
 
+def test_climb_cache_workers_synthesise_the_runs_staircases_first(tmp_path):
+    """--climb-cache-workers: the climbs of every staircase the run's stair starts can draw (here 2 heights x
+    1 depth x 1 count x 2 lead feet) are synthesised before training; the run then trains as usual."""
+    out = run_script(["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--timesteps", "32",
+                      "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0",
+                      "--climb-cache-workers", "2", "--env-kwarg", "stairs_start_fraction=1.0",
+                      "--env-kwarg", "step_height=(0.10,0.11)", "--env-kwarg", "step_depth=(0.30,0.30)",
+                      "--env-kwarg", "num_steps=(3,3)"], tmp_path)
+    assert "climb cache: 4 staircases synthesised on 2 processes" in out
+    assert "trained 32 env steps" in out
+
+
 def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
     """The checkpoint records amp_text_condition: --resume needs no --amp-text-condition again."""
     tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",

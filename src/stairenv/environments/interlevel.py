@@ -343,6 +343,16 @@ class InterLevelEnv(HumanoidEnv):
                 "distance_to_target": float(np.linalg.norm(last.obs[task.OBSERVATION_STRUCTURE["target_offset"]]))}
 
     # --- pieces -------------------------------------------------------------
+    def climb_keys(self) -> list[tuple[int, int, int, str]]:
+        """The grid staircases this env's stair starts can draw (``stair_starts.grid_keys``; none without
+        stair starts): what ``stair_starts.fill_cache`` synthesises ahead of training."""
+        if self.stairs_start_fraction <= 0.0:
+            return []
+        config = self.stairs_config
+        heights = config.step_height if config.step_height_set is None else (
+            min(config.step_height_set), max(config.step_height_set))
+        return stair_starts.grid_keys(heights, config.step_depth, config.num_steps)
+
     def _check_stairs_option(self, stairs: Any) -> Staircase:
         if not isinstance(stairs, Staircase):
             raise ValueError(f"options['stairs'] must be a Staircase, got {type(stairs).__name__}")

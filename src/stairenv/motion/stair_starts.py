@@ -6,14 +6,20 @@ drawn from a climb of the episode's own staircase (``synthesis.climb_stairs`` wi
 step height, depth and count) puts the character anywhere from the approach to the
 landing, its feet on the treads the clip planned them on.
 
-Synthesis takes ~80 ms, so climbs are cached per staircase on a grid: height and depth
+Synthesis takes ~80-165 ms, so climbs are cached per staircase on a grid: height and depth
 are rounded to :data:`GRID` (1 cm); the env snaps the staircase of such an episode to the
-same grid (``snap``), so the treads and the clip agree exactly.
+same grid (``snap``), so the treads and the clip agree exactly. The cache is per process and
+fills as episodes draw staircases; early in training, when episodes are short, nearly every
+stair start misses it. ``fill_cache`` synthesises a range of staircases on several processes
+first (``train_ppo.py --climb-cache-workers N``): the same arrays, computed sooner.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+from collections import OrderedDict
+from collections.abc import Iterable
+from concurrent.futures import ProcessPoolExecutor
+import multiprocessing
 
 import numpy as np
 
@@ -55,8 +61,31 @@ def snap(value: float, low: float, high: float) -> float:
     return float(round(min(max(snapped, low_point), high_point), 6))
 
 
-@lru_cache(maxsize=CACHE_SIZE)
+#: (height_cm, depth_cm, num_steps, lead_foot) -> (qpos, qvel): the cached climbs, least recently used first
+_CLIMBS: OrderedDict[tuple[int, int, int, str], tuple[np.ndarray, np.ndarray]] = OrderedDict()
+LEAD_FEET = ("right", "left")
+
+
 def _climb(height_cm: int, depth_cm: int, num_steps: int, lead_foot: str) -> tuple[np.ndarray, np.ndarray]:
+    """The cached climb of this grid staircase, synthesised on a miss (least recently used dropped
+    beyond :data:`CACHE_SIZE`)."""
+    key = (height_cm, depth_cm, num_steps, lead_foot)
+    climb = _CLIMBS.get(key)
+    if climb is None:
+        climb = _remember(key, _synthesise(*key))
+    else:
+        _CLIMBS.move_to_end(key)
+    return climb
+
+
+def _remember(key: tuple[int, int, int, str], climb: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    _CLIMBS[key] = climb
+    if len(_CLIMBS) > CACHE_SIZE:
+        _CLIMBS.popitem(last=False)
+    return climb
+
+
+def _synthesise(height_cm: int, depth_cm: int, num_steps: int, lead_foot: str) -> tuple[np.ndarray, np.ndarray]:
     step_depth = depth_cm * GRID
     clip = climb_stairs(height_cm * GRID, step_depth, num_steps, lead_foot=lead_foot)
     x = clip.qpos[:, 0]
@@ -86,3 +115,35 @@ def climb_state(step_height: float, step_depth: float, num_steps: int, rng: np.r
     qpos, qvel = climb_frames(step_height, step_depth, num_steps, lead_foot)
     k = int(rng.integers(len(qpos)))
     return qpos[k].astype(np.float64), qvel[k].astype(np.float64)
+
+
+def grid_keys(step_height: tuple[float, float], step_depth: tuple[float, float],
+              num_steps: tuple[int, int]) -> list[tuple[int, int, int, str]]:
+    """Every grid staircase (and lead foot) a stair start can draw from these ranges (``snap``'s grid
+    points inside them): the keys of the cache."""
+    def points(low: float, high: float) -> range:
+        return range(int(np.ceil(low / GRID - 1e-9)), int(np.floor(high / GRID + 1e-9)) + 1)
+    return [(h, d, n, foot) for h in points(*step_height) for d in points(*step_depth)
+            for n in range(int(num_steps[0]), int(num_steps[1]) + 1) for foot in LEAD_FEET]
+
+
+def _synthesise_key(key: tuple[int, int, int, str]) -> tuple[np.ndarray, np.ndarray]:
+    return _synthesise(*key)
+
+
+def fill_cache(keys: Iterable[tuple[int, int, int, str]], workers: int) -> int:
+    """Synthesise the climbs of ``keys`` (``grid_keys``) not yet cached, on ``workers`` processes, into this
+    process's cache (at most :data:`CACHE_SIZE`); the arrays are those a miss would compute (the synthesis
+    is deterministic; float32 arrays travel back unchanged). Returns how many were synthesised."""
+    missing = [key for key in dict.fromkeys(keys) if key not in _CLIMBS][:CACHE_SIZE]
+    if not missing:
+        return 0
+    if workers <= 1:
+        for key in missing:
+            _remember(key, _synthesise(*key))
+        return len(missing)
+    # spawned workers: a fork of a process already running torch or a thread pool can deadlock
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for key, climb in zip(missing, pool.map(_synthesise_key, missing, chunksize=8)):
+            _remember(key, climb)
+    return len(missing)
