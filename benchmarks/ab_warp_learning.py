@@ -9,7 +9,7 @@ Warp arm is "as good per sample" where it differs from the C arms no more than t
 other. Meant for a GPU machine (the Warp arm on the GPU, the C arms on its cores, all concurrently);
 on a CPU-only machine ``--quick`` checks that the script works (Warp's CPU device: slow).
 
-    python benchmarks/ab_warp_learning.py --timesteps 1.2e6 --deadline 420 --out ab.json
+    python benchmarks/ab_warp_learning.py --timesteps 1.2e6 --deadline 420 --climb-cache-workers 5 --out ab.json
     python benchmarks/ab_warp_learning.py --quick       # a few thousand steps, to check the plumbing
 """
 
@@ -48,6 +48,8 @@ def launch(physics: str, seed: int, args, logdir: Path) -> subprocess.Popen:
         command += ["--physics-threads", str(args.physics_threads)]
     if args.n_envs:
         command += ["--n-envs", str(args.n_envs)]
+    if args.climb_cache_workers:
+        command += ["--climb-cache-workers", str(args.climb_cache_workers)]
     log = (logdir.parent / f"{logdir.name}.out").open("w")
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1"}
     return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
@@ -80,6 +82,9 @@ def main() -> None:
     parser.add_argument("--timesteps", type=float, default=1.2e6)
     parser.add_argument("--n-envs", type=int, default=None, help="worlds per arm (default: the recipe's)")
     parser.add_argument("--physics-threads", type=int, default=max(1, (os.cpu_count() or 2) // 3))
+    parser.add_argument("--climb-cache-workers", type=int, default=0,
+                        help="each arm synthesises its stair starts' climbs on this many processes first (a fresh "
+                             "process otherwise spends its first minutes on them: docs/gpu.md)")
     parser.add_argument("--deadline", type=float, default=420.0, help="seconds before the arms are stopped")
     parser.add_argument("--bucket", type=int, default=131072, help="samples per row of the comparison")
     parser.add_argument("--logroot", default="/tmp/ab_warp_learning")
