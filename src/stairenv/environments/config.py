@@ -11,7 +11,8 @@ unless ``KEYWORD_NAMES`` renames it (``stairs_distance`` is ``stairs.distance``)
 lists them in order; ``from_keywords`` builds the config from the given ones, the defaults being the
 fields', each checked once under its keyword (TypeError for a wrong type, ValueError out of range,
 both naming the keyword: the messages of ``stairenv.validation``). ``keywords()`` goes back. The env's
-signature is made from the fields (``keyword_signature``), so defaults live in one place.
+signature is made from the fields (``keyword_signature``), and so is the keyword table of its docstring
+(``keyword_table``, ``document_keywords``: keyword, default, valid values, help), so defaults live in one place.
 """
 
 from __future__ import annotations
@@ -592,5 +593,7 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
 
 __all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
            "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation",
-           "PlaMoPaths", "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
-           "from_keywords", "group_keywords", "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]
+           "PlaMoPaths", "PlaMoSceneConfig", "PlaMoScenePlanner", "PlaMoSceneTermination", "PlaMoSceneWorld",
+           "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
+           "document_keywords", "from_keywords", "group_keywords", "keyword_paths", "keyword_signature",
+           "keyword_table", "resolve", "unchecked_keywords"]
