@@ -248,8 +248,8 @@ class PlaMoTerrain:
 @checked_config
 class PlaMoPaths:
     locomotion: str | Locomotion | None = checked(None, Check("call", call=_locomotion, optional=True),
-                                                  "restrict paths to one locomotion; None = any head height "
-                                                  "0.4-1.47 m")
+                                                  f"restrict paths to one locomotion ({', '.join(LOCOMOTIONS)}"
+                                                  "; a name or a Locomotion); None = any head height 0.4-1.47 m")
     path_generator: str = checked("coupled", Check("choice", options=PATH_GENERATORS),
                                   '"coupled" (PlaMo) or "naive" (speed independent of height)')
     episode_seconds: float = checked(10.0, Check("float", 1.0, 600.0),

@@ -11,6 +11,7 @@ import numpy as np
 from stairenv.environments.base import StepOutcome
 # named here too, as before (they moved to the config)
 from stairenv.environments.config import (  # noqa: F401
+    MAX_TERRAIN_CELLS,
     SCENE_BYTES_PER_CELL,
     SCENE_KINDS,
     SPEED_PROFILES,
