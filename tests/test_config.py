@@ -1,10 +1,12 @@
 """One frozen, typed config per env family (issue #26, item 1): InterLevel's keywords map onto
-``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``), ``env.unwrapped.config`` is the resolved config,
-``config=`` builds the same env as the keywords, presets are configs, the errors are those of the
-keywords, and the final evaluation drops the config's training aids."""
+``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``, PlaMoScene's onto ``PlaMoSceneConfig``),
+``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as the keywords, presets
+are configs, the errors are those of the keywords, the final evaluation drops the config's training aids,
+and the env docstrings' keyword tables are the configs' fields."""
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import inspect
 import re
@@ -19,15 +21,19 @@ from stairenv.environments.config import (
     InterLevelConfig,
     InterLevelTrainingAids,
     PlaMoConfig,
+    PlaMoSceneConfig,
     PlaMoTrainingAids,
     group_keywords,
     keyword_paths,
+    keyword_table,
 )
 from stairenv.environments.interlevel import STAIRS_RANGES, InterLevelEnv
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.environments.plamo_scene import PlaMoSceneEnv
+from stairenv.planning.errors import InstructionError
 from stairenv.planning.locomotion import LOCOMOTIONS
 from stairenv.validation import field_check
+from stairenv.world.scenes import SceneConfig
 from stairenv.world.stairs import StairsConfig
 
 INTERLEVEL_IDS = ("InterLevel-v0", "InterLevel2D-v0", "InterSceneStairs-v0")
@@ -58,7 +64,12 @@ def test_the_config_holds_the_keywords_resolved():
     env.close()
 
 
-@pytest.mark.parametrize("env_cls, config_cls", [(InterLevelEnv, InterLevelConfig), (PlaMoEnv, PlaMoConfig)])
+ENV_CONFIGS = [(InterLevelEnv, InterLevelConfig), (PlaMoEnv, PlaMoConfig), (PlaMoSceneEnv, PlaMoSceneConfig)]
+# keywords whose default None the config resolves (w_scale: sigma_after / sigma_before; scene: SceneConfig())
+RESOLVED_NONE = ("w_scale", "scene")
+
+
+@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS)
 def test_the_signature_is_the_configs_fields(env_cls, config_cls):
     """The defaults live in the config alone; the env's keywords are its fields."""
     parameters = inspect.signature(env_cls.__init__).parameters
@@ -66,7 +77,7 @@ def test_the_signature_is_the_configs_fields(env_cls, config_cls):
     assert set(parameters) - {"self"} == set(defaults) == set(keyword_paths(config_cls))
     for name, value in defaults.items():
         default = parameters[name].default
-        assert default == value or (name == "w_scale" and default is None), name
+        assert default == value or (name in RESOLVED_NONE and default is None), name
 
 
 def test_stairs_ranges_are_stairs_configs():
@@ -78,11 +89,13 @@ def test_stairs_ranges_are_stairs_configs():
 
 
 CHANGES = {InterLevelConfig: {"w_velocity": 0.5, "num_steps": (3, 5)},
-           PlaMoConfig: {"terrain_size": 12.0, "max_xy_error": 1.5, "locomotion": "walk"}}  # (not a preset keyword)
+           PlaMoConfig: {"terrain_size": 12.0, "max_xy_error": 1.5, "locomotion": "walk"},  # (not a preset keyword)
+           PlaMoSceneConfig: {"max_xy_error": 2.5, "scene": {"num_walls": (1, 2)}, "speed_profile": "constant"}}
 
 
 @pytest.mark.parametrize("env_id, config_cls", [(env_id, InterLevelConfig) for env_id in INTERLEVEL_IDS]
-                         + [("PlaMo-v0", PlaMoConfig), ("PlaMoNaivePaths-v0", PlaMoConfig)])
+                         + [("PlaMo-v0", PlaMoConfig), ("PlaMoNaivePaths-v0", PlaMoConfig),
+                            ("PlaMoScene-v0", PlaMoSceneConfig)])
 def test_presets_are_configs_and_config_equals_keywords(env_id, config_cls):
     preset = asset_dir("envs") / f"{env_id}.toml"
     plain = gym.make(env_id)
@@ -178,10 +191,6 @@ def test_plamo_config_holds_the_keywords_resolved():
         PlaMoEnv(terrain_size=200.0, terrain_cell_size=0.01)
     with pytest.raises(TypeError, match=re.escape("locomotion must be None, a name")):
         PlaMoConfig.from_keywords(locomotion=3)
-    # PlaMoScene builds its path follower from keywords, as before (its own keywords are not in the config)
-    scene = PlaMoSceneEnv(max_xy_error=2.5, heightmap_size=8)
-    assert scene.config.termination.max_xy_error == 2.5 and scene.config.terrain.kind == "flat"
-    scene.close()
 
 
 def test_the_evaluation_drops_plamos_training_aids(baseline_script):
@@ -193,3 +202,92 @@ def test_the_evaluation_drops_plamos_training_aids(baseline_script):
     assert evaluated == {"terrain": "rough"}
     assert PlaMoConfig.from_keywords(**evaluated) == dataclasses.replace(
         PlaMoConfig.from_keywords(**kwargs), training_aids=PlaMoTrainingAids())
+
+
+def test_plamo_scene_config_holds_the_keywords_resolved():
+    env = gym.make("PlaMoScene-v0", scene={"num_walls": [1, 2]}, scene_resample_every=4.0, max_xy_error=2.5,
+                   heightmap_size=8, speed_profile="constant", constant_speed=2)
+    unwrapped = env.unwrapped
+    config = unwrapped.config
+    assert isinstance(config, PlaMoSceneConfig)
+    assert config.scene.config == SceneConfig(num_walls=(1, 2)) and config.scene.kind == "random"
+    assert config.scene.resample_every == 4 and type(config.scene.resample_every) is int
+    assert config.planner.speed_profile == "constant" and config.planner.constant_speed == 2.0
+    assert config.termination.max_xy_error == 2.5 and config.observation.heightmap_size == 8
+    assert PlaMoSceneConfig.from_keywords(**config.keywords()) == config
+    assert list(config.keywords()) == list(inspect.signature(PlaMoSceneEnv.__init__).parameters)[1:]
+    # the attributes other code reads are the config's values
+    assert unwrapped.scene_config is config.scene.config and unwrapped.scene_resample_every == 4
+    assert unwrapped.max_xy_error == 2.5 and unwrapped.heightmap_size == 8 and unwrapped.terrain == "flat"
+    # its path follower: PlaMo's config of these physics, observation and max_xy_error, on flat terrain
+    follower = config.path_follower()
+    assert isinstance(follower, PlaMoConfig) and follower.terrain.kind == "flat"
+    assert follower.termination.max_xy_error == 2.5 and follower.observation is config.observation
+    assert follower == PlaMoConfig.from_keywords(terrain="flat", max_xy_error=2.5, heightmap_size=8)
+    env.close()
+    assert PlaMoSceneConfig().scene.config == SceneConfig()  # scene=None: SceneConfig's defaults
+
+
+def test_plamo_scene_keywords_beside_a_config_must_agree_with_it():
+    config = PlaMoSceneConfig.from_keywords(scene_kind="slalom", success_radius=1.0)
+    env = PlaMoSceneEnv(config=config, success_radius=1, scene={})
+    assert env.config is config and env.scene_kind == "slalom" and env.success_radius == 1.0
+    env.close()
+    with pytest.raises(ValueError, match="success_radius=0.5 disagree with config"):
+        PlaMoSceneEnv(config=config, success_radius=0.5)
+    with pytest.raises(TypeError, match="config must be a PlaMoSceneConfig"):
+        PlaMoSceneEnv(config=PlaMoConfig())
+
+
+def test_plamo_scene_instructions_fail_in_the_config_naming_the_keyword():
+    """Issue #23, item 4: instructions the parser cannot read fail when the config is built (keywords, a
+    config built directly, or replaced), not at reset, and the error names ``instructions``."""
+    for make in (lambda: PlaMoSceneConfig.from_keywords(instructions="fly to the moon"),
+                 lambda: PlaMoSceneConfig().replace(instructions="fly to the moon"),
+                 lambda: dataclasses.replace(PlaMoSceneConfig(), planner=dataclasses.replace(
+                     PlaMoSceneConfig().planner, instructions="fly to the moon"))):
+        with pytest.raises(InstructionError, match=re.escape("instructions 'fly to the moon': unknown locomotion "
+                                                             "verb 'fly'")):
+            make()
+    assert issubclass(InstructionError, ValueError)
+    # the landmarks are the scene's: the slalom's start and goal, or the scene keyword's names
+    with pytest.raises(InstructionError, match="instructions 'Walk to the tree'"):
+        PlaMoSceneConfig.from_keywords(scene_kind="slalom", instructions="Walk to the tree")
+    PlaMoSceneConfig.from_keywords(scene_kind="slalom", instructions="Run to the goal")
+    PlaMoSceneConfig.from_keywords(scene={"landmark_names": ("well", "gate"), "num_landmarks": 2},
+                                   instructions="Walk to the well")
+    with pytest.raises(InstructionError, match="unknown landmark 'tree'"):
+        PlaMoSceneConfig.from_keywords(scene={"landmark_names": ("well", "gate"), "num_landmarks": 2},
+                                       instructions="Walk to the tree")
+    with pytest.raises(TypeError, match="instructions must be a str"):
+        PlaMoSceneConfig.from_keywords(instructions=3)
+
+
+def _table_rows(doc: str) -> list[list[str]]:
+    """The rows of the docstring's keyword table (header and rule left out), cell by cell."""
+    lines = [line.strip() for line in inspect.cleandoc(doc).splitlines()]
+    start = lines.index("| keyword | default | valid | meaning |")
+    rows = []
+    for line in lines[start + 2:]:
+        if not line.startswith("|"):
+            break
+        rows.append([cell.strip() for cell in line.strip("|").split(" | ")])
+    return rows
+
+
+@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS)
+def test_the_docstring_table_is_the_configs_keywords_and_defaults(env_cls, config_cls):
+    """One row per keyword, in the config's order, with its field's default, valid values and help: the
+    defaults live in the config alone."""
+    rows = _table_rows(env_cls.__doc__)
+    assert [row[0] for row in rows] == list(keyword_paths(config_cls))
+    defaults = {k: p.default for k, p in inspect.signature(env_cls.__init__).parameters.items() if k != "self"}
+    for keyword, default, valid, meaning in rows:
+        shown = ast.literal_eval(default)
+        if isinstance(shown, tuple):
+            assert shown == pytest.approx(defaults[keyword], rel=1e-3), keyword
+        else:
+            assert shown == defaults[keyword] and type(shown) is type(defaults[keyword]), keyword
+        assert valid and len(meaning) > 10, keyword
+    assert keyword_table(config_cls) in inspect.cleandoc(env_cls.__doc__)
+    assert "{keyword table}" not in env_cls.__doc__

@@ -11,7 +11,8 @@ unless ``KEYWORD_NAMES`` renames it (``stairs_distance`` is ``stairs.distance``)
 lists them in order; ``from_keywords`` builds the config from the given ones, the defaults being the
 fields', each checked once under its keyword (TypeError for a wrong type, ValueError out of range,
 both naming the keyword: the messages of ``stairenv.validation``). ``keywords()`` goes back. The env's
-signature is made from the fields (``keyword_signature``), so defaults live in one place.
+signature is made from the fields (``keyword_signature``), and so is the keyword table of its docstring
+(``keyword_table``, ``document_keywords``: keyword, default, valid values, help), so defaults live in one place.
 """
 
 from __future__ import annotations
@@ -31,7 +32,19 @@ from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
 from stairenv.tasks.interlevel import InterLevelReward
-from stairenv.validation import Check, check_fields, check_grid, checked, checked_config, field_check
+from stairenv.planning.errors import InstructionError
+from stairenv.planning.instructions import parse_instructions
+from stairenv.validation import (
+    Check,
+    check_fields,
+    check_grid,
+    check_mapping,
+    check_str,
+    checked,
+    checked_config,
+    field_check,
+)
+from stairenv.world.scenes import SceneConfig
 from stairenv.world.stairs import StairsConfig
 from stairenv.world.terrain import TERRAIN_KINDS
 
@@ -84,13 +97,14 @@ class EnvConfig:
 class PhysicsConfig:
     """The character's servos and the policy rate."""
 
-    pd_gains: str = checked("soft", Check("choice", options=tuple(PD_GAINS)), "PD gain preset")
-    frame_skip: int = checked(8, Check("int", 1, 100), "physics steps per action (240 Hz physics -> 30 Hz)")
+    pd_gains: str = checked("soft", Check("choice", options=tuple(PD_GAINS)), "PD gain preset of the servos")
+    frame_skip: int = checked(8, Check("int", 1, 100), "physics steps per action (240 Hz physics -> 30 Hz policy)")
 
 
 @checked_config
 class RenderConfig:
-    render_mode: str | None = checked(None, Check("choice", options=RENDER_MODES, optional=True))
+    render_mode: str | None = checked(None, Check("choice", options=RENDER_MODES, optional=True),
+                                     '"rgb_array" (frames from render()) or "human" (a window); None = no rendering')
     width: int = checked(640, Check("int", 16, 4096), "rgb_array frame width")
     height: int = checked(480, Check("int", 16, 4096), "rgb_array frame height")
 
@@ -116,7 +130,8 @@ class InterLevelTermination:
 
 @checked_config
 class InterLevelStart:
-    start_radius: float = checked(1.0, Check("float", 0.0, 10.0), "start position uniform in this disc (m)")
+    start_radius: float = checked(1.0, Check("float", 0.0, 10.0),
+                                  "start position uniform in this disc around the centre (m)")
     random_start_heading: bool = checked(True, Check("bool"), "start heading uniform; False = facing the stairs")
     reset_noise_scale: float = checked(0.05, UNIT, "uniform noise on joint angles at reset (rad)")
 
@@ -126,10 +141,12 @@ class ReferenceStarts:
     """Reference-state starts (``HumanoidEnv._setup_starts``), a training aid of every family."""
 
     init: str = checked("default", Check("choice", options=INITS),
-                        'start pose: "default" (standing), "reference", "hybrid"')
+                        'start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid"')
     reference_motion: str | None = checked(None, Check("call", call=_reference_motion, optional=True),
-                                           "folder / .npz of reference clips; None = the env's built-in set")
-    hybrid_fraction: float = checked(0.5, UNIT, 'share of reference starts with init="hybrid"')
+                                           "folder / .npz of reference clips; None = the env's built-in set "
+                                           "(InterLevel's synthesised walks, PlaMo's builtin:plamo)")
+    hybrid_fraction: float = checked(0.5, UNIT,
+                                     'share of episodes that start from a reference frame with init="hybrid"')
 
 
 @checked_config
@@ -137,16 +154,22 @@ class InterLevelTrainingAids(ReferenceStarts):
     """What only shapes training: the final evaluation builds its env without these keywords
     (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
 
-    stairs_start_fraction: float = checked(0.0, UNIT, "share of episodes that start on a climb of their stairs")
+    stairs_start_fraction: float = checked(0.0, UNIT, "share of episodes that start from a frame of a climb "
+                                           "synthesised for their staircase")
     stall_seconds: float | None = checked(None, Check("float", 0.0, 3600.0, low_open=True, optional=True),
-                                          "end an episode that has not come closer to M_T for this long")
-    stall_distance: float = checked(0.2, Check("float", 0.0, 100.0), "least approach (m) that counts")
-    step_height_levels: int = checked(0, Check("int", 0, 100), "levels of the step-height curriculum; 0 = off")
+                                          "end an episode that has not come stall_distance closer "
+                                          "to M_T for this long; None = never")
+    stall_distance: float = checked(0.2, Check("float", 0.0, 100.0),
+                                    "least approach to M_T (m) that counts as progress for stall_seconds")
+    step_height_levels: int = checked(0, Check("int", 0, 100),
+                                      "split step_height into this many levels of a success-driven curriculum; "
+                                      "0 = off")
     curriculum_demote_below: float = checked(curriculum.DEMOTE_BELOW, UNIT,
-                                             "a level down when a floor start ends below this progress")
+                                             "move a level down when a floor-start episode ends below this "
+                                             "progress without success")
     curriculum_promote_at: float | None = checked(
         None, Check("float", 0.0, 1.0, optional=True, low_from="curriculum_demote_below"),
-        "also a level up at this progress; None = success only")
+        "also move a level up when a floor-start episode ends at this progress; None = success only")
 
 
 # the stairs' fields under the env's keywords (StairsConfig's own errors say "distance", "yaw")
@@ -159,7 +182,8 @@ class HumanoidConfig(EnvConfig):
 
     physics: PhysicsConfig = group(PhysicsConfig)
     render: RenderConfig = group(RenderConfig)
-    amp_history: int = checked(2, Check("int", 1, 100), "frames of AMP features in info['amp_obs']")
+    amp_history: int = checked(2, Check("int", 1, 100),
+                                "frames of AMP features in info['amp_obs'] (K x 105, oldest first)")
 
 
 @checked_config
@@ -211,9 +235,9 @@ class PlaMoTerrain:
     kind: str = checked("mixed", Check("choice", options=TERRAIN_KINDS, keyword="terrain"),
                         '"flat", "slope", "rough", "stairs" or "mixed"')
     size: float = checked(16.0, Check("float", 0.0, math.inf, low_open=True, keyword="terrain_size"),
-                          "height field side (m)")
+                          "height field side (m), in [2, 200]; at most 2001^2 samples")
     cell_size: float = checked(0.1, Check("float", 0.0, math.inf, low_open=True, keyword="terrain_cell_size"),
-                               "height field resolution (m)")
+                               "height field resolution (m), in [0.01, 1]")
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -224,10 +248,12 @@ class PlaMoTerrain:
 @checked_config
 class PlaMoPaths:
     locomotion: str | Locomotion | None = checked(None, Check("call", call=_locomotion, optional=True),
-                                                  "restrict paths to one locomotion; None = any")
+                                                  f"restrict paths to one locomotion ({', '.join(LOCOMOTIONS)}"
+                                                  "; a name or a Locomotion); None = any head height 0.4-1.47 m")
     path_generator: str = checked("coupled", Check("choice", options=PATH_GENERATORS),
                                   '"coupled" (PlaMo) or "naive" (speed independent of height)')
-    episode_seconds: float = checked(10.0, Check("float", 1.0, 600.0), "path length in time (s)")
+    episode_seconds: float = checked(10.0, Check("float", 1.0, 600.0),
+                                     "path length in time (s; the preset's time limit matches)")
     constant_paths: bool = checked(False, Check("bool"), "one head height, speed and turn rate per path "
                                    "(PlaMo's Table 2 protocol); False = new ones every 2-5 s")
 
@@ -251,7 +277,8 @@ class PlaMoTrainingAids(ReferenceStarts):
 
     matched_starts: bool = checked(True, Check("bool"), "a reference start is a frame of the path's opening "
                                    "locomotion (acts only with reference starts)")
-    speed_levels: int = checked(0, Check("int", 0, 100), "levels of the speed curriculum; 0 = off")
+    speed_levels: int = checked(0, Check("int", 0, 100),
+                                "levels of a success-driven curriculum scaling path speeds by (k + 1) / N; 0 = off")
     min_root_height: float | None = checked(
         None, Check("float", 0.0, 2.0, low_open=True, optional=True),
         "pelvis height above the terrain that ends an episode while the path asks for more than a crawl; "
@@ -261,13 +288,197 @@ class PlaMoTrainingAids(ReferenceStarts):
 @checked_config
 class PlaMoConfig(HumanoidConfig):
     """The whole configuration of a ``PlaMoEnv`` (PlaMo-v0, PlaMoNaivePaths-v0); ``env.unwrapped.config``.
-    (``PlaMoSceneEnv`` builds its path follower from one; its own keywords are not in it yet.)"""
+    (``PlaMoSceneEnv``'s is a ``PlaMoSceneConfig``, whose ``path_follower()`` is one of these.)"""
 
     terrain: PlaMoTerrain = group(PlaMoTerrain)
     paths: PlaMoPaths = group(PlaMoPaths)
     observation: PlaMoObservation = group(PlaMoObservation)
     termination: PlaMoTermination = group(PlaMoTermination)
     training_aids: PlaMoTrainingAids = group(PlaMoTrainingAids)
+
+
+# --- PlaMo in a scene (PlaMoSceneEnv) -----------------------------------------------------------
+SCENE_KINDS = ("random", "slalom")
+SPEED_PROFILES = ("planned", "constant")
+SLALOM_LANDMARKS = ("start", "goal")
+# Bound on the scene's height-map samples, as PlaMoEnv's on its height field (2001^2, e.g. 100 m
+# at 0.05 m); a scene costs ~175 bytes a sample (height map, costmaps, the model's field; measured),
+# so ~670 MB at the bound.
+SCENE_BYTES_PER_CELL = 175
+
+
+def scene_config(scene: dict[str, Any] | SceneConfig | None) -> SceneConfig:
+    """The ``scene`` keyword (``SceneConfig`` fields, or a ``SceneConfig``) as a config; errors name the
+    keyword, and a height map over ``MAX_TERRAIN_CELLS`` samples is refused before anything allocates it."""
+    if isinstance(scene, SceneConfig):
+        config = scene
+    else:
+        names = [field.name for field in fields(SceneConfig)]
+        try:
+            config = SceneConfig(**check_mapping("scene", {} if scene is None else scene, names))
+        except (TypeError, ValueError) as error:
+            if str(error).startswith("scene"):
+                raise
+            raise type(error)(f"scene: {error}") from error  # SceneConfig names only its field
+    check_grid(("scene['size']", "scene['cell_size']"), config.size, config.cell_size,
+               MAX_TERRAIN_CELLS, SCENE_BYTES_PER_CELL)
+    return config
+
+
+def check_landmark_room(config: SceneConfig) -> None:
+    """``ValueError`` naming the ``scene`` keywords when ``num_landmarks`` discs ``landmark_separation``
+    apart cannot fit in ``size`` at all (generation would fail at every reset). A necessary condition
+    only: half-open squares of side ``separation / sqrt(2)`` each hold at most one centre."""
+    if config.landmark_separation <= 0.0:
+        return
+    side = config.landmark_separation / math.sqrt(2.0)
+    margin = max(config.landmark_radius - config.cell_size, 0.0)  # centres keep their disc in the scene
+    fits = 1
+    for extent in config.size:
+        fits *= max(math.ceil(max(extent - 2.0 * margin, 0.0) / side), 1)
+    if fits < config.num_landmarks:
+        # the least square size that passes this check: ceil(sqrt(n)) squares along each side
+        per_side = math.isqrt(config.num_landmarks - 1) + 1
+        least = math.ceil((2.0 * margin + (per_side - 1) * side) * 100.0) / 100.0  # rounded up to cm
+        raise ValueError(f"scene: {config.num_landmarks} landmarks (scene['num_landmarks']) "
+                         f"{config.landmark_separation:g} m apart (scene['landmark_separation']) cannot fit in a "
+                         f"scene of size {config.size} (scene['size']): at most {fits} do; a square scene's "
+                         f"size must exceed ({least:g}, {least:g}) m (a minimum: generation may need more)")
+
+
+def check_instructions(text: str, landmarks) -> None:
+    """``InstructionError`` (a ``ValueError``) naming the ``instructions`` keyword unless ``text`` parses
+    with ``landmarks``."""
+    try:
+        parse_instructions(text, landmarks)
+    except InstructionError as error:
+        raise InstructionError(f"instructions {text!r}: {error}") from None
+
+
+def _scene(value) -> SceneConfig:
+    config = scene_config(value)
+    check_landmark_room(config)
+    return config
+
+
+def _instructions(value) -> str:
+    return check_str("instructions", value)
+
+
+@checked_config
+class PlaMoSceneWorld:
+    """The scenes: generated ones (``scene``: ``SceneConfig``'s fields) or the slalom, and how often a new
+    one is built."""
+
+    # None resolved: SceneConfig() (the config holds the scene's whole SceneConfig)
+    config: dict[str, Any] | SceneConfig | None = checked(
+        None, Check("call", call=_scene, keyword="scene"),
+        "keyword arguments of stairenv.world.scenes.SceneConfig (a dict, or a SceneConfig); None = its "
+        "defaults; at most 2001^2 height-map samples (scene['size'] / scene['cell_size'] + 1 per side)")
+    kind: str = checked("random", Check("choice", options=SCENE_KINDS, keyword="scene_kind"),
+                        '"random" (generated) or "slalom" (the paper\'s test, "Run to the goal")')
+    resample_every: int = checked(10, Check("int", 1, 10**9, keyword="scene_resample_every"),
+                                  "resets between new random scenes (building one costs ~40 ms, planning ~15 ms); "
+                                  "a seeded reset builds one too")
+
+
+@checked_config
+class PlaMoScenePlanner:
+    """What is planned (the instructions) and how: the speed profile and the replanning around the ball."""
+
+    instructions: str | None = checked(
+        None, Check("call", call=_instructions, optional=True),
+        'instruction text, e.g. "Walk to the tree, then crawl from the tree to the swing", checked against '
+        "the scene's landmark names; None = random over the scene's landmarks")
+    speed_profile: str = checked("planned", Check("choice", options=SPEED_PROFILES),
+                                 '"planned" (the speed QP) or "constant" (constant_speed along the same path)')
+    constant_speed: float = checked(1.5, Check("float", 0.0, 10.0, low_open=True),
+                                    'speed with speed_profile="constant" (m/s)')
+    replan_horizon: float = checked(1.5, Check("float", 0.0, 10.0, low_open=True),
+                                    "collision look-ahead along the planned route (s)")
+    replan_every: float = checked(0.5, Check("float", 0.0, 10.0, low_open=True),
+                                  "period of the collision check, and of replanning around the ball (s)")
+
+
+@checked_config
+class PlaMoSceneTermination:
+    success_radius: float = checked(0.75, Check("float", 0.0, 10.0, low_open=True),
+                                    "head distance on the ground to the last landmark's centre that counts as "
+                                    "arrived, after the planned arrival time (m)")
+    max_xy_error: float = checked(3.0, Check("float", 0.0, 100.0, low_open=True),
+                                  "head-target distance on the ground that ends the episode (m)")
+
+
+@checked_config
+class PlaMoSceneConfig(HumanoidConfig):
+    """The whole configuration of a ``PlaMoSceneEnv`` (PlaMoScene-v0); ``env.unwrapped.config``. Its path
+    follower is the ``PlaMoEnv`` of ``path_follower()`` (flat terrain, the other fields at their defaults:
+    the scene replaces the terrain)."""
+
+    scene: PlaMoSceneWorld = group(PlaMoSceneWorld)
+    planner: PlaMoScenePlanner = group(PlaMoScenePlanner)
+    observation: PlaMoObservation = group(PlaMoObservation)
+    termination: PlaMoSceneTermination = group(PlaMoSceneTermination)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if self.planner.instructions is not None:  # unknown verbs and landmarks fail now, not at reset
+            check_instructions(self.planner.instructions, SLALOM_LANDMARKS if self.scene.kind == "slalom"
+                               else self.scene.config.landmark_names)
+
+    def path_follower(self) -> PlaMoConfig:
+        """The ``PlaMoConfig`` of the path follower: these physics, rendering, style history, observation
+        and ``max_xy_error``, on flat terrain."""
+        return PlaMoConfig(physics=self.physics, render=self.render, amp_history=self.amp_history,
+                           terrain=PlaMoTerrain(kind="flat"), observation=self.observation,
+                           termination=PlaMoTermination(max_xy_error=self.termination.max_xy_error))
+
+
+# --- the keyword tables of the env docstrings ------------------------------------------------------
+KEYWORD_TABLE = "{keyword table}"  # the line of an env's docstring that ``document_keywords`` replaces
+
+
+def _shown_default(value) -> str:
+    """A default as a docstring table shows it (a Python literal: ``"soft"``, ``(0.05, 0.2)``, ``6.283``)."""
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, float):
+        text = repr(value)
+        return text if len(text) <= 8 else f"{value:.4g}"
+    if isinstance(value, tuple):
+        return "(" + ", ".join(map(_shown_default, value)) + ")"
+    return repr(value)
+
+
+def keyword_table(cls: type) -> str:
+    """The markdown table of the keywords of config ``cls``: keyword, default, valid values and meaning,
+    all read from the fields (``checked``: default, ``Check``, help), in keyword order."""
+    rows = ["| keyword | default | valid | meaning |", "|---|---|---|---|"]
+    for keyword, path in keyword_paths(cls).items():
+        field = _leaf_field(cls, path)
+        check = field_check(field)
+        valid = check.valid()
+        meaning = field.metadata.get("doc", "") + (" (training aid)" if path[0] == "training_aids" else "")
+        rows.append(f"| {keyword} | {_shown_default(field.default)} | {valid} | {meaning} |")
+    return "\n".join(rows)
+
+
+def document_keywords(cls: type):
+    """Class decorator: the line ``{keyword table}`` of the class's docstring becomes ``keyword_table(cls)``
+    (at that line's indent), so an env's docstring lists its config's keywords and defaults."""
+    def decorate(env_cls: type) -> type:
+        doc = env_cls.__doc__
+        if doc is None:  # python -OO
+            return env_cls
+        lines = doc.split("\n")
+        at = [i for i, line in enumerate(lines) if line.strip() == KEYWORD_TABLE]
+        if len(at) != 1:
+            raise ValueError(f"{env_cls.__name__}'s docstring must hold one line {KEYWORD_TABLE}")
+        indent = lines[at[0]][:len(lines[at[0]]) - len(lines[at[0]].lstrip())]
+        table = [indent + row for row in keyword_table(cls).split("\n")]
+        env_cls.__doc__ = "\n".join(lines[:at[0]] + table + lines[at[0] + 1:])
+        return env_cls
+    return decorate
 
 
 # --- keywords <-> fields ----------------------------------------------------------------------
@@ -382,5 +593,7 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
 
 __all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
            "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation",
-           "PlaMoPaths", "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
-           "from_keywords", "group_keywords", "keyword_paths", "keyword_signature", "resolve", "unchecked_keywords"]
+           "PlaMoPaths", "PlaMoSceneConfig", "PlaMoScenePlanner", "PlaMoSceneTermination", "PlaMoSceneWorld",
+           "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
+           "document_keywords", "from_keywords", "group_keywords", "keyword_paths", "keyword_signature",
+           "keyword_table", "resolve", "unchecked_keywords"]

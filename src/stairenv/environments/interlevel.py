@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv, StepOutcome
-from stairenv.environments.config import KEYWORD_NAMES, InterLevelConfig, keyword_signature, resolve
+from stairenv.environments.config import KEYWORD_NAMES, InterLevelConfig, document_keywords, keyword_signature, resolve
 from stairenv.environments.config import REWARDS  # noqa: F401 (importable from here, as before)
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
 from stairenv.humanoid.placement import place_state_in_frame
@@ -37,6 +37,7 @@ STAIRS_RANGES = {keyword: (field_check(field).low, field_check(field).high) for 
     if keyword in ("step_height", "step_depth", "step_width", "stairs_distance", "stairs_yaw")}
 
 
+@document_keywords(InterLevelConfig)
 class InterLevelEnv(HumanoidEnv):
     r"""Stair climbing with the InterLevel 3-D reward (Shilton et al., AAAI 2025).
 
@@ -88,43 +89,7 @@ class InterLevelEnv(HumanoidEnv):
     ``physics_unstable``, ``stairs`` (the staircase's parameters), ``amp_obs`` (the
     last ``amp_history`` frames of style features, ``stairenv.style.features``).
 
-    | keyword | default | meaning |
-    |---|---|---|
-    | reward | "interlevel" | "interlevel" or "interscene" (2-D baseline) |
-    | progress_scaling | True | ReLU height-progress factor of Eq. 4; False = InterLevel-2D |
-    | w_location, w_facing, w_velocity | 3.0, 0.1, 0.4 | weights of Eq. 1 |
-    | sigma_before, sigma_after, sigma_across | 2.0, 0.5, 0.5 | s1, s2, s3 of Eq. 3-4 (m) |
-    | w_scale | None | factor past the target; None = s2/s1 (equal peaks) |
-    | target_speed | 1.0 | S_tar (m/s) |
-    | success_reward | 10.0 | bonus on reaching M_T |
-    | failure_reward | -1.0 | reward of the step that ends in a fall |
-    | success_radius | 0.5 | horizontal distance to M_T that counts as arrived (m) |
-    | terminate_on_success | True | end the episode on success |
-    | termination_height | 0.2 | min vertical head-hips and hips-foot gap (m) |
-    | start_radius | 1.0 | start position uniform in this disc around the centre (m) |
-    | random_start_heading | True | start heading uniform; False = facing the stairs |
-    | step_height | (0.05, 0.20) | step height range (m) |
-    | step_height_set | None | sample heights from this set instead, e.g. (0.05, 0.1, 0.15, 0.2) |
-    | step_depth, step_width | (0.25, 0.40), (1.0, 2.0) | tread depth and width ranges (m) |
-    | num_steps | (3, 10) | risers, the landing's included |
-    | landing_depth | 2.0 | top floor depth (m) |
-    | stairs_distance | (2.0, 3.0) | arena centre to the foot of the stairs (m) |
-    | stairs_yaw | (0, 2 pi) | ascent direction range (rad) |
-    | pd_gains | "soft" | PD gain preset, "soft" or "stiff" |
-    | frame_skip | 8 | physics steps per action (240 Hz physics -> 30 Hz policy) |
-    | reset_noise_scale | 0.05 | uniform noise on joint angles at reset (rad) |
-    | amp_history | 2 | frames of AMP features in ``info["amp_obs"]`` (K x 105, oldest first) |
-    | init | "default" | start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid" |
-    | reference_motion | None | folder / .npz of reference clips; None = the built-in synthesised set |
-    | hybrid_fraction | 0.5 | share of episodes that start from a reference frame with init="hybrid" |
-    | stairs_start_fraction | 0.0 | share of episodes that start from a frame of a climb synthesised for their staircase (training) |
-    | stall_seconds | None | end an episode that has not come ``stall_distance`` closer to M_T for this long (training); None = never |
-    | stall_distance | 0.2 | least approach (m) that counts as progress for ``stall_seconds`` |
-    | step_height_levels | 0 | split ``step_height`` into this many levels of a success-driven curriculum (training); 0 = off |
-    | curriculum_promote_at | None | also move a level up when a floor-start episode ends at this progress; None = success only |
-    | curriculum_demote_below | 0.5 | move a level down when a floor-start episode ends below this progress without success |
-    | render_mode | None | "rgb_array" or "human" |
-    | width, height | 640, 480 | rgb_array frame size |
+    {keyword table}
 
     Reward defaults (the paper gives none): the location term is an unnormalised
     product of two normal densities whose peak is 1 / (2 pi s1 s3) = 0.16 with the

@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from stairenv.environments.base import HumanoidEnv, StepOutcome
-from stairenv.environments.config import PlaMoConfig, keyword_signature, resolve
+from stairenv.environments.config import PlaMoConfig, document_keywords, keyword_signature, resolve
 # named here too, as before (the height field's bound is PlaMoTerrain's)
 from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TERRAIN_BYTES_PER_CELL  # noqa: F401
 from stairenv.humanoid import load_humanoid_spec
@@ -34,6 +34,7 @@ FLOOR_RING.flags.writeable = False
 ABOVE_CRAWL_HEAD = (LOCOMOTIONS["crawl"].head_range[1] + LOCOMOTIONS["crouch-walk"].head_range[0]) / 2
 
 
+@document_keywords(PlaMoConfig)
 class PlaMoEnv(HumanoidEnv):
     r"""Path following (PlaMo, Sec. 3.2): the head tracks a timed 3-D path over generated terrain.
 
@@ -90,30 +91,14 @@ class PlaMoEnv(HumanoidEnv):
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
     given instead (keywords beside it must agree with it), and ``env.unwrapped.config`` is the resolved
-    config (for ``PlaMoSceneEnv``: its path follower's, without the scene's own keywords).
+    config. The table below is made from the config's fields.
 
     **Memory bound**: the height field has ``terrain_size / terrain_cell_size + 1`` samples per side
     and may hold at most ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m
     or 20 m at 0.01 m; building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
     need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
 
-    | keyword | default | meaning |
-    |---|---|---|
-    | terrain | "mixed" | "flat", "slope", "rough", "stairs" or "mixed" |
-    | locomotion | None | restrict paths to one locomotion; None = any height 0.4-1.47 m |
-    | path_generator | "coupled" | "coupled" (PlaMo) or "naive" (speed independent of height) |
-    | episode_seconds | 10.0 | path length in time (the preset's time limit matches) |
-    | terrain_size, terrain_cell_size | 16.0, 0.1 | height field size [2, 200] and resolution [0.01, 1] (m); at most 2001^2 samples |
-    | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
-    | max_xy_error | 2.0 | head-target distance on the ground that ends the episode (m) |
-    | min_head_height | 0.15 | head height above the terrain that ends the episode (m) |
-    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | start pose as InterLevel; None: builtin:plamo |
-    | constant_paths | False | one head height, speed and turn rate per path (PlaMo's Table 2 protocol) |
-    | matched_starts | True | a reference start is a frame of the path's opening locomotion (below) |
-    | speed_levels | 0 | levels of a success-driven curriculum scaling path speeds by (k + 1) / N (training); 0 = off |
-    | min_root_height | None | end an episode when the pelvis is this close to the terrain while the path asks for more than a crawl (training); None = off |
-    | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
-    | render_mode, width, height | None, 640, 480 | as InterLevel |
+    {keyword table}
     """
 
     #: PlaMo's reference motion (AMP and reference-state starts): all four locomotion types

@@ -9,25 +9,28 @@ from typing import Any
 import numpy as np
 
 from stairenv.environments.base import StepOutcome
-from stairenv.environments.plamo import MAX_TERRAIN_CELLS, NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
+# named here too, as before (they moved to the config)
+from stairenv.environments.config import (  # noqa: F401
+    MAX_TERRAIN_CELLS,
+    SCENE_BYTES_PER_CELL,
+    SCENE_KINDS,
+    SPEED_PROFILES,
+    check_instructions,
+    check_landmark_room,
+    scene_config,
+)
+from stairenv.environments.config import PlaMoSceneConfig, document_keywords, keyword_signature, resolve
+from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.planning.errors import InstructionError, PlanningError
-from stairenv.planning.instructions import parse_instructions
 from stairenv.planning.planner import Plan, Planner, plan_path
 from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
-from stairenv.validation import check_choice, check_float, check_grid, check_int, check_mapping, check_str
-from stairenv.world.scenes import SceneConfig, add_scene_to_spec, generate_scene, slalom_scene
+from stairenv.world.scenes import add_scene_to_spec, generate_scene, slalom_scene
 
-SCENE_KINDS = ("random", "slalom")
-SPEED_PROFILES = ("planned", "constant")
 LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
 PATH_DT = 0.1  # the followed path is sampled every 0.1 s
-# Bound on the scene's height-map samples, as PlaMoEnv's on its height field (2001^2, e.g. 100 m
-# at 0.05 m); a scene costs ~175 bytes a sample (height map, costmaps, the model's field; measured),
-# so ~670 MB at the bound.
-SCENE_BYTES_PER_CELL = 175
 
 
 def random_instructions(landmarks: list[str], rng: np.random.Generator, segments: int = 2) -> tuple[str, str]:
@@ -38,50 +41,6 @@ def random_instructions(landmarks: list[str], rng: np.random.Generator, segments
     parts = [f"{verbs[0].capitalize()} to the {stops[0]}"]
     parts += [f"{verb} from the {a} to the {b}" for verb, a, b in zip(verbs[1:], stops[:-1], stops[1:])]
     return start, ", then ".join(parts)
-
-
-def scene_config(scene: dict[str, Any] | None) -> SceneConfig:
-    """The ``scene`` keyword (``SceneConfig`` fields) as a config; errors name the keyword, and a
-    height map over ``MAX_TERRAIN_CELLS`` samples is refused before anything allocates it."""
-    fields = [field.name for field in dataclasses.fields(SceneConfig)]
-    try:
-        config = SceneConfig(**check_mapping("scene", {} if scene is None else scene, fields))
-    except (TypeError, ValueError) as error:
-        if str(error).startswith("scene"):
-            raise
-        raise type(error)(f"scene: {error}") from error  # SceneConfig names only its field
-    check_grid(("scene['size']", "scene['cell_size']"), config.size, config.cell_size,
-               MAX_TERRAIN_CELLS, SCENE_BYTES_PER_CELL)
-    return config
-
-
-def check_landmark_room(config: SceneConfig) -> None:
-    """``ValueError`` naming the ``scene`` keywords when ``num_landmarks`` discs ``landmark_separation``
-    apart cannot fit in ``size`` at all (generation would fail at every reset). A necessary condition
-    only: half-open squares of side ``separation / sqrt(2)`` each hold at most one centre."""
-    if config.landmark_separation <= 0.0:
-        return
-    side = config.landmark_separation / math.sqrt(2.0)
-    margin = max(config.landmark_radius - config.cell_size, 0.0)  # centres keep their disc in the scene
-    fits = 1
-    for extent in config.size:
-        fits *= max(math.ceil(max(extent - 2.0 * margin, 0.0) / side), 1)
-    if fits < config.num_landmarks:
-        # the least square size that passes this check: ceil(sqrt(n)) squares along each side
-        per_side = math.isqrt(config.num_landmarks - 1) + 1
-        least = math.ceil((2.0 * margin + (per_side - 1) * side) * 100.0) / 100.0  # rounded up to cm
-        raise ValueError(f"scene: {config.num_landmarks} landmarks (scene['num_landmarks']) "
-                         f"{config.landmark_separation:g} m apart (scene['landmark_separation']) cannot fit in a "
-                         f"scene of size {config.size} (scene['size']): at most {fits} do; a square scene's "
-                         f"size must exceed ({least:g}, {least:g}) m (a minimum: generation may need more)")
-
-
-def check_instructions(text: str, landmarks) -> None:
-    """``InstructionError`` naming the ``instructions`` keyword unless ``text`` parses with ``landmarks``."""
-    try:
-        parse_instructions(text, landmarks)
-    except InstructionError as error:
-        raise InstructionError(f"instructions {text!r}: {error}") from None
 
 
 def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float) -> task.PathSamples:
@@ -99,6 +58,7 @@ def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float)
     return task.PathSamples(xyz, head, v, yaw, pitch, PATH_DT)
 
 
+@document_keywords(PlaMoSceneConfig)
 class PlaMoSceneEnv(PlaMoEnv):
     r"""A generated scene (terrain patches, walls, low ceilings, a moving ball, 4 landmarks) and
     instructions such as "Walk to the tree, then crawl from the tree to the swing".
@@ -118,64 +78,38 @@ class PlaMoSceneEnv(PlaMoEnv):
     ``instructions``, ``replans`` (detours and waits), ``waits``, ``replan_failures`` and
     ``planned_time``.
 
-    Keywords are checked at construction, as ``PlaMoEnv``'s. **Memory bound**: the scene's height
-    map (``size / cell_size + 1`` samples along x and y) may hold at most ``MAX_TERRAIN_CELLS`` =
-    2001^2 samples, e.g. 100 m x 100 m at 0.05 m; a scene costs ~175 bytes a sample, ~670 MB at the bound.
+    **Keywords** are checked at construction, as ``PlaMoEnv``'s (``instructions`` too: an unknown verb or
+    landmark raises ``InstructionError``, a ``ValueError``, naming it). They are the fields of
+    ``PlaMoSceneConfig`` (``stairenv.environments.config``: defaults and ranges live there);
+    ``config=PlaMoSceneConfig(...)`` may be given instead (keywords beside it must agree with it), and
+    ``env.unwrapped.config`` is the resolved config (its path follower's ``PlaMoConfig``:
+    ``config.path_follower()``).
 
-    | keyword | default | meaning |
-    |---|---|---|
-    | instructions | None | instruction text; None = random over the scene's landmarks |
-    | scene | None | keyword arguments of ``SceneConfig`` (a dict); at most 2001^2 height-map samples |
-    | scene_kind | "random" | "random" (generated) or "slalom" (the paper's test, "Run to the goal") |
-    | scene_resample_every | 10 | resets between new random scenes (>= 1; building one costs ~40 ms, planning ~15 ms) |
-    | speed_profile | "planned" | "planned" (the QP) or "constant" (``constant_speed`` along the same path) |
-    | replan_horizon, replan_every | 1.5, 0.5 | collision look-ahead and check period (s) |
-    | success_radius | 0.75 | head distance to the last landmark that counts as arrived (m) |
-    | max_xy_error | 3.0 | head-target distance that ends the episode (m) |
-    | constant_speed | 1.5 | speed with ``speed_profile="constant"`` (m/s) |
-    | (others) | | as ``PlaMoEnv`` |
+    **Memory bound**: the scene's height map (``size / cell_size + 1`` samples along x and y) may hold at
+    most ``MAX_TERRAIN_CELLS`` = 2001^2 samples, e.g. 100 m x 100 m at 0.05 m; a scene costs ~175 bytes a
+    sample, ~670 MB at the bound.
+
+    {keyword table}
     """
 
-    def __init__(
-        self,
-        instructions: str | None = None,
-        scene: dict[str, Any] | None = None,
-        scene_kind: str = "random",
-        scene_resample_every: int = 10,
-        speed_profile: str = "planned",
-        constant_speed: float = 1.5,
-        replan_horizon: float = 1.5,
-        replan_every: float = 0.5,
-        success_radius: float = 0.75,
-        max_xy_error: float = 3.0,
-        heightmap_size: int = 16,
-        heightmap_extent: float = 2.0,
-        pd_gains: str = "soft",
-        frame_skip: int = 8,
-        amp_history: int = 2,
-        render_mode: str | None = None,
-        width: int = 640,
-        height: int = 480,
-    ) -> None:
-        # This env's own keywords first: PlaMoEnv's constructor builds a model.
-        self.instructions = None if instructions is None else check_str("instructions", instructions)
-        self.scene_kind = check_choice("scene_kind", scene_kind, SCENE_KINDS)
-        self.speed_profile = check_choice("speed_profile", speed_profile, SPEED_PROFILES)
-        self.constant_speed = check_float("constant_speed", constant_speed, 0.0, 10.0, low_open=True)
-        self.scene_config = scene_config(scene)
-        check_landmark_room(self.scene_config)
-        if self.instructions is not None:  # unknown verbs and landmarks fail now, not at reset
-            check_instructions(self.instructions, ("start", "goal") if self.scene_kind == "slalom"
-                               else self.scene_config.landmark_names)
-        self.scene_resample_every = check_int("scene_resample_every", scene_resample_every, 1, 10**9)
+    def __init__(self, *, config: PlaMoSceneConfig | None = None, **keywords) -> None:
+        # the keywords (signature below: PlaMoSceneConfig's fields) -> the one resolved, checked config,
+        # checked before PlaMoEnv's constructor builds a model
+        config = resolve(PlaMoSceneConfig, config, keywords)
+        scene, planner = config.scene, config.planner
+        self.instructions = planner.instructions
+        self.scene_kind, self.scene_config, self.scene_resample_every = scene.kind, scene.config, scene.resample_every
+        self.speed_profile, self.constant_speed = planner.speed_profile, planner.constant_speed
         self._resets = 0
-        self.replan_horizon = check_float("replan_horizon", replan_horizon, 0.0, 10.0, low_open=True)
-        self.replan_every = check_float("replan_every", replan_every, 0.0, 10.0, low_open=True)
-        self.success_radius = check_float("success_radius", success_radius, 0.0, 10.0, low_open=True)
-        super().__init__(terrain="flat", heightmap_size=heightmap_size, heightmap_extent=heightmap_extent,
-                         max_xy_error=max_xy_error, pd_gains=pd_gains, frame_skip=frame_skip,
-                         amp_history=amp_history, render_mode=render_mode, width=width, height=height)
+        self.replan_horizon, self.replan_every = planner.replan_horizon, planner.replan_every
+        self.success_radius = config.termination.success_radius
+        super().__init__(config=config.path_follower())
+        #: the resolved config (PlaMoEnv's constructor set its path follower's, ``config.path_follower()``)
+        self.config = config
         self.scene = None
+
+    # the keywords: PlaMoSceneConfig's fields, defaults included (``config=`` stays out of the signature)
+    __init__.__signature__ = keyword_signature(PlaMoSceneConfig)
 
     @property
     def trajectory(self) -> Trajectory:

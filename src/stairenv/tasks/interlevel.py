@@ -189,16 +189,20 @@ class InterLevelReward:
     valid range. Built directly it takes anything ``float()`` takes (``check_number``); the env's
     keywords are also checked for their type (``stairenv.environments.config``)."""
 
-    w_location: float = checked(3.0, Check("number", 0.0))
-    w_facing: float = checked(0.1, Check("number", 0.0))
-    w_velocity: float = checked(0.4, Check("number", 0.0))
-    sigma_before: float = checked(2.0, Check("number", 0.0, low_open=True))
-    sigma_after: float = checked(0.5, Check("number", 0.0, low_open=True))
-    sigma_across: float = checked(0.5, Check("number", 0.0, low_open=True))
-    # None: sigma_after / sigma_before (equal peaks)
-    w_scale: float | None = checked(None, Check("number", 0.0, optional=True))
-    target_speed: float = checked(1.0, Check("number", 0.0, 10.0))
-    progress_scaling: bool = checked(True, Check("bool"))
+    w_location: float = checked(3.0, Check("number", 0.0), "weight of R_location (Eq. 1)")
+    w_facing: float = checked(0.1, Check("number", 0.0), "weight of R_facing (Eq. 1)")
+    w_velocity: float = checked(0.4, Check("number", 0.0), "weight of R_velocity (Eq. 1)")
+    sigma_before: float = checked(2.0, Check("number", 0.0, low_open=True),
+                                  "s1 of Eq. 3-4: spread before the target, along the ascent (m)")
+    sigma_after: float = checked(0.5, Check("number", 0.0, low_open=True),
+                                 "s2 of Eq. 3-4: spread past the target, along the ascent (m)")
+    sigma_across: float = checked(0.5, Check("number", 0.0, low_open=True),
+                                  "s3 of Eq. 3-4: spread across the ascent (m)")
+    w_scale: float | None = checked(None, Check("number", 0.0, optional=True),
+                                    "factor past the target; None = s2/s1 (equal peaks)")
+    target_speed: float = checked(1.0, Check("number", 0.0, 10.0), "S_tar (m/s)")
+    progress_scaling: bool = checked(True, Check("bool"),
+                                     "ReLU height-progress factor of Eq. 4; False = InterLevel-2D")
 
     def __post_init__(self) -> None:
         for field in fields(self):

@@ -56,14 +56,19 @@ class StairsConfig:
 
     # each field's valid range, declared once: checked here, and under the env's keywords by
     # stairenv.environments.config (typed there)
-    step_height: tuple[float, float] = checked((0.05, 0.20), Check("pair", 0.01, 0.40))
-    step_height_set: tuple[float, ...] | None = checked(None, Check("numbers", 0.01, 0.40, optional=True))
-    step_depth: tuple[float, float] = checked((0.25, 0.40), Check("pair", 0.15, 1.0))
-    step_width: tuple[float, float] = checked((1.0, 2.0), Check("pair", 0.5, 5.0))
-    num_steps: tuple[int, int] = checked((3, 10), Check("pair", 1, 30, integer=True))
-    landing_depth: float = checked(2.0, Check("float", 1.0, 10.0))
-    distance: tuple[float, float] = checked((2.0, 3.0), Check("pair", 0.5, 20.0))
-    yaw: tuple[float, float] = checked((0.0, 2.0 * math.pi), Check("pair", -2.0 * math.pi, 2.0 * math.pi))
+    step_height: tuple[float, float] = checked((0.05, 0.20), Check("pair", 0.01, 0.40), "step height range (m)")
+    step_height_set: tuple[float, ...] | None = checked(
+        None, Check("numbers", 0.01, 0.40, optional=True),
+        "sample step heights from this set instead, e.g. (0.05, 0.1, 0.15, 0.2) (the test sets)")
+    step_depth: tuple[float, float] = checked((0.25, 0.40), Check("pair", 0.15, 1.0), "tread depth range (m)")
+    step_width: tuple[float, float] = checked((1.0, 2.0), Check("pair", 0.5, 5.0), "step width range (m)")
+    num_steps: tuple[int, int] = checked((3, 10), Check("pair", 1, 30, integer=True),
+                                       "risers, the landing's included")
+    landing_depth: float = checked(2.0, Check("float", 1.0, 10.0), "top floor depth (m)")
+    distance: tuple[float, float] = checked((2.0, 3.0), Check("pair", 0.5, 20.0),
+                                             "arena centre to the foot of the stairs (m)")
+    yaw: tuple[float, float] = checked((0.0, 2.0 * math.pi), Check("pair", -2.0 * math.pi, 2.0 * math.pi),
+                                        "ascent direction range (rad)")
 
     def __post_init__(self) -> None:
         # Keyword values may arrive as lists (e.g. from TOML presets): store tuples.
