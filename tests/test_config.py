@@ -155,19 +155,23 @@ def test_a_config_built_directly_is_checked_too():
         InterLevelConfig(stairs=StairsConfig(distance=(1.0, 2.0)))
 
 
-def test_the_evaluation_drops_the_configs_training_aids(baseline_script):
+@pytest.mark.parametrize("config_cls, aids_cls, kwargs, evaluated", [
+    (InterLevelConfig, InterLevelTrainingAids,
+     {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
+      "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}, {"w_velocity": 0.5}),
+    (SIMSConfig, SIMSTrainingAids,
+     {"init": "hybrid", "interaction_start_fraction": 0.5, "start_distance_levels": 3, "stall_seconds": 2.0,
+      "text_encoder": "hashing", "fall_height": 0.3}, {"text_encoder": "hashing", "fall_height": 0.3}),
+])
+def test_the_evaluation_drops_the_configs_training_aids(baseline_script, config_cls, aids_cls, kwargs, evaluated):
     train_ppo = baseline_script("train_ppo")
-    aids = group_keywords(InterLevelConfig, "training_aids")
-    assert aids == tuple(f.name for f in dataclasses.fields(InterLevelTrainingAids))
+    aids = group_keywords(config_cls, "training_aids")
+    assert aids == tuple(f.name for f in dataclasses.fields(aids_cls))
     assert set(aids) <= set(train_ppo.TRAINING_AIDS)
-    kwargs = {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
-              "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}
-    evaluated = train_ppo.evaluation_kwargs(kwargs)
-    assert evaluated == {"w_velocity": 0.5}
+    assert train_ppo.evaluation_kwargs(kwargs) == evaluated
     # the evaluated env: the training config with its aids at their defaults (the paper's protocol)
-    trained = InterLevelConfig.from_keywords(**kwargs)
-    assert InterLevelConfig.from_keywords(**evaluated) == dataclasses.replace(
-        trained, training_aids=InterLevelTrainingAids())
+    trained = config_cls.from_keywords(**kwargs)
+    assert config_cls.from_keywords(**evaluated) == dataclasses.replace(trained, training_aids=aids_cls())
 
 
 def test_plamo_config_holds_the_keywords_resolved():
@@ -258,15 +262,3 @@ def test_keywords_beside_a_sims_config_must_agree_with_it():
     with pytest.raises(TypeError, match="config must be a SIMSConfig"):
         SIMSEnv(config=PlaMoConfig())
 
-
-def test_the_evaluation_drops_sims_training_aids(baseline_script):
-    train_ppo = baseline_script("train_ppo")
-    aids = group_keywords(SIMSConfig, "training_aids")
-    assert aids == tuple(f.name for f in dataclasses.fields(SIMSTrainingAids))
-    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
-    kwargs = {"init": "hybrid", "interaction_start_fraction": 0.5, "start_distance_levels": 3, "stall_seconds": 2.0,
-              "text_encoder": "hashing", "fall_height": 0.3}
-    evaluated = train_ppo.evaluation_kwargs(kwargs)
-    assert evaluated == {"text_encoder": "hashing", "fall_height": 0.3}
-    assert SIMSConfig.from_keywords(**evaluated) == dataclasses.replace(
-        SIMSConfig.from_keywords(**kwargs), training_aids=SIMSTrainingAids())

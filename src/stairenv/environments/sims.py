@@ -226,10 +226,9 @@ class SIMSEnv(HumanoidEnv):
         self.captions = skill_captions(self.skill) if text.captions is None else text.captions
         self.start_distance, self.walk_distance = goal.start_distance, goal.walk_distance
         self.target_speed, self.speed_from_style = goal.target_speed, goal.speed_from_style
-        self.heightmap_size = config.observation.heightmap_size
-        self.heightmap_extent = config.observation.heightmap_extent
-        self.fall_height = config.termination.fall_height
-        self.terminate_on_success = config.termination.terminate_on_success
+        observation, termination = config.observation, config.termination
+        self.heightmap_size, self.heightmap_extent = observation.heightmap_size, observation.heightmap_extent
+        self.fall_height, self.terminate_on_success = termination.fall_height, termination.terminate_on_success
         self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
         self.interaction_start_fraction = aids.interaction_start_fraction
         self.start_distance_levels = aids.start_distance_levels
