@@ -106,6 +106,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMoni
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.config import InterLevelConfig, PlaMoConfig, group_keywords
 from stairenv.environments.sims import SIMSEnv, reference_captions
+from stairenv.environments.sims_config import SIMSConfig
 from stairenv.evaluation import evaluator_for
 from stairenv.evaluation.cli import env_kwarg_argument
 from stairenv.evaluation.policies import load_policy, read_normalizer
@@ -323,13 +324,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
-#: Training aids of the family without a config yet (SIMS'): named here.
-OTHER_TRAINING_AIDS = ("init", "reference_motion", "stall_seconds", "stall_distance",
-                       "interaction_start_fraction", "start_distance_levels")
 #: Env keywords that only shape training; the final evaluation leaves them out (the paper's protocol): the
-#: fields of the configs' ``training_aids`` (InterLevel's, PlaMo's), then ``OTHER_TRAINING_AIDS``.
+#: fields of the configs' ``training_aids`` (InterLevel's, PlaMo's, SIMS').
 TRAINING_AIDS = tuple(dict.fromkeys(group_keywords(InterLevelConfig, "training_aids")
-                                    + group_keywords(PlaMoConfig, "training_aids") + OTHER_TRAINING_AIDS))
+                                    + group_keywords(PlaMoConfig, "training_aids")
+                                    + group_keywords(SIMSConfig, "training_aids")))
 
 
 def evaluation_kwargs(env_kwargs: dict) -> dict:

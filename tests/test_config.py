@@ -1,8 +1,8 @@
 """One frozen, typed config per env family (issue #26, item 1): InterLevel's keywords map onto
-``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``, PlaMoScene's onto ``PlaMoSceneConfig``),
-``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as the keywords, presets
-are configs, the errors are those of the keywords, the final evaluation drops the config's training aids,
-and the env docstrings' keyword tables are the configs' fields."""
+``InterLevelConfig`` (PlaMo's onto ``PlaMoConfig``, PlaMoScene's onto ``PlaMoSceneConfig``, SIMS' onto
+``SIMSConfig``), ``env.unwrapped.config`` is the resolved config, ``config=`` builds the same env as the
+keywords, presets are configs, the errors are those of the keywords, the final evaluation drops the
+config's training aids, and the env docstrings' keyword tables are the configs' fields."""
 
 from __future__ import annotations
 
@@ -30,6 +30,8 @@ from stairenv.environments.config import (
 from stairenv.environments.interlevel import STAIRS_RANGES, InterLevelEnv
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.environments.plamo_scene import PlaMoSceneEnv
+from stairenv.environments.sims import SIMSEnv
+from stairenv.environments.sims_config import SIMSConfig, SIMSScene, SIMSTask, SIMSTrainingAids
 from stairenv.planning.errors import InstructionError
 from stairenv.planning.locomotion import LOCOMOTIONS
 from stairenv.validation import field_check
@@ -69,7 +71,7 @@ ENV_CONFIGS = [(InterLevelEnv, InterLevelConfig), (PlaMoEnv, PlaMoConfig), (PlaM
 RESOLVED_NONE = ("w_scale", "scene")
 
 
-@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS)
+@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS + [(SIMSEnv, SIMSConfig)])
 def test_the_signature_is_the_configs_fields(env_cls, config_cls):
     """The defaults live in the config alone; the env's keywords are its fields."""
     parameters = inspect.signature(env_cls.__init__).parameters
@@ -90,16 +92,19 @@ def test_stairs_ranges_are_stairs_configs():
 
 CHANGES = {InterLevelConfig: {"w_velocity": 0.5, "num_steps": (3, 5)},
            PlaMoConfig: {"terrain_size": 12.0, "max_xy_error": 1.5, "locomotion": "walk"},  # (not a preset keyword)
-           PlaMoSceneConfig: {"max_xy_error": 2.5, "scene": {"num_walls": (1, 2)}, "speed_profile": "constant"}}
+           PlaMoSceneConfig: {"max_xy_error": 2.5, "scene": {"num_walls": (1, 2)}, "speed_profile": "constant"},
+           SIMSConfig: {"text_encoder": "hashing", "fall_height": 0.3, "families": ["chair", "sofa"]}}
 
 
 @pytest.mark.parametrize("env_id, config_cls", [(env_id, InterLevelConfig) for env_id in INTERLEVEL_IDS]
                          + [("PlaMo-v0", PlaMoConfig), ("PlaMoNaivePaths-v0", PlaMoConfig),
-                            ("PlaMoScene-v0", PlaMoSceneConfig)])
+                            ("PlaMoScene-v0", PlaMoSceneConfig)]
+                         + [("SIMS-Walk-v0", SIMSConfig), ("SIMS-GetUp-v0", SIMSConfig)])
 def test_presets_are_configs_and_config_equals_keywords(env_id, config_cls):
     preset = asset_dir("envs") / f"{env_id}.toml"
-    plain = gym.make(env_id)
-    assert config_cls.from_toml(preset) == plain.unwrapped.config
+    fast = {"text_encoder": "hashing"} if config_cls is SIMSConfig else {}  # (no MiniLM needed)
+    plain = gym.make(env_id, **fast)
+    assert config_cls.from_toml(preset).replace(**fast) == plain.unwrapped.config
     plain.close()
     changes = CHANGES[config_cls]
     config = config_cls.from_toml(preset).replace(**changes)
@@ -162,19 +167,23 @@ def test_a_config_built_directly_is_checked_too():
         InterLevelConfig(stairs=StairsConfig(distance=(1.0, 2.0)))
 
 
-def test_the_evaluation_drops_the_configs_training_aids(baseline_script):
+@pytest.mark.parametrize("config_cls, aids_cls, kwargs, evaluated", [
+    (InterLevelConfig, InterLevelTrainingAids,
+     {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
+      "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}, {"w_velocity": 0.5}),
+    (SIMSConfig, SIMSTrainingAids,
+     {"init": "hybrid", "interaction_start_fraction": 0.5, "start_distance_levels": 3, "stall_seconds": 2.0,
+      "text_encoder": "hashing", "fall_height": 0.3}, {"text_encoder": "hashing", "fall_height": 0.3}),
+])
+def test_the_evaluation_drops_the_configs_training_aids(baseline_script, config_cls, aids_cls, kwargs, evaluated):
     train_ppo = baseline_script("train_ppo")
-    aids = group_keywords(InterLevelConfig, "training_aids")
-    assert aids == tuple(f.name for f in dataclasses.fields(InterLevelTrainingAids))
+    aids = group_keywords(config_cls, "training_aids")
+    assert aids == tuple(f.name for f in dataclasses.fields(aids_cls))
     assert set(aids) <= set(train_ppo.TRAINING_AIDS)
-    kwargs = {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
-              "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}
-    evaluated = train_ppo.evaluation_kwargs(kwargs)
-    assert evaluated == {"w_velocity": 0.5}
+    assert train_ppo.evaluation_kwargs(kwargs) == evaluated
     # the evaluated env: the training config with its aids at their defaults (the paper's protocol)
-    trained = InterLevelConfig.from_keywords(**kwargs)
-    assert InterLevelConfig.from_keywords(**evaluated) == dataclasses.replace(
-        trained, training_aids=InterLevelTrainingAids())
+    trained = config_cls.from_keywords(**kwargs)
+    assert config_cls.from_keywords(**evaluated) == dataclasses.replace(trained, training_aids=aids_cls())
 
 
 def test_plamo_config_holds_the_keywords_resolved():
@@ -291,3 +300,62 @@ def test_the_docstring_table_is_the_configs_keywords_and_defaults(env_cls, confi
         assert valid and len(meaning) > 10, keyword
     assert keyword_table(config_cls) in inspect.cleandoc(env_cls.__doc__)
     assert "{keyword table}" not in env_cls.__doc__
+
+
+# --- SIMS ---------------------------------------------------------------------------------------------
+def test_sims_config_holds_the_keywords_resolved():
+    env = gym.make("SIMS-Lie-v0", text_encoder="hashing", text_dim=32.0, families=["bed"],
+                   captions=[["sad", "lies down slowly"]], start_distance=np.array([1.0, 2.0]), stall_seconds=2,
+                   start_distance_levels=3, frame_skip=4.0)
+    config, unwrapped = env.unwrapped.config, env.unwrapped
+    assert isinstance(config, SIMSConfig) and config.task.skill == "lie" and config.text.text_conditioned is True
+    # sequences stored as tuples (the config is hashable), numbers as their type
+    assert config.scene.families == ("bed",) and config.text.captions == (("sad", "lies down slowly"),)
+    assert config.task.start_distance == (1.0, 2.0) and type(config.text.text_dim) is int
+    assert config.training_aids.stall_seconds == 2.0 and config.physics.frame_skip == 4
+    hash(config)
+    assert SIMSConfig.from_keywords(**config.keywords()) == config
+    # the attributes other code reads are the config's values
+    assert unwrapped.families == ("bed",) and unwrapped.captions == config.text.captions
+    assert unwrapped.start_distance == (1.0, 2.0) and unwrapped.text_dim == 32 and unwrapped.frame_skip == 4
+    assert unwrapped.start_distance_levels == 3 and unwrapped.stall_seconds == 2.0
+    env.close()
+    # families and captions left None follow the skill
+    getup = SIMSConfig.from_keywords(text_encoder="hashing").replace(skill="getup", getup_from="lie")
+    assert getup.scene.families is None and getup.families == ("sofa", "bed", "double_bed")
+
+
+@pytest.mark.parametrize("kwargs, error, message", [
+    ({"skill": "lie", "families": ("chair",)}, ValueError, "families ['chair'] cannot host lie"),
+    ({"families": ()}, ValueError, "families must name at least one of"),
+    ({"families": "chair"}, TypeError, "families must be None or a list or tuple"),
+    ({"text_dim": 4}, ValueError, "text_dim must lie in [8, 4096] with the hashing text_encoder, got 4"),
+    ({"skill": "walk", "interaction_start_fraction": 0.5}, ValueError, "interaction_start_fraction applies to"),
+    ({"scene": "room", "start_distance_levels": 2}, ValueError, "start_distance_levels needs scene='object'"),
+    ({"start_distance": (4.0, 1.0)}, ValueError, "start_distance: min 4.0 > max 1.0"),
+])
+def test_sims_errors_are_the_keywords(kwargs, error, message):
+    kwargs = {"text_encoder": "hashing", **kwargs}
+    for make in (lambda: SIMSEnv(**kwargs), lambda: SIMSConfig.from_keywords(**kwargs)):
+        with pytest.raises(error, match=re.escape(message)):
+            make()
+
+
+def test_a_sims_config_built_directly_is_checked_too():
+    with pytest.raises(ValueError, match=re.escape("families ['chair'] cannot host lie")):
+        SIMSConfig(task=SIMSTask(skill="lie"), scene=SIMSScene(families=("chair",)))
+    config = SIMSConfig.from_keywords(text_encoder="hashing", interaction_start_fraction=0.5)
+    with pytest.raises(ValueError, match="interaction_start_fraction applies to"):
+        dataclasses.replace(config, task=SIMSTask(skill="getup"))
+
+
+def test_keywords_beside_a_sims_config_must_agree_with_it():
+    config = SIMSConfig.from_keywords(skill="walk", text_encoder="hashing", text_conditioned=True)
+    with pytest.raises(ValueError, match="skill='sit' disagree with config"):
+        gym.make("SIMS-Sit-v0", config=config)  # the preset's keyword
+    env = gym.make("SIMS-Walk-v0", config=config)
+    assert env.unwrapped.config is config and env.unwrapped.skill == "walk"
+    env.close()
+    with pytest.raises(TypeError, match="config must be a SIMSConfig"):
+        SIMSEnv(config=PlaMoConfig())
+

@@ -14,7 +14,24 @@ from gymnasium import spaces
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from stairenv.environments.base import HumanoidEnv, StepOutcome, check_humanoid_keywords
+from stairenv.environments.base import HumanoidEnv, StepOutcome
+from stairenv.environments.config import keyword_signature, resolve
+# the checks of SIMS' keywords are SIMSConfig's; named here too, as before
+from stairenv.environments.sims_config import (  # noqa: F401
+    GETUP_FROM,
+    HASHING_DIMS,
+    MAX_TEXT_DIM,
+    NEAR_START_SKILLS,
+    SCENES,
+    SKILL_FAMILIES,
+    TEXT_ENCODERS,
+    SIMSConfig,
+    check_captions,
+    check_families,
+    check_room_hosts,
+    check_text_encoder,
+    host_families,
+)
 from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
 from stairenv.humanoid.kinematics import humanoid_lowest_z
 from stairenv.humanoid.placement import place_state_in_frame
@@ -27,35 +44,16 @@ from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
-from stairenv.validation import check_bool, check_choice, check_float, check_int, check_pair, check_str
+from stairenv.validation import check_choice
 from stairenv.world.furniture import (
-    FAMILIES,
     LYING_FAMILIES,
-    SEATING_FAMILIES,
     PlacedFurniture,
     add_furniture_to_spec,
     make_furniture,
 )
 from stairenv.world.rooms import Room, RoomConfig, add_room_to_spec, generate_room
 
-SCENES = ("object", "room")
-GETUP_FROM = ("sit", "lie", "any")
-# Families each skill trains on by default (SIMS trains sit/lie/reach on single objects).
-SKILL_FAMILIES: dict[str, tuple[str, ...]] = {
-    "walk": FAMILIES,
-    "sit": (*SEATING_FAMILIES, "bed", "double_bed"),
-    "lie": LYING_FAMILIES,
-    "reach": FAMILIES,
-    "getup": (*SEATING_FAMILIES, "bed", "double_bed"),
-}
-# The names ``stairenv.screenplays.get_encoder`` takes; the text_dim each gives (hashing: >= 8 buckets).
-TEXT_ENCODERS = ("auto", "minilm", "all-minilm-l6-v2", "hashing")
-MAX_TEXT_DIM = 4096
-HASHING_DIMS = (8, MAX_TEXT_DIM)
 GOAL_SIZE = 4 * task.NUM_CONTACT_JOINTS  # 15 target offsets (3) + 15 mask bits
-#: The skills whose training aids start near the furniture (walk has no piece to start at; get up
-#: already starts seated or lying on it).
-NEAR_START_SKILLS = ("sit", "lie", "reach")
 #: Most a start drawn from an interaction clip may press into the furniture or the floor (m), and how
 #: many of its frames are tried before the episode starts as the others do.
 START_PENETRATION = 0.01
@@ -102,91 +100,6 @@ def reference_captions(library, skill: str) -> tuple[tuple[str, str], ...]:
     return tuple(sorted(pairs))
 
 
-def host_families(skill: str, getup_from: str = "any") -> tuple[str, ...]:
-    """The furniture families ``skill`` can be done on (any for walk: there they are obstacles;
-    lying families only to get up from lying)."""
-    families = SKILL_FAMILIES[skill]
-    if skill == "getup" and getup_from == "lie":
-        families = tuple(f for f in families if f in LYING_FAMILIES)
-    return families
-
-
-def check_families(families, skill: str, getup_from: str) -> tuple[str, ...]:
-    """``families``: None (every family that can host ``skill``) or a non-empty list of families that
-    all can: an object scene draws any of them, and one that cannot host the skill has no goal."""
-    hosts = host_families(skill, getup_from)
-    if families is None:
-        return hosts
-    # A list or tuple: a set has no fixed order, so a seeded scene would differ between processes.
-    if isinstance(families, str) or not isinstance(families, Sequence):
-        raise TypeError(f"families must be None or a list or tuple of {list(FAMILIES)}, "
-                        f"got {type(families).__name__}")
-    families = tuple(families)
-    for family in families:
-        check_choice("families", family, FAMILIES)
-    if not families:
-        raise ValueError(f"families must name at least one of {list(hosts)}")
-    unable = [f for f in families if f not in hosts]
-    if unable:
-        purpose = f"{skill} (getup_from={getup_from!r})" if skill == "getup" else skill
-        raise ValueError(f"families {unable} cannot host {purpose}; choose among {list(hosts)}")
-    return families
-
-
-def check_room_hosts(room: Room, families: tuple[str, ...], skill: str) -> None:
-    """A fixed ``room`` must hold a piece of ``families`` for any skill but walk."""
-    if skill != "walk" and not any(p.family in families for p in room.furniture):
-        raise ValueError(f"room has no furniture to {skill} on (families {list(families)}); "
-                         f"it holds {sorted(p.name for p in room.furniture)}")
-
-
-def check_text_encoder(text_encoder, text_dim) -> int:
-    """``text_encoder`` must be a ``get_encoder`` name or an encoder (``model_id``, ``dim``, ``encode``),
-    and ``text_dim`` a size it gives: hashing 8-4096, MiniLM 1-384, an encoder its ``dim``.
-    Returns ``text_dim``. (The encoder itself is built at the first embedding: MiniLM loads slowly.)"""
-    from stairenv.screenplays.embeddings import (
-        INSTALL_HINT,
-        EncoderUnavailableError,
-        MiniLMEncoder,
-        TextEncoder,
-        minilm_available,
-    )
-
-    text_dim = check_int("text_dim", text_dim, 1, MAX_TEXT_DIM)
-    if isinstance(text_encoder, str):
-        name = check_choice("text_encoder", text_encoder.lower(), TEXT_ENCODERS)
-        if name == "auto":
-            name = "minilm" if minilm_available() else "hashing"
-        elif name != "hashing" and not minilm_available():
-            raise EncoderUnavailableError(f"text_encoder={text_encoder!r} needs the MiniLM package: {INSTALL_HINT}")
-        low, high = HASHING_DIMS if name == "hashing" else (1, MiniLMEncoder.DIM)
-        if not low <= text_dim <= high:
-            raise ValueError(f"text_dim must lie in [{low}, {high}] with the {name} text_encoder, got {text_dim}")
-        return text_dim
-    if not isinstance(text_encoder, TextEncoder) or not callable(text_encoder.encode):
-        raise TypeError(f"text_encoder must be one of {list(TEXT_ENCODERS)} or an encoder with model_id, dim and "
-                        f"encode(texts), got {type(text_encoder).__name__}")
-    if text_encoder.dim != text_dim:
-        raise ValueError(f"text_encoder gives {text_encoder.dim}-d vectors, text_dim is {text_dim}")
-    return text_dim
-
-
-def check_captions(captions) -> tuple[tuple[str, str], ...]:
-    """``captions``: a non-empty list of (style, caption) pairs of non-empty strings, each style one of
-    SIMS' eight or "neutral" (``WALK_STYLES``)."""
-    pairs = captions if isinstance(captions, Sequence) and not isinstance(captions, str) else None
-    if pairs is None or not all(isinstance(p, Sequence) and not isinstance(p, str) and len(p) == 2 for p in pairs):
-        raise TypeError(f"captions must be None or a list of (style, caption) pairs, got {captions!r:.80}")
-    if not pairs:
-        raise ValueError("captions must hold at least one (style, caption) pair")
-    checked = tuple((check_str("captions (style)", style), check_str("captions (caption)", text))
-                    for style, text in pairs)
-    unknown = sorted({style for style, _ in checked} - set(WALK_STYLES))
-    if unknown:  # an unknown style would be drawn silently, at the neutral speed, with no reference to match
-        raise ValueError(f"captions: unknown style(s) {unknown}; the styles are {sorted(WALK_STYLES)}")
-    return checked
-
-
 def seated_joint_angles() -> np.ndarray:
     """(28,) a sitting pose: hips flexed 90 deg, knees 90 deg, elbows slightly bent."""
     q = np.zeros(len(DOF_NAMES))
@@ -231,7 +144,11 @@ class SIMSEnv(HumanoidEnv):
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a bad
     value, both naming the keyword), among them ``text_encoder`` / ``text_dim`` (a size the encoder
     gives), ``captions`` and ``families``: every family must be able to host the skill (a fixed ``room``
-    must hold one such piece), so ``reset`` always finds a target.
+    must hold one such piece), so ``reset`` always finds a target. They are the fields of ``SIMSConfig``
+    (``stairenv.environments.sims_config``: defaults, ranges and the checks of keywords together live
+    there; groups ``task``, ``scene``, ``text``, ``observation``, ``termination``, ``training_aids`` and
+    the shared ``physics``, ``render``); ``config=SIMSConfig(...)`` may be given instead (keywords beside
+    it must agree with it), and ``env.unwrapped.config`` is the resolved config.
 
     | keyword | default | meaning |
     |---|---|---|
@@ -293,87 +210,38 @@ class SIMSEnv(HumanoidEnv):
     #: Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
     start_clips = staticmethod(standing_clips)
 
-    def __init__(
-        self,
-        skill: str = "sit",
-        scene: str = "object",
-        room: Room | None = None,
-        families: Sequence[str] | None = None,
-        scene_resample_every: int = 10,
-        details: bool = True,
-        text_conditioned: bool = True,
-        text_encoder: Any = "auto",
-        text_dim: int = 64,
-        captions: Sequence[tuple[str, str]] | None = None,
-        start_distance: tuple[float, float] = (1.0, 4.0),
-        walk_distance: tuple[float, float] = (1.0, 5.0),
-        target_speed: tuple[float, float] = (0.8, 1.5),
-        speed_from_style: bool = True,
-        getup_from: str = "any",
-        heightmap_size: int = 16,
-        heightmap_extent: float = 2.0,
-        fall_height: float = 0.25,
-        terminate_on_success: bool = False,
-        init: str = "default",
-        reference_motion: str | None = None,
-        hybrid_fraction: float = 0.5,
-        interaction_start_fraction: float = 0.0,
-        start_distance_levels: int = 0,
-        stall_seconds: float | None = None,
-        stall_distance: float = 0.2,
-        pd_gains: str = "soft",
-        frame_skip: int = 8,
-        amp_history: int = 2,
-        render_mode: str | None = None,
-        width: int = 640,
-        height: int = 480,
-    ) -> None:
-        check_humanoid_keywords(frame_skip, amp_history, render_mode, width, height, pd_gains)
-        self.skill = check_choice("skill", skill, task.SKILLS)
-        self.scene = check_choice("scene", scene, SCENES)
-        self.getup_from = check_choice("getup_from", getup_from, GETUP_FROM)
-        if room is not None and not isinstance(room, Room):
-            raise TypeError(f"room must be None or a stairenv.world.rooms.Room, got {type(room).__name__}")
-        self.fixed_room = room
-        self.families = check_families(families, self.skill, self.getup_from)
-        if room is not None:
-            check_room_hosts(room, self.families, self.skill)
-        self.scene_resample_every = check_int("scene_resample_every", scene_resample_every, 1, 10**9)
-        self.details = check_bool("details", details)
-        self.text_conditioned = check_bool("text_conditioned", text_conditioned)
-        self.text_dim = check_text_encoder(text_encoder, text_dim)
-        self._encoder_spec = text_encoder
+    def __init__(self, *, config: SIMSConfig | None = None, **keywords) -> None:
+        # the keywords (signature below: SIMSConfig's fields) -> the one resolved, checked config
+        self.config = config = resolve(SIMSConfig, config, keywords)
+        goal, scene, text, aids = config.task, config.scene, config.text, config.training_aids
+        self.skill, self.scene, self.getup_from = goal.skill, scene.kind, goal.getup_from
+        self.fixed_room = scene.room
+        self.families = config.families
+        self.scene_resample_every = scene.scene_resample_every
+        self.details = goal.details
+        self.text_conditioned = text.text_conditioned
+        self.text_dim = text.text_dim
+        self._encoder_spec = text.text_encoder
         self._encoder = None
-        self.captions = skill_captions(self.skill) if captions is None else check_captions(captions)
-        self.start_distance = check_pair("start_distance", start_distance, 0.0, 50.0)
-        self.walk_distance = check_pair("walk_distance", walk_distance, 0.0, 50.0)
-        self.target_speed = check_pair("target_speed", target_speed, 0.0, 10.0)
-        self.speed_from_style = check_bool("speed_from_style", speed_from_style)
-        self.heightmap_size = check_int("heightmap_size", heightmap_size, 1, 128)
-        self.heightmap_extent = check_float("heightmap_extent", heightmap_extent, 0.1, 10.0)
-        self.fall_height = check_float("fall_height", fall_height, 0.0, 1.5)
-        self.terminate_on_success = check_bool("terminate_on_success", terminate_on_success)
-        self._setup_starts(init, hybrid_fraction, reference_motion)
-        self.interaction_start_fraction = check_float("interaction_start_fraction", interaction_start_fraction,
-                                                      0.0, 1.0)
-        if self.interaction_start_fraction > 0.0 and self.skill not in NEAR_START_SKILLS:
-            raise ValueError(f"interaction_start_fraction applies to the skills {list(NEAR_START_SKILLS)}, "
-                             f"not {self.skill!r}; leave it 0.0")
-        self.start_distance_levels = check_int("start_distance_levels", start_distance_levels, 0, 100)
-        if self.start_distance_levels and (self.skill not in NEAR_START_SKILLS or room is not None
-                                           or self.scene != "object"):
-            raise ValueError(f"start_distance_levels needs scene='object' and one of the skills "
-                             f"{list(NEAR_START_SKILLS)} (start_distance places those starts); leave it 0")
+        self.captions = skill_captions(self.skill) if text.captions is None else text.captions
+        self.start_distance, self.walk_distance = goal.start_distance, goal.walk_distance
+        self.target_speed, self.speed_from_style = goal.target_speed, goal.speed_from_style
+        observation, termination = config.observation, config.termination
+        self.heightmap_size, self.heightmap_extent = observation.heightmap_size, observation.heightmap_extent
+        self.fall_height, self.terminate_on_success = termination.fall_height, termination.terminate_on_success
+        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self.interaction_start_fraction = aids.interaction_start_fraction
+        self.start_distance_levels = aids.start_distance_levels
         #: this world's level of the start-distance curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
-        self.stall_seconds = None if stall_seconds is None else check_float(
-            "stall_seconds", stall_seconds, 0.0, 3600.0, low_open=True)
-        self.stall_distance = check_float("stall_distance", stall_distance, 0.0, 100.0)
+        self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
         self._interaction_start = False
         self._start_goal: task.ContactGoal | None = None
         self._root_distance = self._start_root_distance = 0.0
-        self._pd_gains = pd_gains
-        self._init_humanoid(frame_skip, amp_history, render_mode, width, height)
+        self._pd_gains = config.physics.pd_gains
+        render = config.render
+        self._init_humanoid(config.physics.frame_skip, config.amp_history, render.render_mode, render.width,
+                            render.height)
         self._resets = 0
         self._caption_pools: dict[str | None, tuple[tuple[str, str], ...]] = {}
         self.furniture: dict[str, PlacedFurniture] = {}
@@ -394,6 +262,9 @@ class SIMSEnv(HumanoidEnv):
         }
         self.goal: task.ContactGoal | None = None
         self._targets: np.ndarray | None = None
+
+    # the keywords: SIMSConfig's fields, defaults included (``config=`` stays out of the signature)
+    __init__.__signature__ = keyword_signature(SIMSConfig)
 
     # --- scene --------------------------------------------------------------------------------
     def _build_scene(self, rng: np.random.Generator) -> None:
