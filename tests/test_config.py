@@ -284,7 +284,7 @@ def _table_rows(doc: str) -> list[list[str]]:
     return rows
 
 
-@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS)
+@pytest.mark.parametrize("env_cls, config_cls", ENV_CONFIGS + [(SIMSEnv, SIMSConfig)])
 def test_the_docstring_table_is_the_configs_keywords_and_defaults(env_cls, config_cls):
     """One row per keyword, in the config's order, with its field's default, valid values and help: the
     defaults live in the config alone."""

@@ -144,7 +144,7 @@ class ReferenceStarts:
                         'start pose: "default" (standing), "reference" (a frame of a level-ground clip), "hybrid"')
     reference_motion: str | None = checked(None, Check("call", call=_reference_motion, optional=True),
                                            "folder / .npz of reference clips; None = the env's built-in set "
-                                           "(InterLevel's synthesised walks, PlaMo's builtin:plamo)")
+                                           "(InterLevel's synthesised walks, PlaMo's builtin:plamo, SIMS' builtin:sims)")
     hybrid_fraction: float = checked(0.5, UNIT,
                                      'share of episodes that start from a reference frame with init="hybrid"')
 

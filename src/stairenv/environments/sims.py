@@ -15,7 +15,7 @@ from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from stairenv.environments.base import HumanoidEnv, StepOutcome
-from stairenv.environments.config import keyword_signature, resolve
+from stairenv.environments.config import document_keywords, keyword_signature, resolve
 # the checks of SIMS' keywords are SIMSConfig's; named here too, as before
 from stairenv.environments.sims_config import (  # noqa: F401
     GETUP_FROM,
@@ -110,6 +110,7 @@ def seated_joint_angles() -> np.ndarray:
     return q
 
 
+@document_keywords(SIMSConfig)
 class SIMSEnv(HumanoidEnv):
     r"""A SIMS interaction skill (Sec. 3.3 and supplement): walk, sit, lie, reach or get up.
 
@@ -150,32 +151,7 @@ class SIMSEnv(HumanoidEnv):
     the shared ``physics``, ``render``); ``config=SIMSConfig(...)`` may be given instead (keywords beside
     it must agree with it), and ``env.unwrapped.config`` is the resolved config.
 
-    | keyword | default | meaning |
-    |---|---|---|
-    | skill | "sit" | walk, sit, lie, reach, getup |
-    | scene | "object" | "object" (one piece) or "room" (a generated room); ignored with ``room`` |
-    | room | None | a fixed ``stairenv.world.rooms.Room`` (the state machine's scene) |
-    | families | None | furniture families to draw from (default: those the skill affords) |
-    | scene_resample_every | 10 | resets between scene rebuilds (>= 1) |
-    | details | True | sit: torso at the backrest, hands on armrests; lie: head on the pillow |
-    | text_conditioned | True | put z in the observation (False: zeros) |
-    | text_encoder, text_dim | "auto", 64 | ``stairenv.screenplays.get_encoder`` name (or an encoder) and size |
-    | captions | None | (style, caption) pairs to draw from (default: the database's for the skill) |
-    | start_distance | (1.0, 4.0) | start distance from the furniture centre (m), object scenes |
-    | walk_distance | (1.0, 5.0) | walk target distance from the start (m) |
-    | target_speed | (0.8, 1.5) | v* per episode (m/s) |
-    | speed_from_style | True | v* +-20% around the style's walking speed (``WALK_STYLES``); neutral: target_speed |
-    | getup_from | "any" | get up from "sit", "lie" (on lying families) or "any" |
-    | heightmap_size, heightmap_extent | 16, 2.0 | egocentric heightmap samples per side and extent (m) |
-    | fall_height | 0.25 | head height (m) below which the episode ends |
-    | terminate_on_success | False | end the episode at the first success |
-    | init, reference_motion, hybrid_fraction | "default", None, 0.5 | standing starts from reference states (None: "builtin:sims"; walk and idle clips) |
-    | interaction_start_fraction | 0.0 | sit, lie, reach: share of episodes that start in a frame of the skill's clip made for their piece (training) |
-    | start_distance_levels | 0 | sit, lie, reach in object scenes: levels of a success-driven curriculum growing ``start_distance`` (training); 0 = off |
-    | stall_seconds | None | end an episode whose contact error has not fallen by ``stall_distance`` for this long (training); None = never |
-    | stall_distance | 0.2 | least fall of the contact error (m) that counts as progress for ``stall_seconds`` |
-    | pd_gains, frame_skip, amp_history | "soft", 8, 2 | as InterLevel |
-    | render_mode, width, height | None, 640, 480 | as InterLevel |
+    {keyword table}
 
     Training aids (off by default; evaluations leave them off, ``baselines/train_ppo.py``'s
     ``TRAINING_AIDS``):
