@@ -183,10 +183,8 @@ class InterLevelEnv(HumanoidEnv):
             stairs = self._check_stairs_option(options["stairs"])
             self._stairs_start = False
         if self._stairs_start:
-            heights = config.step_height if config.step_height_set is None else (
-                min(config.step_height_set), max(config.step_height_set))
             stairs = dataclasses.replace(
-                stairs, step_height=stair_starts.snap(stairs.step_height, *heights),
+                stairs, step_height=stair_starts.snap(stairs.step_height, *config.height_range),
                 step_depth=stair_starts.snap(stairs.step_depth, *config.step_depth))
         self._set_stairs(stairs)
 
@@ -314,9 +312,7 @@ class InterLevelEnv(HumanoidEnv):
         if self.stairs_start_fraction <= 0.0:
             return []
         config = self.stairs_config
-        heights = config.step_height if config.step_height_set is None else (
-            min(config.step_height_set), max(config.step_height_set))
-        return stair_starts.grid_keys(heights, config.step_depth, config.num_steps)
+        return stair_starts.grid_keys(config.height_range, config.step_depth, config.num_steps)
 
     def _check_stairs_option(self, stairs: Any) -> Staircase:
         if not isinstance(stairs, Staircase):

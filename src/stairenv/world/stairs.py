@@ -98,6 +98,13 @@ class StairsConfig:
     def max_steps(self) -> int:
         return int(self.num_steps[1])
 
+    @property
+    def height_range(self) -> tuple[float, float]:
+        """The lowest and highest step height drawn: ``step_height``, or ``step_height_set``'s extremes."""
+        if self.step_height_set is None:
+            return self.step_height
+        return min(self.step_height_set), max(self.step_height_set)
+
 
 @dataclass(frozen=True)
 class Staircase:
