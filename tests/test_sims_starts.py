@@ -235,3 +235,25 @@ def test_a_succeeding_episode_does_not_stall():
         if terminated:
             break
     assert succeeded > 0
+
+
+# --- grounded termination (training aid) ------------------------------------------------------------
+def test_a_pelvis_below_min_root_height_ends_the_episode_and_a_seated_one_does_not():
+    """Seated on the piece (an interaction start) the pelvis stays above 0.3 m and the episode goes on;
+    standing (pelvis ~0.9 m) under a 1.5 m threshold counts as grounded at the first step."""
+    seated = SIMSEnv(skill="sit", min_root_height=0.3, interaction_start_fraction=1.0, **FAST)
+    seated.reset(seed=4)  # starts seated (the succeeding start of the stall test above)
+    for _ in range(10):
+        _, _, terminated, _, info = seated.step(np.zeros(28))
+        assert not info["grounded"] and not terminated and _pelvis(seated)[2] > 0.3
+    standing = SIMSEnv(skill="sit", min_root_height=1.5, **FAST)
+    standing.reset(seed=1)
+    _, _, terminated, _, info = standing.step(np.zeros(28))
+    assert info["grounded"] and terminated and not info["fell"]
+    plain = SIMSEnv(skill="sit", **FAST)
+    plain.reset(seed=1)
+    assert "grounded" not in plain.step(np.zeros(28))[4]
+    with pytest.raises(ValueError, match="min_root_height"):
+        SIMSEnv(skill="getup", min_root_height=0.3, **FAST)
+    with pytest.raises(ValueError, match="min_root_height"):
+        SIMSEnv(skill="sit", min_root_height=0.0, **FAST)

@@ -180,6 +180,11 @@ class SIMSEnv(HumanoidEnv):
       ``stall_distance`` below that of its last such approach (the first: its start) for
       ``stall_seconds`` ends (terminated, ``info["stalled"] = True``, present only with the aid), unless
       it is succeeding at that step. Standing still then no longer pays for the whole episode.
+    - Grounded termination (``min_root_height``; every skill but getup): an episode ends (terminated,
+      ``info["grounded"] = True``, present only with the aid) when the pelvis is less than
+      ``min_root_height`` above the floor, i.e. the character sits or lies on the floor; seated or
+      lying on a piece (seats and beds 0.25 m high at least) the pelvis stays above a threshold below
+      that. Sitting down on the spot then no longer earns the style reward of a sit.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
@@ -211,6 +216,7 @@ class SIMSEnv(HumanoidEnv):
         #: this world's level of the start-distance curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
+        self.min_root_height = aids.min_root_height
         self._interaction_start = False
         self._start_goal: task.ContactGoal | None = None
         self._root_distance = self._start_root_distance = 0.0
@@ -737,6 +743,9 @@ class SIMSEnv(HumanoidEnv):
         if self.stall_seconds is not None:  # only with the aid: the default info is unchanged
             results["stalled"] = self._stall.stalled(error, self._steps) and not (fell or success)
             ended = ended or results["stalled"]
+        if self.min_root_height is not None:  # only with the aid: no sitting on the floor
+            results["grounded"] = bool(root[2] < self.min_root_height) and not fell
+            ended = ended or results["grounded"]
         return StepOutcome(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())), ended, results)
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:

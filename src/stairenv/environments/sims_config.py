@@ -229,6 +229,10 @@ class SIMSTrainingAids(ReferenceStarts):
                                           "stall_distance for this long; None = never")
     stall_distance: float = checked(0.2, Check("float", 0.0, 100.0),
                                     "least fall of the contact error (m) that counts as progress")
+    min_root_height: float | None = checked(None, Check("float", 0.0, 2.0, low_open=True, optional=True),
+                                            "all skills but getup: end an episode when the pelvis is less than "
+                                            "this above the floor (sitting or lying on the floor; seated on a "
+                                            "piece it is higher); None = never")
 
 
 @checked_config
@@ -252,6 +256,9 @@ class SIMSConfig(HumanoidConfig):
         if aids.interaction_start_fraction > 0.0 and skill not in NEAR_START_SKILLS:
             raise ValueError(f"interaction_start_fraction applies to the skills {list(NEAR_START_SKILLS)}, "
                              f"not {skill!r}; leave it 0.0")
+        if aids.min_root_height is not None and skill == "getup":
+            raise ValueError("min_root_height does not apply to the getup skill (its episodes start low); "
+                             "leave it None")
         if aids.start_distance_levels and (skill not in NEAR_START_SKILLS or scene.room is not None
                                            or scene.kind != "object"):
             raise ValueError(f"start_distance_levels needs scene='object' and one of the skills "
