@@ -405,6 +405,8 @@ KINDS = {
         "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in NEAR_START_SKILLS
                                                   and s["scene"] == "object" else 0, integer=True),
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
+        # needs start_distance_levels, which no preset sets: only False
+        "start_from_front": Examples((False,)),
         # getup starts low: only None (an empty number range) there
         "min_root_height": lambda s: Optional(Number(0.0, 2.0 if s["skill"] != "getup" else 0.0, low_open=True)),
     },

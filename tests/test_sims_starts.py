@@ -257,3 +257,36 @@ def test_a_pelvis_below_min_root_height_ends_the_episode_and_a_seated_one_does_n
         SIMSEnv(skill="getup", min_root_height=0.3, **FAST)
     with pytest.raises(ValueError, match="min_root_height"):
         SIMSEnv(skill="sit", min_root_height=0.0, **FAST)
+
+
+# --- start-from-front curriculum (training aid) -------------------------------------------------------
+def _yaw_gap(a: float, b: float) -> float:
+    return abs((a - b + math.pi) % (2.0 * math.pi) - math.pi)
+
+
+def test_front_starts_begin_in_front_of_the_seat_with_the_back_to_it_and_widen_with_the_level():
+    """Level 0 of 10: the start lies within 18 deg of the direction out of the seat's front, 0.5-0.85 m from
+    its front edge, heading within 36 deg of facing out (the back to the seat); the top level reaches
+    bearings and headings far outside that."""
+    env = SIMSEnv(skill="sit", start_distance_levels=10, start_distance=(0.5, 4.0), start_from_front=True, **FAST)
+    bearings, headings = {0: [], 9: []}, {0: []}
+    for level in (0, 9):
+        for seed in range(12):
+            env.reset(seed=seed)              # a seeded reset builds the scene, then the level is set
+            env.curriculum_level = level
+            env.reset()
+            _, _, facing, origin = env._seat_start_frames(np.random.default_rng(0), env._target, "sit")
+            offset = _pelvis(env)[:2] - origin[:2]
+            bearings[level].append(_yaw_gap(math.atan2(offset[1], offset[0]), facing))
+            if level == 0:
+                assert 0.35 < np.hypot(*offset) < 1.1     # the sit's lateral spot is drawn anew: a little slack
+                root_quat = env.data.qpos[3:7]
+                yaw = math.atan2(2 * (root_quat[0] * root_quat[3] + root_quat[1] * root_quat[2]),
+                                 1 - 2 * (root_quat[2] ** 2 + root_quat[3] ** 2))
+                headings[0].append(_yaw_gap(yaw, facing))
+    assert max(bearings[0]) < math.radians(45) and max(headings[0]) < math.radians(60)
+    assert max(bearings[9]) > math.radians(90)
+    with pytest.raises(ValueError, match="start_from_front"):
+        SIMSEnv(skill="sit", start_from_front=True, **FAST)          # needs the distance curriculum
+    with pytest.raises(ValueError, match="start_from_front"):
+        SIMSEnv(skill="reach", start_distance_levels=10, start_from_front=True, **FAST)

@@ -175,6 +175,11 @@ class SIMSEnv(HumanoidEnv):
       the goal's root target; episodes cut by the trainer (``reset(options={"episode_cut": True})``)
       and interaction starts are not judged. The level carries over resets, seeded ones too: training
       state that the trainers log (``curriculum/level``) and save with their checkpoints.
+    - Start-from-front curriculum (``start_from_front``; sit, lie, with ``start_distance_levels``): a
+      standing start at level k of N also has its bearing, from the spot where an interaction start
+      stands (the seat's front edge), within +-180 deg x (k + 1) / N of the direction out of the front, and
+      its heading within as much of facing away from the piece: level 0 starts a step in front of the
+      seat with the back to it, the top level anywhere around that spot facing anywhere.
     - Stall termination (``stall_seconds``, ``stairenv.tasks.stall``), as InterLevel's: an episode whose
       contact error (``info["contact_error"]``; walk: the root's distance to its target) has not come
       ``stall_distance`` below that of its last such approach (the first: its start) for
@@ -213,6 +218,7 @@ class SIMSEnv(HumanoidEnv):
         self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
         self.interaction_start_fraction = aids.interaction_start_fraction
         self.start_distance_levels = aids.start_distance_levels
+        self.start_from_front = aids.start_from_front
         #: this world's level of the start-distance curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
@@ -354,8 +360,11 @@ class SIMSEnv(HumanoidEnv):
             # tried wrote joint angles and velocities)
             self._interaction_start = False
             mujoco.mj_resetData(self.model, self.data)
-        self._start = self._random_start(rng, target, self.episode_start_distance())
-        heading = float(rng.uniform(-math.pi, math.pi))
+        if self.start_from_front:
+            self._start, heading = self._front_start(rng, target)
+        else:
+            self._start = self._random_start(rng, target, self.episode_start_distance())
+            heading = float(rng.uniform(-math.pi, math.pi))
         reference = self._reference_pose(rng)
         self._place_at(self._start, heading, reference, 0.0)
         return reference is not None
@@ -515,6 +524,23 @@ class SIMSEnv(HumanoidEnv):
                 return xy
         radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
         return centre + np.array([radius, 0.0])
+
+    def _front_start(self, rng: np.random.Generator, target: PlacedFurniture) -> tuple[np.ndarray, float]:
+        """A standing start of the ``start_from_front`` curriculum: the spot where the interaction start
+        stands (the seat's front edge, ``_seat_start_frames``), and from it ``episode_start_distance()``
+        away at a bearing within +-180 deg x (level + 1) / N of the direction out of the front, the heading
+        within as much of facing away from the piece; clear of the furniture. The top level: any bearing
+        and any heading, as a plain start's."""
+        _, _, facing, origin = self._seat_start_frames(rng, target, self.skill)
+        spread = math.pi * (self.curriculum_level + 1) / self.start_distance_levels
+        low, high = self.episode_start_distance()
+        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
+        for _ in range(100):
+            bearing = facing + rng.uniform(-spread, spread)
+            xy = origin[:2] + rng.uniform(low, high) * np.array([math.cos(bearing), math.sin(bearing)])
+            if not any(b.contains_xy(xy[None])[0] for b in boxes):
+                return xy, float(bearing + rng.uniform(-spread, spread))
+        return self._random_start(rng, target, (low, high)), float(rng.uniform(-math.pi, math.pi))
 
     def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
         """(x, y) of a random walk goal ``walk_distance`` from ``start``: a free floor point (rooms; any

@@ -224,6 +224,9 @@ class SIMSTrainingAids(ReferenceStarts):
                                                 "in a frame of the skill's clip made for their piece")
     start_distance_levels: int = checked(0, Check("int", 0, 100), "sit, lie, reach in object scenes: levels "
                                          "of a success-driven curriculum growing start_distance; 0 = off")
+    start_from_front: bool = checked(False, Check("bool"), "sit, lie with start_distance_levels: a standing "
+                                     "start's bearing and heading grow with the level too, from in front of the "
+                                     "piece with the back to it (level 0) to any (the top level)")
     stall_seconds: float | None = checked(None, Check("float", 0.0, 3600.0, low_open=True, optional=True),
                                           "end an episode whose contact error has not fallen by "
                                           "stall_distance for this long; None = never")
@@ -256,6 +259,9 @@ class SIMSConfig(HumanoidConfig):
         if aids.interaction_start_fraction > 0.0 and skill not in NEAR_START_SKILLS:
             raise ValueError(f"interaction_start_fraction applies to the skills {list(NEAR_START_SKILLS)}, "
                              f"not {skill!r}; leave it 0.0")
+        if aids.start_from_front and (skill not in ("sit", "lie") or not aids.start_distance_levels):
+            raise ValueError(f"start_from_front needs the skill sit or lie (not {skill!r}) and start_distance_levels "
+                             "(it grows with that curriculum); leave it False")
         if aids.min_root_height is not None and skill == "getup":
             raise ValueError("min_root_height does not apply to the getup skill (its episodes start low); "
                              "leave it None")
