@@ -251,22 +251,28 @@ def skill_reward_values(state: HumanoidState, frames: RootFrames, goals: Sequenc
     ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` (B, 2) the roots' ground velocities a step before."""
     target_xy = np.array([goal.root_target[:2] for goal in goals])
     vel, facing = state.root_lin_vel[:, :2], frames.headings[:, :2, 0]
-    walk = [k for k, goal in enumerate(goals) if goal.skill == "walk"]
-    contact = [k for k, goal in enumerate(goals) if goal.skill != "walk"]
     values: list = [None] * len(goals)
-    if walk:
-        speeds = [target_speeds[k] for k in walk]
-        for k, terms in zip(walk, walk_reward_values(target_xy[walk], frames.positions[walk], vel[walk],
-                                                     prev_root_vel[walk], facing[walk], speeds)):
-            values[k] = terms
-    if contact:
-        speeds = [target_speeds[k] for k in contact]
-        masks = np.array([goals[k].mask for k in contact])
-        for k, terms in zip(contact, contact_reward_values(target_xy[contact], frames.positions[contact],
-                                                           vel[contact], facing[contact], speeds, targets[contact],
-                                                           state.body_pos[contact], masks)):
+    for walk, worlds in _by_kind(goals).items():
+        rows = slice(None) if len(worlds) == len(goals) else worlds  # one kind (as a batched env has): no copies
+        speeds = [target_speeds[k] for k in worlds]
+        if walk:
+            group = walk_reward_values(target_xy[rows], frames.positions[rows], vel[rows], prev_root_vel[rows],
+                                       facing[rows], speeds)
+        else:
+            masks = np.array([goals[k].mask for k in worlds])
+            group = contact_reward_values(target_xy[rows], frames.positions[rows], vel[rows], facing[rows], speeds,
+                                          targets[rows], state.body_pos[rows], masks)
+        for k, terms in zip(worlds, group):
             values[k] = terms
     return values
+
+
+def _by_kind(goals: Sequence[ContactGoal]) -> dict[bool, list[int]]:
+    """The worlds of walk goals (True) and of contact goals (False), where there are any."""
+    kinds: dict[bool, list[int]] = {}
+    for k, goal in enumerate(goals):
+        kinds.setdefault(goal.skill == "walk", []).append(k)
+    return kinds
 
 
 def skill_errors(goals: Sequence[ContactGoal], targets: np.ndarray, joints: np.ndarray) -> list[float]:
@@ -275,10 +281,12 @@ def skill_errors(goals: Sequence[ContactGoal], targets: np.ndarray, joints: np.n
     worlds = np.arange(len(goals))
     primary = [goal.primary for goal in goals]
     offsets = targets[worlds, primary] - joints[worlds, primary]
-    contact = np.sqrt(row_dots(offsets, offsets))
-    ground = np.array([goal.root_target[:2] for goal in goals]) - joints[:, PELVIS, :2]
-    walk = np.array([goal.skill == "walk" for goal in goals])
-    return np.where(walk, np.hypot(ground[:, 0], ground[:, 1]), contact).tolist()
+    errors = np.sqrt(row_dots(offsets, offsets))
+    walk = [goal.skill == "walk" for goal in goals]
+    if any(walk):
+        ground = np.array([goal.root_target[:2] for goal in goals]) - joints[:, PELVIS, :2]
+        errors = np.where(walk, np.hypot(ground[:, 0], ground[:, 1]), errors)
+    return errors.tolist()
 
 
 # --- contact goals -----------------------------------------------------------------------------
