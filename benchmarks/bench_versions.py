@@ -55,7 +55,9 @@ def worker(args) -> None:
             venv.step(a)
         steps = args.steps * n / (time.perf_counter() - start)
         if venv.batch_outcomes:
-            state = read_states([env.data for env in envs], envs[0]._idx)
+            # what ``_finish_worlds`` reads (``_read_worlds``: SIMS' worlds' models differ); older code: read_states
+            read = getattr(type(envs[0]), "_read_worlds", None)
+            state = read(envs) if read is not None else read_states([env.data for env in envs], envs[0]._idx)
             outcomes = lambda: type(envs[0])._step_outcomes(envs, state)  # noqa: E731
         else:
             states = [env._read_state() for env in envs]

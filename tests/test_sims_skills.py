@@ -186,6 +186,29 @@ def test_check_env_and_determinism(env_id):
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
+
+def test_step_outcomes_of_mixed_skills_equal_each_world_alone():
+    """A batch of worlds with walk and contact goals (as a screenplay sets them) against each world's
+    ``_step_outcome`` on its own state: the same bits."""
+    from stairenv.humanoid.state import stack_states
+
+    envs = [gym.make(env_id, **FAST).unwrapped for env_id in ("SIMS-Sit-v0", "SIMS-Walk-v0", "SIMS-Reach-v0")]
+    rng = np.random.default_rng(0)
+    for seed, env in enumerate(envs):
+        env.reset(seed=seed)
+    for _ in range(8):
+        for env in envs:
+            env.step(rng.uniform(-0.5, 0.5, 28))
+        carried = [(env._prev_root_vel, env._success_once) for env in envs]   # what an outcome updates
+        alone = [env._step_outcome(env._read_state()) for env in envs]
+        for env, (prev_root_vel, success_once) in zip(envs, carried):
+            env._prev_root_vel, env._success_once = prev_root_vel, success_once
+        batch = SIMSEnv._step_outcomes(envs, stack_states([env._read_state() for env in envs]))
+        for one, row in zip(alone, batch):
+            assert one.obs.tobytes() == row.obs.tobytes()
+            assert (one.reward, one.terms, one.terminated, one.results) == (row.reward, row.terms, row.terminated,
+                                                                           row.results)
+
 def test_observation_layout_and_text():
     env = SIMSEnv(skill="sit", families=("chair",), **FAST)
     obs, info = env.reset(seed=3)

@@ -255,14 +255,18 @@ def test_gymnasium_amp_wrapper_runs_on_the_batched_env(physics):
         assert reward.shape == (2,) and "style_reward" in info
 
 
-@pytest.mark.parametrize("env_id", ["InterSceneStairs-v0", "PlaMo-v0"])
-def test_batch_outcomes_equal_per_world_finish(env_id):
-    """The batch-first finish (InterLevel: one compiled call for all worlds; PlaMo: the batch's arrays, then
-    each world's terrain and path) against each world's own ``_finish_step``, with resets and falls inside;
-    exact."""
+@pytest.mark.parametrize("env_id, kwargs", [
+    ("InterSceneStairs-v0", {}), ("PlaMo-v0", {}), ("SIMS-Sit-v0", {}),
+    # rooms: the worlds' models differ in their bodies; the training aids add results
+    ("SIMS-Walk-v0", {"scene": "room", "stall_seconds": 0.3, "min_root_height": 0.5}),
+])
+def test_batch_outcomes_equal_per_world_finish(env_id, kwargs):
+    """The batch-first finish (InterLevel: one compiled call for all worlds; PlaMo and SIMS: the batch's
+    arrays, then each world's own scene and goal) against each world's own ``_finish_step``, with resets
+    and falls inside; exact."""
     runs = []
     for flag in (True, False):
-        vec = batched(env_id, 4, batch_outcomes=flag, max_episode_steps=15)
+        vec = batched(env_id, 4, batch_outcomes=flag, max_episode_steps=15, **kwargs)
         assert vec.batch_outcomes is flag
         vec.reset(seed=2)
         rng = np.random.default_rng(3)

@@ -358,7 +358,6 @@ class HumanoidEnv(gym.Env):
         ``_finish_step``. The divergence check per world, the state of the stable worlds read as one
         batch, ``_step_outcomes`` and the style features in one call each."""
         results: list[tuple | None] = [None] * len(envs)
-        idx = envs[0]._idx
         stable = []
         for k, env in enumerate(envs):
             env._steps += 1
@@ -368,7 +367,7 @@ class HumanoidEnv(gym.Env):
                 results[k] = env._unstable_step()
         if stable:
             worlds = [envs[k] for k in stable]
-            state = read_states([env.data for env in worlds], idx)
+            state = cls._read_worlds(worlds)
             outcomes = cls._step_outcomes(worlds, state)
             features = amp_features(state)
             for k, env, outcome, frame in zip(stable, worlds, outcomes, features):
@@ -377,6 +376,12 @@ class HumanoidEnv(gym.Env):
                 results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
                               env._full_info(outcome, unstable=False, terms=True))
         return results
+
+    @classmethod
+    def _read_worlds(cls, envs: list[HumanoidEnv]):
+        """The state of ``envs`` as one batch (row k: world k) for ``_finish_worlds``: ``read_states``, one
+        read of worlds whose models share their structure."""
+        return read_states([env.data for env in envs], envs[0]._idx)
 
     @classmethod
     def _step_outcomes(cls, envs: list[HumanoidEnv], state) -> list[StepOutcome]:

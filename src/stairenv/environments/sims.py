@@ -35,7 +35,7 @@ from stairenv.environments.sims_config import (  # noqa: F401
 from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
 from stairenv.humanoid.kinematics import humanoid_lowest_z
 from stairenv.humanoid.placement import place_state_in_frame
-from stairenv.humanoid.state import HEAD, PELVIS
+from stairenv.humanoid.state import HEAD, PELVIS, stack_states
 from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
@@ -749,30 +749,59 @@ class SIMSEnv(HumanoidEnv):
     def _terms_names(self) -> tuple[str, ...]:
         return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
 
+    BATCH_OUTCOMES = True
+
+    @classmethod
+    def _read_worlds(cls, envs: list[SIMSEnv]):
+        """Each world's state stacked: a world's scene is its own model (its bodies differ in number), so
+        ``read_states`` cannot read them in one."""
+        return stack_states([env._read_state() for env in envs])
+
     def _step_outcome(self, state) -> StepOutcome:
-        goal = self.goal
-        frame = task.root_frame(state)
-        root = frame.position
-        targets = goal.targets(state.body_pos[0])
-        obs = task.skill_observation(state, frame, goal, targets, self._heights, self.heightmap_size,
-                                     self.heightmap_extent, self._z)
-        terms = task.skill_reward_terms(state, frame, goal, targets, self._prev_root_vel, self._target_speed)
-        error = task.skill_error(goal, targets, state.body_pos[0])
-        success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
-        self._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
-        fell = bool(state.body_pos[0, HEAD, 2] < self.fall_height)
-        self._targets = targets
-        self._prev_root_vel = state.root_lin_vel[0, :2].copy()
-        self._success_once |= success
-        results = {"contact_error": error, "success": success, "fell": fell}
-        ended = fell or (self.terminate_on_success and success)
-        if self.stall_seconds is not None:  # only with the aid: the default info is unchanged
-            results["stalled"] = self._stall.stalled(error, self._steps) and not (fell or success)
-            ended = ended or results["stalled"]
-        if self.min_root_height is not None:  # only with the aid: no sitting on the floor
-            results["grounded"] = bool(root[2] < self.min_root_height) and not fell
-            ended = ended or results["grounded"]
-        return StepOutcome(obs, float(terms.sum()), dict(zip(self._terms_names(), terms.tolist())), ended, results)
+        """``_step_outcomes`` of this world alone."""
+        return self._step_outcomes([self], state)[0]
+
+    @classmethod
+    def _step_outcomes(cls, envs: list[SIMSEnv], state) -> list[StepOutcome]:
+        """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
+        k): the root frames, the goals' targets (compiled, per world), the observations (proprioception in
+        one compiled call, each world's own scene heights), the reward terms' dots and sums and the
+        errors as arrays over the batch, row by row as one world computes them (``stairenv.tasks.sims``),
+        then per world the ends and the bookkeeping in Python floats, so a world's outcome has the same
+        bits alone or in any batch."""
+        first = envs[0]
+        goals = [env.goal for env in envs]
+        frames = task.root_frames(state)
+        targets = task.goal_targets(goals, state.body_pos)
+        obs = task.skill_observations(state, frames, goals, targets, [env._heights for env in envs],
+                                      first.heightmap_size, first.heightmap_extent, [env._z for env in envs])
+        prev_root_vel = np.array([env._prev_root_vel for env in envs])
+        values = task.skill_reward_values(state, frames, goals, targets, prev_root_vel,
+                                          [env._target_speed for env in envs])
+        errors = task.skill_errors(goals, targets, state.body_pos)
+        roots = frames.positions.tolist()
+        head_heights = state.body_pos[:, HEAD, 2].tolist()
+        root_vel = state.root_lin_vel[:, :2].copy()  # a copy: the single env's state views its data
+        outcomes = []
+        for k, (env, goal, terms, error) in enumerate(zip(envs, goals, values, errors)):
+            root = roots[k]
+            success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
+            env._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
+            fell = bool(head_heights[k] < env.fall_height)
+            env._targets = targets[k]
+            env._prev_root_vel = root_vel[k]
+            env._success_once |= success
+            results = {"contact_error": error, "success": success, "fell": fell}
+            ended = fell or (env.terminate_on_success and success)
+            if env.stall_seconds is not None:  # only with the aid: the default info is unchanged
+                results["stalled"] = env._stall.stalled(error, env._steps) and not (fell or success)
+                ended = ended or results["stalled"]
+            if env.min_root_height is not None:  # only with the aid: no sitting on the floor
+                results["grounded"] = bool(root[2] < env.min_root_height) and not fell
+                ended = ended or results["grounded"]
+            # numpy's sum of fewer than 8 terms: left to right, as sum()
+            outcomes.append(StepOutcome(obs[k], sum(terms), dict(zip(env._terms_names(), terms)), ended, results))
+        return outcomes
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         goal = self.goal

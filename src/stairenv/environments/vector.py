@@ -14,20 +14,23 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
    steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
-   For InterLevel and PlaMo (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
+   For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
    the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
-   read as one batch (``read_states``), the task in one call (``InterLevelEnv._step_outcomes``: one compiled
-   call; ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path; the
+   read as one batch (``_read_worlds``: ``read_states``; SIMS, whose worlds' models differ, stacks each
+   world's read), the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
+   ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
+   ``SIMSEnv._step_outcomes``: arrays over the batch, then each world's own scene heights and goal; the
    single env calls them with one world) and the style features in one; the other envs run ``_finish_step``
    per world in the physics thread right after its physics. Either way the code of the single env's
    ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
 Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
-PlaMoScene (its worlds' models differ) and SIMS the whole finish; for InterLevel the divergence check's
+PlaMoScene (its worlds' models differ) the whole finish; for InterLevel the divergence check's
 time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
-heightmap and path targets (compiled, on the world's own height field and path) and reward terms. Batched:
-the action checks, the physics, InterLevel's and PlaMo's step outcomes, the assembly of obs / reward /
-flags / info.
+heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
+also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
+scalars and the ends. Batched: the action checks, the physics, InterLevel's, PlaMo's and SIMS' step
+outcomes, the assembly of obs / reward / flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -122,7 +125,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
         self._world_changed = getattr(self.physics, "world_changed", None)
         #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
-        #: (``BATCH_OUTCOMES``: InterLevel, PlaMo), else world by world
+        #: (``BATCH_OUTCOMES``: InterLevel, PlaMo, SIMS), else world by world
         self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)

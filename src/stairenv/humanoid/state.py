@@ -65,3 +65,9 @@ def read_states(datas, idx: HumanoidIndices) -> HumanoidState:
         dof_pos=np.ascontiguousarray(qpos[:, idx.qpos_joints]),
         dof_vel=np.ascontiguousarray(qvel[:, idx.qvel_joints]),
     )
+
+
+def stack_states(states) -> HumanoidState:
+    """One batch of ``states`` (batches, e.g. each world's ``read_state`` where the worlds' models differ in
+    structure, which ``read_states`` cannot read at once), in their order. Copies, not views."""
+    return HumanoidState(*(np.concatenate(field) for field in zip(*states)))

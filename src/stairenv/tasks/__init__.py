@@ -2,9 +2,9 @@
 
 Every function takes arrays with a leading batch dimension (B, ...) and returns
 arrays with the same leading dimension, so that a single-world env (B = 1), a
-natively batched vector env, or a JAX port can all call the same code. SIMS' and
-SIMS' step functions (``skill_observation``...) take world 0 of a
-``HumanoidState`` (SIMS runs per world); PlaMo's env batches its worlds with the same bits
-(``plamo.write_terrain_heightmap``, ``plamo.write_path_observation``, ``plamo.path_reward_values``).
+natively batched vector env, or a JAX port can all call the same code. SIMS' and PlaMo's envs
+batch their worlds with the same bits as one world alone (``sims.skill_observations``,
+``sims.skill_reward_values``; ``plamo.write_terrain_heightmap``, ``plamo.write_path_observation``,
+``plamo.path_reward_values``).
 Each task holds its reward weights in one frozen dataclass; ``terms`` has the named-term helpers.
 """

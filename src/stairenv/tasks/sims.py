@@ -24,8 +24,10 @@ with the pelvis target at standing height in front of the furniture.
 
 Each term is a small pure function of ``SkillRewardInputs`` (``near_term``, ``far_term``,
 ``still_term``), named and weighed in ``WALK_TERMS`` / ``CONTACT_TERMS``; the weights are held in
-one place, ``WALK_WEIGHTS`` and ``CONTACT_WEIGHTS``. ``skill_observation`` and ``skill_reward_terms``
-are what ``SIMSEnv`` calls each step.
+one place, ``WALK_WEIGHTS`` and ``CONTACT_WEIGHTS``. ``root_frames``, ``goal_targets``,
+``skill_observations``, ``skill_reward_values`` and ``skill_errors`` are what ``SIMSEnv`` calls each
+step, on a batch of worlds (one world: a batch of one) with the same bits for a world alone or in any
+batch; ``walk_reward_terms`` and ``contact_reward_terms`` are one world's rewards.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.humanoid.state import PELVIS, HumanoidState
 from stairenv.rotations import yaw_matrix
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, proprioception
-from stairenv.tasks.terms import RewardTerm, term_names, weighted_terms
+from stairenv.tasks.terms import RewardTerm, term_names, weighted_values
 from stairenv.world.furniture import PlacedFurniture
 
 SKILLS: tuple[str, ...] = ("walk", "sit", "lie", "reach", "getup")
@@ -127,25 +129,59 @@ WALK_REWARD_TERMS = term_names(WALK_TERMS)
 CONTACT_REWARD_TERMS = term_names(CONTACT_TERMS)
 
 
-def _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed):
-    """(|x* - x|^2, velocity term, facing term) on the ground."""
-    delta = np.asarray(target_xy, dtype=float)[:2] - np.asarray(root_xy, dtype=float)[:2]
-    dist2 = float(delta @ delta)
-    norm = math.sqrt(dist2)
-    direction = delta / norm if norm > 1e-9 else np.zeros(2)
-    speed_along = float(direction @ np.asarray(root_vel_xy, dtype=float)[:2])
-    velocity = math.exp(-2.0 * (target_speed - speed_along) ** 2)
-    facing = max(0.0, float(direction @ np.asarray(facing_xy, dtype=float)[:2])) ** 2
-    return dist2, velocity, facing
+def row_dots(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(B,) a[k] . b[k] of the rows of ``a`` and ``b`` (B, d), each by the BLAS dot that ``a[k] @ b[k]``
+    calls (a batched matmul of 1 x d by d x 1 calls it row by row; an einsum or a sum written out
+    rounds differently), so a row has the same bits alone or in any batch."""
+    a, b = np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float)
+    return np.matmul(a[:, None, :], b[:, :, None])[:, 0, 0]
+
+
+def direction_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray, facing_xy: np.ndarray,
+                    target_speeds: Sequence[float]) -> list[tuple[float, float, float]]:
+    """Per world (rows of the (B, >= 2) arrays): (|x* - x|^2, velocity term, facing term) on the ground."""
+    delta = np.asarray(target_xy, dtype=float)[:, :2] - np.asarray(root_xy, dtype=float)[:, :2]
+    dist2 = row_dots(delta, delta).tolist()
+    norms = [math.sqrt(d) for d in dist2]
+    moving = np.array([norm > 1e-9 for norm in norms])[:, None]
+    # the unit direction; none (zeros) on the target
+    direction = np.divide(delta, np.array(norms)[:, None], out=np.zeros_like(delta), where=moving)
+    speed_along = row_dots(direction, np.asarray(root_vel_xy, dtype=float)[:, :2]).tolist()
+    facing = row_dots(direction, np.asarray(facing_xy, dtype=float)[:, :2]).tolist()
+    return [(d, math.exp(-2.0 * (speed - along) ** 2), max(0.0, f) ** 2)
+            for d, speed, along, f in zip(dist2, target_speeds, speed_along, facing)]
+
+
+def walk_reward_values(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
+                       prev_root_vel_xy: np.ndarray, facing_xy: np.ndarray, target_speeds: Sequence[float],
+                       weights: SkillRewardWeights = WALK_WEIGHTS) -> list[tuple[float, ...]]:
+    """``walk_reward_terms`` of each world (rows of the (B, >= 2) arrays; ``target_speeds`` (B,))."""
+    directions = direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speeds)
+    dv = np.asarray(root_vel_xy, dtype=float)[:, :2] - np.asarray(prev_root_vel_xy, dtype=float)[:, :2]
+    changes = row_dots(dv, dv).tolist()
+    return [weighted_values(SkillRewardInputs(dist2, velocity, facing, dist2, change), weights, WALK_TERMS)
+            for (dist2, velocity, facing), change in zip(directions, changes)]
+
+
+def contact_reward_values(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
+                          facing_xy: np.ndarray, target_speeds: Sequence[float], goals: np.ndarray,
+                          joints: np.ndarray, mask: np.ndarray,
+                          weights: SkillRewardWeights = CONTACT_WEIGHTS) -> list[tuple[float, ...]]:
+    """``contact_reward_terms`` of each world (rows of the (B, ...) arrays; ``target_speeds`` (B,))."""
+    directions = direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speeds)
+    err = np.sum(np.square(goals - joints), axis=-1)
+    near_errors = np.sum(err * np.asarray(mask, dtype=float), axis=-1).tolist()
+    return [weighted_values(SkillRewardInputs(dist2, velocity, facing, near_error2, 0.0), weights, CONTACT_TERMS)
+            for (dist2, velocity, facing), near_error2 in zip(directions, near_errors)]
 
 
 def walk_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
                       prev_root_vel_xy: np.ndarray, facing_xy: np.ndarray, target_speed: float,
                       weights: SkillRewardWeights = WALK_WEIGHTS) -> np.ndarray:
     """The walk reward's weighted terms (near, far, still), summing to r (supplement Eq. 7-10)."""
-    dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
-    dv = np.asarray(root_vel_xy, dtype=float)[:2] - np.asarray(prev_root_vel_xy, dtype=float)[:2]
-    return weighted_terms(SkillRewardInputs(dist2, velocity, facing, dist2, float(dv @ dv)), weights, WALK_TERMS)
+    rows = (np.asarray(v, dtype=float)[None] for v in (target_xy, root_xy, root_vel_xy, prev_root_vel_xy,
+                                                         facing_xy))  # a batch of one
+    return np.array(walk_reward_values(*rows, [target_speed], weights)[0])
 
 
 def contact_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy: np.ndarray,
@@ -155,61 +191,102 @@ def contact_reward_terms(target_xy: np.ndarray, root_xy: np.ndarray, root_vel_xy
 
     ``goals`` and ``joints`` (15, 3): targets g_j and body positions x_j; ``mask`` (15,).
     """
-    dist2, velocity, facing = _direction_terms(target_xy, root_xy, root_vel_xy, facing_xy, target_speed)
-    err = np.sum(np.square(goals - joints), axis=-1)
-    near_error2 = float(np.sum(err * np.asarray(mask, dtype=float)))
-    return weighted_terms(SkillRewardInputs(dist2, velocity, facing, near_error2, 0.0), weights, CONTACT_TERMS)
+    target, root, vel, facing, goals, joints, mask = (np.asarray(v, dtype=float)[None] for v in (
+        target_xy, root_xy, root_vel_xy, facing_xy, goals, joints, mask))  # a batch of one
+    return np.array(contact_reward_values(target, root, vel, facing, [target_speed], goals, joints, mask, weights)[0])
 
 
-# --- one step of a skill ------------------------------------------------------------------------
-class RootFrame(NamedTuple):
-    """World 0's root and its heading frame: ``heading`` the yaw rotation (world-from-heading)."""
+# --- one step of a batch of worlds ---------------------------------------------------------------
+# Row k of every argument is world k (of a ``HumanoidState`` batch); a world's results have the same
+# bits alone (a batch of one) or in any batch: what is batched is elementwise or row by row.
+class RootFrames(NamedTuple):
+    """Each world's root and its heading frame: ``headings`` the yaw rotations (world-from-heading)."""
 
-    position: np.ndarray  # (3,)
-    yaw: float
-    heading: np.ndarray   # (3, 3)
-
-
-def root_frame(state: HumanoidState) -> RootFrame:
-    root_mat = state.body_mat[0, PELVIS]
-    yaw = math.atan2(root_mat[1, 0], root_mat[0, 0])
-    return RootFrame(state.body_pos[0, PELVIS], yaw, yaw_matrix(yaw))
+    positions: np.ndarray  # (B, 3)
+    yaws: list[float]
+    headings: np.ndarray   # (B, 3, 3)
 
 
-def skill_observation(state: HumanoidState, frame: RootFrame, goal: ContactGoal, targets: np.ndarray,
-                      heights: SceneHeights, heightmap_size: int, heightmap_extent: float,
-                      text: np.ndarray) -> np.ndarray:
-    """The observation (``SIMSEnv``'s docstring) of world 0 of ``state``: proprioception, the egocentric
-    heightmap, the goal's targets ``targets`` (``goal.targets``) relative to the root in the heading
-    frame (zeros where masked out), the mask, and the text embedding ``text``."""
-    root = frame.position
-    proprio = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                             np.array([root[2]]), np.empty((1, PROPRIOCEPTION_SIZE)))[0]
-    heightmap = heights.egocentric(root, frame.yaw, heightmap_size, heightmap_extent)
-    mask = goal.mask
-    rel = (targets - root) * mask[:, None]
-    rel = rel @ frame.heading  # into the heading frame
-    return np.concatenate((proprio, heightmap, rel.ravel(), mask.astype(float), text))
+def root_frames(state: HumanoidState) -> RootFrames:
+    """The roots of the worlds of ``state`` and their heading frames."""
+    axes = state.body_mat[:, PELVIS, :2, 0].tolist()  # (R00, R10): the root's yaw
+    yaws = [math.atan2(r10, r00) for r00, r10 in axes]
+    return RootFrames(state.body_pos[:, PELVIS], yaws, np.array([yaw_matrix(yaw) for yaw in yaws]))
 
 
-def skill_reward_terms(state: HumanoidState, frame: RootFrame, goal: ContactGoal, targets: np.ndarray,
-                       prev_root_vel: np.ndarray, target_speed: float) -> np.ndarray:
-    """The weighted reward terms of world 0 of ``state``: ``WALK_REWARD_TERMS`` for walk, else
-    ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` the root's ground velocity a step before."""
-    vel = state.root_lin_vel[0, :2]
-    facing = frame.heading[:2, 0].copy()
-    if goal.skill == "walk":
-        return walk_reward_terms(goal.root_target, frame.position, vel, prev_root_vel, facing, target_speed)
-    return contact_reward_terms(goal.root_target, frame.position, vel, facing, target_speed, targets,
-                                state.body_pos[0], goal.mask)
+def goal_targets(goals: Sequence[ContactGoal], joints: np.ndarray) -> np.ndarray:
+    """(B, 15, 3): ``goal.targets`` of each world's goal and joints (B, 15, 3)."""
+    out = np.empty((len(goals), NUM_CONTACT_JOINTS, 3))
+    for goal, world_joints, world_out in zip(goals, joints, out):
+        goal.targets(world_joints, world_out)
+    return out
 
 
-def skill_error(goal: ContactGoal, targets: np.ndarray, joints: np.ndarray) -> float:
-    """The distance (m) that decides success: the root's to x* on the ground for walk, else the
-    primary body's to its target."""
-    if goal.skill == "walk":
-        return float(np.hypot(*(goal.root_target[:2] - joints[PELVIS, :2])))
-    return float(np.linalg.norm(targets[goal.primary] - joints[goal.primary]))
+def skill_observations(state: HumanoidState, frames: RootFrames, goals: Sequence[ContactGoal], targets: np.ndarray,
+                       heights: Sequence[SceneHeights], heightmap_size: int, heightmap_extent: float,
+                       texts: Sequence[np.ndarray]) -> np.ndarray:
+    """(B, size) the observations (``SIMSEnv``'s docstring): proprioception, the egocentric heightmap of
+    each world's ``heights``, the goal's targets ``targets`` (``goal_targets``) relative to the root in
+    the heading frame (zeros where masked out), the mask, and the text embedding of ``texts``."""
+    n, hm = len(goals), heightmap_size * heightmap_size
+    roots = frames.positions
+    g0 = PROPRIOCEPTION_SIZE + hm
+    g1 = g0 + 3 * NUM_CONTACT_JOINTS
+    obs = np.empty((n, g1 + NUM_CONTACT_JOINTS + len(texts[0])))
+    obs[:, :PROPRIOCEPTION_SIZE] = proprioception(state.body_mat, state.root_lin_vel, state.root_ang_vel,
+                                                  state.dof_vel, roots[:, 2].copy(), np.empty((n, PROPRIOCEPTION_SIZE)))
+    for k, (root, yaw) in enumerate(zip(roots.tolist(), frames.yaws)):
+        heights[k].egocentric(root, yaw, heightmap_size, heightmap_extent, obs[k, PROPRIOCEPTION_SIZE:g0])
+    masks = np.array([goal.mask for goal in goals])
+    rel = (targets - roots[:, None, :]) * masks[:, :, None]
+    obs[:, g0:g1] = np.matmul(rel, frames.headings).reshape(n, -1)  # into the heading frames
+    obs[:, g1:g1 + NUM_CONTACT_JOINTS] = masks
+    obs[:, g1 + NUM_CONTACT_JOINTS:] = texts
+    return obs
+
+
+def skill_reward_values(state: HumanoidState, frames: RootFrames, goals: Sequence[ContactGoal], targets: np.ndarray,
+                        prev_root_vel: np.ndarray, target_speeds: Sequence[float]) -> list[tuple[float, ...]]:
+    """Each world's weighted reward terms: ``WALK_REWARD_TERMS`` for a walk goal, else
+    ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` (B, 2) the roots' ground velocities a step before."""
+    target_xy = np.array([goal.root_target[:2] for goal in goals])
+    vel, facing = state.root_lin_vel[:, :2], frames.headings[:, :2, 0]
+    values: list = [None] * len(goals)
+    for walk, worlds in _by_kind(goals).items():
+        rows = slice(None) if len(worlds) == len(goals) else worlds  # one kind (as a batched env has): no copies
+        speeds = [target_speeds[k] for k in worlds]
+        if walk:
+            group = walk_reward_values(target_xy[rows], frames.positions[rows], vel[rows], prev_root_vel[rows],
+                                       facing[rows], speeds)
+        else:
+            masks = np.array([goals[k].mask for k in worlds])
+            group = contact_reward_values(target_xy[rows], frames.positions[rows], vel[rows], facing[rows], speeds,
+                                          targets[rows], state.body_pos[rows], masks)
+        for k, terms in zip(worlds, group):
+            values[k] = terms
+    return values
+
+
+def _by_kind(goals: Sequence[ContactGoal]) -> dict[bool, list[int]]:
+    """The worlds of walk goals (True) and of contact goals (False), where there are any."""
+    kinds: dict[bool, list[int]] = {}
+    for k, goal in enumerate(goals):
+        kinds.setdefault(goal.skill == "walk", []).append(k)
+    return kinds
+
+
+def skill_errors(goals: Sequence[ContactGoal], targets: np.ndarray, joints: np.ndarray) -> list[float]:
+    """Each world's distance (m) that decides success: the root's to x* on the ground for walk, else
+    the primary body's to its target."""
+    worlds = np.arange(len(goals))
+    primary = [goal.primary for goal in goals]
+    offsets = targets[worlds, primary] - joints[worlds, primary]
+    errors = np.sqrt(row_dots(offsets, offsets))
+    walk = [goal.skill == "walk" for goal in goals]
+    if any(walk):
+        ground = np.array([goal.root_target[:2] for goal in goals]) - joints[:, PELVIS, :2]
+        errors = np.where(walk, np.hypot(ground[:, 0], ground[:, 1]), errors)
+    return errors.tolist()
 
 
 # --- contact goals -----------------------------------------------------------------------------
@@ -236,10 +313,11 @@ class ContactGoal:
         object.__setattr__(self, "_owner", np.concatenate([np.full(len(p), j, dtype=np.int64) for j, p in sets]))
         object.__setattr__(self, "mask", np.array([p is not None for p in self.points]))
 
-    def targets(self, joints: np.ndarray) -> np.ndarray:
-        """g_j (15, 3): the nearest target point of each masked body; unmasked bodies: themselves."""
+    def targets(self, joints: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """g_j (15, 3): the nearest target point of each masked body; unmasked bodies: themselves
+        (written to ``out``, (15, 3) C-contiguous, where given)."""
         return nearest_targets(self._flat, self._owner, np.ascontiguousarray(joints, dtype=np.float64),
-                               np.empty((NUM_CONTACT_JOINTS, 3)))
+                               np.empty((NUM_CONTACT_JOINTS, 3)) if out is None else out)
 
     def contact_error(self, joints: np.ndarray) -> float:
         """Distance (m) of the primary body to its target set."""
@@ -451,8 +529,10 @@ class SceneHeights:
         out[ok] = self.heights[i[ok], j[ok]]
         return out
 
-    def egocentric(self, root: np.ndarray, yaw: float, size: int, extent: float) -> np.ndarray:
-        """(size * size,) heights around ``root`` turned with ``yaw`` minus the root's height."""
+    def egocentric(self, root: np.ndarray, yaw: float, size: int, extent: float,
+                   out: np.ndarray | None = None) -> np.ndarray:
+        """(size * size,) heights around ``root`` turned with ``yaw`` minus the root's height (written to
+        ``out``, C-contiguous, where given)."""
         return egocentric_heights(self.heights, self.origin[0], self.origin[1], self.cell_size, float(root[0]),
                                   float(root[1]), float(root[2]), float(yaw), int(size), float(extent),
-                                  np.empty(size * size))
+                                  np.empty(size * size) if out is None else out)
