@@ -233,6 +233,8 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert "Progress (%)" in out
     state = read_checkpoint(run_dir / "checkpoints" / "checkpoint_128.pt")
     assert state["steps"] == 128 and state["config"]["num_envs"] == 4 and state["style"] is not None
+    state["config"]["device"] = "cuda"    # as a GPU run writes it: --resume takes this machine's --device (cpu)
+    torch.save(state, run_dir / "checkpoints" / "checkpoint_128.pt")
     out = run_script(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
                       "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
