@@ -367,9 +367,9 @@ class AMPDiscriminator(nn.Module):
     def state(self) -> dict:
         """Tensors (on the CPU) and plain values only, so ``torch.load(weights_only=True)`` reads it back
         on any machine."""
+        optimizer = plain_values(self.optimizer.state_dict())  # its lr is the config's, maybe numpy
         return {"config": plain_config(self.config), "input_dim": int(self.input_dim),
-                "model": cpu_tensors(self.state_dict()),
-                "optimizer": cpu_tensors(plain_values(self.optimizer.state_dict()))}  # its lr: the config's, maybe numpy
+                "model": cpu_tensors(self.state_dict()), "optimizer": cpu_tensors(optimizer)}
 
     @classmethod
     def from_state(cls, state: dict, backend: str = "auto", device: str | torch.device = "cpu") -> "AMPDiscriminator":

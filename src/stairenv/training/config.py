@@ -45,7 +45,7 @@ class TrainConfig:
     | torch_threads | 1 | torch intra-op threads during the rollout (the physics pool uses the cores) |
     | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
     | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
-    | device | "cpu" | torch device of the networks, optimisers, rollout and the PPO / AMP updates (the envs stay on the host) |
+    | device | "cpu" | torch device of the networks, optimisers, rollout, PPO and AMP updates (envs: on the host) |
     | checkpoint_every | 1,000,000 | env steps between checkpoints (each starts every episode anew: resumes are exact) |
 
     Data-parallel runs (torchrun; ``stairenv.training.distributed``): ``disc_batch_size``,
