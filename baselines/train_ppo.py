@@ -25,7 +25,8 @@ across machines) the lean trainer runs data-parallel (``stairenv.training.distri
 own ``--n-envs`` worlds (world j of rank r seeded as world ``r x n_envs + j`` of the run), gradients
 averaged, statistics merged, ``--timesteps`` counting every rank's steps, rank 0 printing, logging,
 checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count (exact with the same);
-``--device cuda``: each rank on ``cuda:LOCAL_RANK``, nccl beside gloo.
+``--device cuda``: the lean trainer's networks, rollout, PPO and AMP updates on the GPU, the envs on the host;
+under torchrun each rank on ``cuda:LOCAL_RANK``, nccl beside gloo.
 ``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
@@ -269,7 +270,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--torch-threads", type=int, default=1,
                    help="torch intra-op threads (1: the batched env's physics uses the other cores; "
                         "paper preset: torch's default)")
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--device", default="cpu",
+                   help="torch device: the lean trainer's networks, rollout and updates (the envs stay on the host; "
+                        "with --resume: this flag's, not the checkpoint's), or SB3's policy")
     p.add_argument("--update-threads", type=int, default=None,
                    help="lean trainer: torch threads during the PPO update, when the physics is idle "
                         "(default: --torch-threads)")
@@ -404,7 +407,7 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
             amp_history=args.amp_history, amp_text_condition=args.amp_text_condition,
             w_task=args.w_task, w_style=args.w_style,
             torch_threads=args.torch_threads, update_threads=args.update_threads, update_bf16=args.update_bf16,
-            checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every, **disc)
+            device=args.device, checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every, **disc)
     except (TypeError, ValueError) as err:
         raise SystemExit(f"train_ppo: {err}") from None
 
@@ -474,6 +477,7 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         for name in ("physics", "physics_threads"):
             if getattr(args, name) is not None:
                 config = config.replace(**{name: getattr(args, name)})
+        config = config.replace(device=args.device)    # this machine's (default cpu), whatever trained it
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
                                                                    config.reference)
         # checkpoints written before the run recorded it need the flag again

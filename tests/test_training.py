@@ -107,6 +107,20 @@ def small_trainer(**changes) -> Trainer:
     return Trainer(config)
 
 
+#: PPO + AMP on serial physics, small enough for a test: the discriminator trains every 16 steps
+SMALL_AMP = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=2, total_steps=64,
+                        checkpoint_every=32, disc_hidden=(16,), disc_replay_size=40, disc_update_interval=16,
+                        disc_updates=1, disc_batch_size=8)
+
+
+def amp_trainer(config: TrainConfig = SMALL_AMP) -> Trainer:
+    from stairenv.style.wrappers import default_reference
+    from stairenv.training import build_style, make_env
+
+    venv = make_env(config)
+    return Trainer(config, build_style(config, default_reference(venv)), venv)
+
+
 @pytest.mark.skipif(not SHIPPED_CHECKPOINT.is_file(), reason="needs the committed SB3 checkpoint")
 def test_an_sb3_checkpoint_carries_over(tmp_path):
     """``--init-from ppo_<n>_steps.zip``: the lean trainer's policy and value equal SB3's, so a run
@@ -175,6 +189,7 @@ def test_a_checkpoint_never_runs_code(tmp_path):
 @pytest.mark.parametrize("field, value, message", [
     ("num_envs", 0, "num_envs"), ("epochs", 2.5, "epochs"), ("physics", "gpu", "physics"),
     ("hidden", (256, 0), "hidden"), ("style", "gail", "style"), ("learning_rate", -1.0, "learning_rate"),
+    ("device", "", "device"),
 ])
 def test_config_errors_name_the_field(field, value, message):
     with pytest.raises((TypeError, ValueError), match=message):
@@ -218,6 +233,8 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert "Progress (%)" in out
     state = read_checkpoint(run_dir / "checkpoints" / "checkpoint_128.pt")
     assert state["steps"] == 128 and state["config"]["num_envs"] == 4 and state["style"] is not None
+    state["config"]["device"] = "cuda"    # as a GPU run writes it: --resume takes this machine's --device (cpu)
+    torch.save(state, run_dir / "checkpoints" / "checkpoint_128.pt")
     out = run_script(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
                       "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
@@ -251,17 +268,8 @@ def test_resume_equals_an_uninterrupted_run(tmp_path):
     """Serial physics, PPO + AMP (discriminator trained in the background): training on from a checkpoint
     (and the replay buffer beside it) gives the same weights, statistics and discriminator as the run
     that was never stopped."""
-    from stairenv.style.wrappers import default_reference
-    from stairenv.training import build_style, make_env
-
-    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=2,
-                         total_steps=64, checkpoint_every=32, disc_hidden=(16,), disc_replay_size=40,
-                         disc_update_interval=16, disc_updates=1, disc_batch_size=8)
-
-    def trainer() -> Trainer:
-        venv = make_env(config)
-        return Trainer(config, build_style(config, default_reference(venv)), venv)
-
+    config = SMALL_AMP
+    trainer = amp_trainer
     whole = trainer()
     whole.learn(checkpoint_dir=tmp_path / "whole")
     assert (tmp_path / "whole" / "checkpoint_32.pt").exists() and (tmp_path / "whole" / "replay_64.npy").exists()
@@ -300,3 +308,89 @@ def test_a_checkpoint_cut_is_not_judged_by_the_curriculum():
         env.step(np.zeros(28))
     env.reset(seed=1)    # a 3-step floor-start episode far below half the stairs: down a level
     assert env.curriculum_level == 1
+
+
+# --- the device option ------------------------------------------------------------------------------
+def assert_same_training(a: Trainer, b: Trainer) -> None:
+    """The same weights, optimiser moments, statistics and discriminator, bit for bit."""
+    for x, y in zip([*a.model.parameters(), *a.style.disc.state_dict().values()],
+                    [*b.model.parameters(), *b.style.disc.state_dict().values()]):
+        assert torch.equal(x.cpu(), y.cpu())
+    for x, y in zip(a.optimizer.state_dict()["state"].values(), b.optimizer.state_dict()["state"].values()):
+        assert all(torch.equal(x[k].cpu(), y[k].cpu()) for k in x)
+    np.testing.assert_array_equal(a.normalizer.obs_rms.var, b.normalizer.obs_rms.var)
+    np.testing.assert_array_equal(a.normalizer.ret_rms.var, b.normalizer.ret_rms.var)
+
+
+def test_device_cpu_given_is_the_default():
+    """``device="cpu"`` spelled out trains exactly as the default (PPO + AMP, background discriminator)."""
+    trained = []
+    for config in (SMALL_AMP, SMALL_AMP.replace(device="cpu")):    # one after the other: torch's generator is global
+        trainer = amp_trainer(config)
+        trainer.learn()
+        trainer.style.wait()
+        trained.append(trainer)
+    default, given = trained
+    assert given.device == torch.device("cpu") and given.style.disc.device == torch.device("cpu")
+    assert_same_training(default, given)
+    default.close()
+    given.close()
+
+
+def test_a_checkpoint_holds_cpu_tensors_and_loads_onto_the_runs_device(tmp_path):
+    """Checkpoints are device-independent: every tensor saved on the CPU (a plain ``torch.load`` finds them
+    there), taken onto the loading trainer's device by ``load_state``."""
+    def tensors_in(value):
+        if isinstance(value, dict):
+            value = list(value.values())
+        if isinstance(value, (list, tuple)):
+            return [t for item in value for t in tensors_in(item)]
+        return [value] if isinstance(value, torch.Tensor) else []
+
+    trainer = amp_trainer()
+    trainer.learn()
+    path = trainer.save(tmp_path / "checkpoint_64.pt")
+    state = read_checkpoint(path)
+    saved = torch.load(path, weights_only=True)    # without map_location: where they were saved
+    assert len(tensors_in(saved)) > 20 and all(t.device.type == "cpu" for t in tensors_in(saved))
+    assert torch.equal(saved["model"]["action_mean.weight"], state["model"]["action_mean.weight"])
+    other = amp_trainer(SMALL_AMP.replace(device="cpu", seed=3))
+    other.load_state(state)
+    assert_same_training(trainer, other)
+    np.testing.assert_array_equal(trainer.policy().weights[0], other.policy().weights[0])
+    trainer.close()
+    other.close()
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_training_on_cuda_checkpoints_load_on_the_cpu(tmp_path):
+    """``device="cuda"``: networks, rollout, optimisers and discriminator on the GPU; its checkpoint loads on
+    the CPU (and back), the exported numpy policy acts as the CUDA policy's mean, the discriminator scores
+    alike on both devices."""
+    config = SMALL_AMP.replace(device="cuda")
+    gpu = amp_trainer(config)
+    assert gpu.rollout.obs.is_cuda and next(gpu.model.parameters()).is_cuda and gpu.style.disc.device.type == "cuda"
+    gpu.learn()
+    gpu.style.wait()
+    assert all(s.is_cuda for s in gpu.optimizer.state_dict()["state"][0].values() if s.dim() > 0)
+    path = gpu.save(tmp_path / "checkpoint_64.pt")
+    state = read_checkpoint(path)
+    cpu = amp_trainer(SMALL_AMP)
+    cpu.load_state(state)
+    assert_same_training(gpu, cpu)
+    obs = np.random.default_rng(0).normal(size=(16, gpu.venv.single_observation_space.shape[0]))
+    with torch.no_grad():
+        normalised = torch.as_tensor(gpu.normalizer.observations(obs, update=False), device="cuda")
+        mean = gpu.model.distribution(normalised).loc.cpu().numpy()
+    np.testing.assert_allclose(gpu.policy()(obs), mean, rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(gpu.policy()(obs), cpu.policy()(obs))
+    gpu.style.disc.unfreeze_scoring()    # score with the trained weights, as the checkpoint holds them
+    windows = gpu.style.reference.sample(32, np.random.default_rng(1))
+    np.testing.assert_allclose(gpu.style.disc.logits(windows), cpu.style.disc.logits(windows), rtol=1e-4, atol=1e-4)
+    # and back: a CPU checkpoint goes on on the GPU (its optimisers' moments moved there)
+    again = amp_trainer(config.replace(total_steps=96))
+    again.load_state(read_checkpoint(cpu.save(tmp_path / "cpu_64.pt")))
+    again.learn()
+    assert again.steps == 96
+    for trainer in (gpu, cpu, again):
+        trainer.close()

@@ -18,7 +18,9 @@ Scoring (``logits``, ``reward``) runs one of the back-ends of
 "bf16") on a cached plan (float32 normaliser constants, views of the weights), rebuilt only
 when a parameter or statistic changed. ``freeze_scoring()`` snapshots the plan (copies), so
 that training may change the parameters in another thread while scoring goes on
-(``AMPStyleReward(background_training=True)``). Training's matrix products go through oneDNN
+(``AMPStyleReward(background_training=True)``). On a device other than the CPU (``device=``)
+scoring and training run torch's kernels there ("bf16" scoring stays bfloat16): the numba
+kernels and oneDNN are CPU-only. Training's matrix products go through oneDNN
 where it works (:mod:`stairenv.style.onednn`), weight decay and logit regularisation add their
 gradients in place, and Adam is the fused kernel; all of it float32, equal to the plain torch
 path up to rounding (tests compare them). ``AMPDiscriminator(..., backend="aten")`` trains with
@@ -46,6 +48,7 @@ __all__ = [
     "DiscriminatorConfig",
     "ReplayBuffer",
     "RunningNorm",
+    "cpu_tensors",
     "onednn_available",
     "plain_config",
     "plain_values",
@@ -102,6 +105,16 @@ def plain_values(value):
     return value.item() if isinstance(value, np.generic) else value
 
 
+def cpu_tensors(value):
+    """``value`` with every tensor in its dicts, lists and tuples on the CPU (the same tensor where it is
+    there already): what is saved then loads on any machine, whatever device trained it."""
+    if isinstance(value, dict):
+        return {key: cpu_tensors(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(cpu_tensors(item) for item in value)
+    return value.cpu() if isinstance(value, torch.Tensor) else value
+
+
 def plain_config(config: DiscriminatorConfig) -> dict:
     """The config as a dict of Python numbers, strings and tuples."""
     return plain_values(asdict(config))
@@ -122,6 +135,13 @@ class _FrozenLinear:
 
     weight: torch.Tensor
     bias: torch.Tensor
+
+
+def _numba_layers(linears: list, relu: list[bool]) -> list | None:
+    """numpy views of the layers' float32 parameters for the numba kernels; None off the CPU."""
+    if linears[0].weight.device.type != "cpu":
+        return None
+    return [(layer.weight.detach().numpy(), layer.bias.detach().numpy(), r) for layer, r in zip(linears, relu)]
 
 
 class RunningNorm(nn.Module):
@@ -155,7 +175,7 @@ class RunningNorm(nn.Module):
 
 class AMPDiscriminator(nn.Module):
     def __init__(self, input_dim: int, config: DiscriminatorConfig = DiscriminatorConfig(),
-                 backend: str = "auto", scoring: str = "auto") -> None:
+                 backend: str = "auto", scoring: str = "auto", device: str | torch.device = "cpu") -> None:
         super().__init__()
         self.config = config
         self.input_dim = int(input_dim)
@@ -171,7 +191,8 @@ class AMPDiscriminator(nn.Module):
         self.logit.weight.data *= 0.01  # small initial logits: rewards start near the middle
         nn.init.zeros_(self.logit.bias)
         self.backend = backend
-        self.onednn = use_onednn(backend)
+        self.to(device)    # before the optimiser, which then holds the parameters where they live
+        self.onednn = use_onednn(backend) and self.device.type == "cpu"
         self.scoring = check_choice("scoring", scoring, SCORERS)
         self.optimizer = _adam(list(self.parameters()), config.learning_rate)
         self._plan: dict | None = None  # scoring's cache, see _inference_plan
@@ -182,6 +203,10 @@ class AMPDiscriminator(nn.Module):
         # A data-parallel run's collectives (``stairenv.training.distributed``, set by the trainer):
         # ``update`` then merges the input statistics and averages the gradients over the ranks.
         self.parallel = None
+
+    @property
+    def device(self) -> torch.device:
+        return self.logit.weight.device
 
     @property
     def linears(self) -> list[nn.Linear]:
@@ -221,9 +246,7 @@ class AMPDiscriminator(nn.Module):
         relu = [True] * (len(linears) - 1) + [False]
         self._plan = {
             "tracked": tracked, "versions": tuple(t._version for t in tracked), "mean": mean, "std": std,
-            # numba: numpy views of the float32 parameters
-            "numba": [(layer.weight.detach().numpy(), layer.bias.detach().numpy(), r)
-                      for layer, r in zip(linears, relu)],
+            "numba": _numba_layers(linears, relu),
             "torch": None,  # built on first use: hidden weights pre-packed for oneDNN
             "linears": linears, "relu": relu,
         }
@@ -241,7 +264,7 @@ class AMPDiscriminator(nn.Module):
                        for layer in live["linears"]]
             self._frozen = {
                 "tracked": (), "versions": (), "mean": live["mean"].clone(), "std": live["std"].clone(),
-                "numba": [(layer.weight.numpy(), layer.bias.numpy(), r) for layer, r in zip(linears, live["relu"])],
+                "numba": _numba_layers(linears, live["relu"]),
                 "torch": None, "linears": linears, "relu": live["relu"],
             }
 
@@ -262,13 +285,17 @@ class AMPDiscriminator(nn.Module):
         a CPU shared with env stepping costs less per call than torch's kernels, whose code and
         data the envs evict between calls. Large batches run torch's (oneDNN) kernels in
         ``torch.inference_mode``. ``scoring="numba"`` or ``"torch"`` fixes either; ``"bf16"``
-        runs torch in bfloat16 (normalisation in float32)."""
+        runs torch in bfloat16 (normalisation in float32). Off the CPU: torch's kernels on the device
+        ("bf16" there too), the windows copied to it and the logits back."""
         x = np.ascontiguousarray(features, dtype=np.float32)
         if x.ndim != 2 or x.shape[1] != self.input_dim:
             raise ValueError(f"features must be (N, {self.input_dim}), got {tuple(x.shape)}")
         if len(x) == 0:
             return np.zeros(0, dtype=np.float32)
-        return plan_logits(x, self.scoring_plan(), self.norm.clip, self.scoring, self.onednn, self.scoring_threads)
+        scoring = self.scoring
+        if self.device.type != "cpu" and scoring != "bf16":    # the numba kernels read host memory
+            scoring = "torch"
+        return plan_logits(x, self.scoring_plan(), self.norm.clip, scoring, self.onednn, self.scoring_threads)
 
     def reward(self, features: np.ndarray) -> np.ndarray:
         """Style reward of K-frame feature windows (N, input_dim): (N,)."""
@@ -278,16 +305,16 @@ class AMPDiscriminator(nn.Module):
     def update(self, reference: np.ndarray, agent: np.ndarray) -> dict[str, float]:
         """One gradient step on a batch of reference and agent windows; returns training statistics."""
         cfg = self.config
-        ref = torch.as_tensor(reference, dtype=torch.float32)
-        fake = torch.as_tensor(agent, dtype=torch.float32)
+        ref = torch.as_tensor(reference, dtype=torch.float32, device=self.device)
+        fake = torch.as_tensor(agent, dtype=torch.float32, device=self.device)
         self.norm.update(torch.cat((ref, fake)), self.parallel)
         # The gradient penalty is taken with respect to the normalised inputs, which the MLP sees,
         # on the whole reference batch (paper) or its first grad_penalty_batch windows.
         ref_n, fake_n = self.norm(ref), self.norm(fake)
         if cfg.input_noise > 0.0:
-            g = self.noise_generator
-            ref_n = ref_n + cfg.input_noise * torch.randn(ref_n.shape, generator=g)
-            fake_n = fake_n + cfg.input_noise * torch.randn(fake_n.shape, generator=g)
+            g = self.noise_generator    # a CPU generator: the same noise on every device
+            ref_n = ref_n + cfg.input_noise * torch.randn(ref_n.shape, generator=g).to(self.device)
+            fake_n = fake_n + cfg.input_noise * torch.randn(fake_n.shape, generator=g).to(self.device)
         gp_n = len(ref_n) if cfg.grad_penalty_batch is None else min(cfg.grad_penalty_batch, len(ref_n))
         if cfg.grad_penalty <= 0.0:
             gp_n = 0
@@ -310,7 +337,7 @@ class AMPDiscriminator(nn.Module):
             (grad,) = torch.autograd.grad(d_gp.sum(), gp_in, create_graph=True)
             penalty = grad.square().sum(-1).mean()
         else:
-            penalty = torch.zeros(())
+            penalty = torch.zeros((), device=self.device)
         loss = loss_ref + loss_fake + cfg.grad_penalty * penalty
         self.optimizer.zero_grad(set_to_none=True)
         loss.backward()
@@ -338,15 +365,18 @@ class AMPDiscriminator(nn.Module):
         }
 
     def state(self) -> dict:
-        """Tensors and plain values only, so ``torch.load(weights_only=True)`` reads it back."""
-        return {"config": plain_config(self.config), "input_dim": int(self.input_dim), "model": self.state_dict(),
-                "optimizer": plain_values(self.optimizer.state_dict())}  # its lr is the config's, maybe numpy
+        """Tensors (on the CPU) and plain values only, so ``torch.load(weights_only=True)`` reads it back
+        on any machine."""
+        optimizer = plain_values(self.optimizer.state_dict())  # its lr is the config's, maybe numpy
+        return {"config": plain_config(self.config), "input_dim": int(self.input_dim),
+                "model": cpu_tensors(self.state_dict()), "optimizer": cpu_tensors(optimizer)}
 
     @classmethod
-    def from_state(cls, state: dict, backend: str = "auto") -> "AMPDiscriminator":
+    def from_state(cls, state: dict, backend: str = "auto", device: str | torch.device = "cpu") -> "AMPDiscriminator":
+        """The discriminator ``state()`` wrote, on ``device`` (its optimiser's state moved there too)."""
         config = dict(state["config"])
         config["hidden"] = tuple(config["hidden"])
-        disc = cls(state["input_dim"], DiscriminatorConfig(**config), backend=backend)
+        disc = cls(state["input_dim"], DiscriminatorConfig(**config), backend=backend, device=device)
         disc.load_state_dict(state["model"])
         disc.optimizer.load_state_dict(state["optimizer"])
         return disc

@@ -17,7 +17,8 @@ plan, built when a parameter or statistic changed, starts afresh. Back-ends
 - ``"numba-parallel"``: each layer's output units split over numba's threads.
 
 A vectorised step's N windows go through one call of a back-end (the wrappers score every
-step that way); grouping changes only float32 rounding. Timings: ``docs/amp-speed.md``.
+step that way); grouping changes only float32 rounding. The torch back-ends run where the plan's
+tensors live (a CUDA plan has no numba views: its discriminator scores with torch). Timings: ``docs/amp-speed.md``.
 """
 
 from __future__ import annotations
@@ -148,6 +149,11 @@ def torch_layers(plan: dict, onednn: bool) -> list:
 
 
 # --- back-ends ------------------------------------------------------------------------------
+def _normalised(x: np.ndarray, plan: dict, clip: float) -> torch.Tensor:
+    """``x`` on the plan's device, normalised and clipped (float32)."""
+    return torch.clamp((torch.from_numpy(x).to(plan["mean"].device) - plan["mean"]) / plan["std"], -clip, clip)
+
+
 def plan_logits(x: np.ndarray, plan: dict, clip: float, scoring: str, onednn: bool,
                 threads: int | None = None) -> np.ndarray:
     """Logits (N,) of raw feature windows ``x`` (N, input_dim; float32, contiguous, N > 0) by
@@ -156,10 +162,10 @@ def plan_logits(x: np.ndarray, plan: dict, clip: float, scoring: str, onednn: bo
     thread count (None: numba's)."""
     if scoring == "bf16":
         with torch.inference_mode():
-            h = torch.clamp((torch.from_numpy(x) - plan["mean"]) / plan["std"], -clip, clip).to(torch.bfloat16)
+            h = _normalised(x, plan, clip).to(torch.bfloat16)
             for w, b, relu in bf16_layers(plan):
                 h = torch.relu(F.linear(h, w, b)) if relu else F.linear(h, w, b)
-            return h[:, 0].float().numpy()
+            return h[:, 0].float().cpu().numpy()
     if scoring == "numba-parallel":
         parts = numba.get_num_threads() if threads is None else threads
         h = normalise(x, plan["mean"].numpy(), plan["std"].numpy(), np.float32(clip), np.empty_like(x))
@@ -177,10 +183,10 @@ def plan_logits(x: np.ndarray, plan: dict, clip: float, scoring: str, onednn: bo
         return h[:, 0]
     layers = torch_layers(plan, onednn)
     with torch.inference_mode():
-        h = torch.clamp((torch.from_numpy(x) - plan["mean"]) / plan["std"], -clip, clip)
+        h = _normalised(x, plan, clip)
         for w, b, relu, packed in layers:
             if packed:
                 h = onednn_linear(h, w, b, "relu")
             else:
                 h = torch.relu(F.linear(h, w, b)) if relu else F.linear(h, w, b)
-        return h[:, 0].numpy()
+        return h[:, 0].cpu().numpy()

@@ -235,7 +235,10 @@ def read_amp_state(path: str | Path) -> dict:
 
 
 class AMPStyleReward:
-    """Discriminator, replay buffer and training schedule shared by both wrappers."""
+    """Discriminator, replay buffer and training schedule shared by both wrappers.
+
+    ``device``: where a discriminator built here lives and trains (the replay buffer and the windows
+    stay numpy on the host; each minibatch and each step's windows are copied to the device)."""
 
     def __init__(
         self,
@@ -250,6 +253,7 @@ class AMPStyleReward:
         discriminator: AMPDiscriminator | None = None,
         background_training: bool = False,
         scoring: str | None = None,
+        device: str | torch.device = "cpu",
     ) -> None:
         self.reference = reference
         self.w_task = check_number("w_task", w_task, 0.0)
@@ -260,7 +264,8 @@ class AMPStyleReward:
         torch.manual_seed(seed)
         self.rng = np.random.default_rng(seed)
         if discriminator is None:
-            discriminator = AMPDiscriminator(reference.dim, config or DiscriminatorConfig(), scoring=scoring or "auto")
+            discriminator = AMPDiscriminator(reference.dim, config or DiscriminatorConfig(), scoring=scoring or "auto",
+                                             device=device)
         elif scoring is not None:
             discriminator.scoring = check_choice("scoring", scoring, SCORERS)
         self.disc = discriminator

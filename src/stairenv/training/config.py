@@ -45,6 +45,7 @@ class TrainConfig:
     | torch_threads | 1 | torch intra-op threads during the rollout (the physics pool uses the cores) |
     | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
     | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
+    | device | "cpu" | torch device of the networks, optimisers, rollout, PPO and AMP updates (envs: on the host) |
     | checkpoint_every | 1,000,000 | env steps between checkpoints (each starts every episode anew: resumes are exact) |
 
     Data-parallel runs (torchrun; ``stairenv.training.distributed``): ``disc_batch_size``,
@@ -97,6 +98,7 @@ class TrainConfig:
     torch_threads: int | None = 1
     update_threads: int | None = None
     update_bf16: bool = False
+    device: str = "cpu"
     checkpoint_every: int = 1_000_000
 
     def __post_init__(self) -> None:
@@ -134,6 +136,8 @@ class TrainConfig:
             self._set("update_threads", check_int("update_threads", self.update_threads, 1, 1024))
         if not isinstance(self.update_bf16, bool):
             raise TypeError(f"update_bf16 must be True or False, got {self.update_bf16!r}")
+        if not isinstance(self.device, str) or not self.device:
+            raise TypeError(f"device must be a torch device name like 'cpu' or 'cuda:0', got {self.device!r}")
         for name in ("hidden", "disc_hidden"):
             sizes = getattr(self, name)
             if not sizes or any(isinstance(s, bool) or not isinstance(s, int) or s < 1 for s in sizes):

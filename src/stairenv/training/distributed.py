@@ -65,9 +65,21 @@ class Local:
 LOCAL = Local()
 
 
+def _in_place_on_host(tensor: torch.Tensor, collective) -> None:
+    """``collective(t)`` writing into ``tensor``: the groups are gloo (host memory), so a tensor on
+    another device goes through a host copy and back."""
+    if tensor.device.type == "cpu":
+        collective(tensor)
+        return
+    host = tensor.cpu()
+    collective(host)
+    tensor.copy_(host)
+
+
 class DataParallel(Local):
-    """This rank's place in a data-parallel run and the collectives over ``group`` (a gloo group:
-    the lean trainer's tensors live on the CPU)."""
+    """This rank's place in a data-parallel run and the collectives over ``group`` (a gloo group; the
+    tensors of a trainer on a GPU go through host copies, which only the weights' broadcast at the start
+    and the gradients' all-reduce after each backward pass make large)."""
 
     def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None,
                  owns_process_group: bool = False) -> None:
@@ -80,7 +92,7 @@ class DataParallel(Local):
         """Join the run torchrun started this process in (None without torchrun's ``WORLD_SIZE``, or with
         one process: that is a plain run, computing exactly what ``python`` alone would).
         Backend: nccl with ``device="cuda"`` (this rank takes ``cuda:LOCAL_RANK``), else gloo; the
-        collectives of CPU tensors (all of the lean trainer's, today) go through a gloo group either way."""
+        collectives go through a gloo group either way (device tensors as host copies)."""
         if int(os.environ.get("WORLD_SIZE", "1")) < 2:
             return None
         local_rank = int(os.environ.get("LOCAL_RANK", 0))
@@ -111,9 +123,9 @@ class DataParallel(Local):
         """The mean, (population) variance and count of every rank's batch together, from each rank's
         own: Chan et al.'s combination, in rank order on every rank (the same numbers everywhere).
         numpy or torch in, the same kind out."""
-        own = torch.cat([torch.as_tensor(count, dtype=torch.float64).reshape(1),
-                         torch.as_tensor(mean, dtype=torch.float64).reshape(-1),
-                         torch.as_tensor(var, dtype=torch.float64).reshape(-1)])
+        own = torch.cat([torch.as_tensor(count, dtype=torch.float64).reshape(1).cpu(),
+                         torch.as_tensor(mean, dtype=torch.float64).reshape(-1).cpu(),
+                         torch.as_tensor(var, dtype=torch.float64).reshape(-1).cpu()])
         parts = [torch.empty_like(own) for _ in range(self.world_size)]
         dist.all_gather(parts, own, group=self.group)
         table = torch.stack(parts)
@@ -123,7 +135,8 @@ class DataParallel(Local):
         merged_mean = (counts * means).sum(0) / total
         merged_var = (counts * (variances + (means - merged_mean) ** 2)).sum(0) / total
         if isinstance(mean, torch.Tensor):
-            return merged_mean.reshape(mean.shape).to(mean.dtype), merged_var.reshape(var.shape).to(var.dtype), total
+            return (merged_mean.reshape(mean.shape).to(mean.device, mean.dtype),
+                    merged_var.reshape(var.shape).to(var.device, var.dtype), total)
         shape = np.shape(mean)
         return merged_mean.numpy().reshape(shape), merged_var.numpy().reshape(shape), float(total)
 
@@ -145,7 +158,7 @@ class DataParallel(Local):
         """Replace every gradient by its mean over the ranks (one all-reduce of them all, flattened)."""
         grads = [p.grad for p in parameters if p.grad is not None]
         flat = torch.cat([g.reshape(-1) for g in grads])
-        dist.all_reduce(flat, group=self.group)
+        _in_place_on_host(flat, lambda t: dist.all_reduce(t, group=self.group))
         flat /= self.world_size
         offset = 0
         for g in grads:
@@ -158,12 +171,12 @@ class DataParallel(Local):
         see the change)."""
         with torch.no_grad():
             for tensor in [*module.parameters(), *module.buffers()]:
-                dist.broadcast(tensor.detach(), src=0, group=self.group)
+                _in_place_on_host(tensor.detach(), lambda t: dist.broadcast(t, src=0, group=self.group))
 
     def same_everywhere(self, tensors: Iterable[torch.Tensor]) -> bool:
         """Whether ``tensors`` hold the same numbers on every rank (compared by two float64 sums)."""
         checks = torch.stack([torch.stack([t.detach().double().sum(), t.detach().double().abs().sum()])
-                              for t in tensors]).reshape(-1)
+                              for t in tensors]).reshape(-1).cpu()
         parts = [torch.empty_like(checks) for _ in range(self.world_size)]
         dist.all_gather(parts, checks, group=self.group)
         return all(torch.equal(parts[0], p) for p in parts[1:])

@@ -15,10 +15,17 @@ algorithm is Stable-Baselines3's PPO with VecNormalize as ``train_ppo.py --train
 (same initialisation, normalisers, bootstrapping, losses and defaults), so recipes carry over;
 ``docs/training.md`` gives the measurements against it and against skrl and rsl-rl-lib.
 
+``TrainConfig.device`` (``train_ppo.py --device``) places the policy, value, their optimiser, the
+rollout, GAE, the PPO update and the AMP discriminator (its scoring, training and optimiser) on a torch
+device; the envs, the normalisers (numpy, float64), the discriminator's replay buffer and the torch
+generators stay on the host. Per step the normalised observations, the action noise (drawn on the CPU,
+so every device draws the same), the rewards and episode starts go to the device, the actions come back.
+
 A checkpoint (``checkpoint_<steps>.pt``) is one file of tensors and plain values: the whole resolved
 ``TrainConfig``, policy, optimiser, observation and return normalisers, the AMP discriminator with its
 optimiser and schedule, the curriculum levels, the step counter and the trainer's generators. It is
-read with ``torch.load(weights_only=True)``: opening one runs no code from it.
+read with ``torch.load(weights_only=True)``: opening one runs no code from it. Its tensors are saved
+on the CPU and loaded onto the run's device, so a checkpoint goes on on any device.
 """
 
 from __future__ import annotations
@@ -37,7 +44,7 @@ from torch import nn
 
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
-from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, plain_config
+from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
 from stairenv.style.wrappers import AMPStyleReward, load_weights_only, refused_object
 from stairenv.tasks import curriculum
 from stairenv.training.config import TrainConfig
@@ -154,8 +161,8 @@ class ActorCritic(nn.Module):
     def as_numpy(self, normalizer: Normalizer, clip_obs: float, config: dict[str, Any]) -> NumpyPolicy:
         """The deterministic actor with its observation statistics (``stairenv.pretrained``'s format)."""
         linear = [m for m in self.policy_net if isinstance(m, nn.Linear)] + [self.action_mean]
-        return NumpyPolicy([m.weight.detach().numpy().copy() for m in linear],
-                           [m.bias.detach().numpy().copy() for m in linear],
+        return NumpyPolicy([m.weight.detach().cpu().numpy().copy() for m in linear],
+                           [m.bias.detach().cpu().numpy().copy() for m in linear],
                            normalizer.obs_rms.mean.copy(), normalizer.obs_rms.var.copy(), clip_obs,
                            Normalizer.EPSILON, config)
 
@@ -175,8 +182,11 @@ class Rollout:
     returns: torch.Tensor
 
     @classmethod
-    def empty(cls, steps: int, n: int, obs_size: int, action_size: int) -> "Rollout":
-        z = torch.zeros
+    def empty(cls, steps: int, n: int, obs_size: int, action_size: int,
+              device: torch.device | str = "cpu") -> "Rollout":
+        def z(*shape: int) -> torch.Tensor:
+            return torch.zeros(*shape, device=device)
+
         return cls(z(steps, n, obs_size), z(steps, n, action_size), z(steps, n), z(steps, n), z(steps, n),
                    z(steps, n), z(steps, n), z(steps, n))
 
@@ -255,6 +265,10 @@ class Trainer:
                  venv: HumanoidVectorEnv | None = None, parallel: Local = LOCAL) -> None:
         if config.style == "amp" and style is None:
             raise ValueError("style='amp' needs an AMPStyleReward (see stairenv.training.build_style)")
+        self.device = torch.device(config.device)
+        if style is not None and style.disc.device.type != self.device.type:
+            raise ValueError(f"the discriminator is on {style.disc.device}, the trainer on {self.device}: build the "
+                             "style with the config's device (build_style does)")
         self.config = config
         self.parallel = parallel
         if config.torch_threads is not None:
@@ -265,7 +279,8 @@ class Trainer:
         action_size = self.venv.single_action_space.shape[0]
         self.action_low = self.venv.single_action_space.low.astype(np.float32)
         self.action_high = self.venv.single_action_space.high.astype(np.float32)
-        self.model = ActorCritic(obs_size, action_size, config.hidden, config.log_std_init)
+        # initialised on the CPU (the same weights on every device), then moved before the optimiser sees them
+        self.model = ActorCritic(obs_size, action_size, config.hidden, config.log_std_init).to(self.device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.learning_rate, eps=1e-5)
         self.learning_rate = config.learning_rate
         self.normalizer = Normalizer(obs_size, config.num_envs, config.gamma, config.clip_obs, config.clip_reward,
@@ -276,13 +291,16 @@ class Trainer:
         if style is not None:
             parallel.broadcast(style.disc)
             style.disc.parallel = self._style_parallel
-        self.rollout = Rollout.empty(config.rollout_steps, config.num_envs, obs_size, action_size)
+        self.rollout = Rollout.empty(config.rollout_steps, config.num_envs, obs_size, action_size, self.device)
         self.steps = 0
         self.iterations = 0
         self.episodes = EpisodeLog(config.num_envs)
         self._obs: torch.Tensor | None = None
-        self._starts = torch.ones(config.num_envs)
+        self._starts = torch.ones(config.num_envs, device=self.device)
         self._resumed = False
+
+    def _to_device(self, array: np.ndarray) -> torch.Tensor:
+        return torch.from_numpy(array).to(self.device)
 
     # --- one iteration --------------------------------------------------------------------------
     def reset(self, update_statistics: bool = True) -> None:
@@ -293,8 +311,8 @@ class Trainer:
         cut = {"episode_cut": True} if self._obs is not None else None    # a checkpoint's: no task judged them
         seed = self.config.seed + n * p.rank + n * p.world_size * self.iterations    # world r x n + j of the run
         obs, _ = self.venv.reset(seed=seed, options=cut)
-        self._obs = torch.from_numpy(self.normalizer.observations(obs, update=update_statistics))
-        self._starts = torch.ones(n)
+        self._obs = self._to_device(self.normalizer.observations(obs, update=update_statistics))
+        self._starts = torch.ones(n, device=self.device)
         self.normalizer.returns[:] = 0.0
         self.episodes = EpisodeLog(n)
 
@@ -308,8 +326,8 @@ class Trainer:
         for t in range(cfg.rollout_steps):
             noise = torch.randn(p.world_size * cfg.num_envs, len(self.action_low))[mine]    # the run's, my rows
             with torch.no_grad():
-                action, log_prob, value = self.model.act(self._obs, noise)
-            clipped = np.clip(action.numpy(), self.action_low, self.action_high)
+                action, log_prob, value = self.model.act(self._obs, noise.to(self.device))
+            clipped = np.clip(action.cpu().numpy(), self.action_low, self.action_high)
             obs, task_reward, terminated, truncated, infos, finals = self.venv.step_worlds(clipped, reset_ended=True)
             dones = terminated | truncated
             if self.style is not None:
@@ -324,17 +342,17 @@ class Trainer:
             task_sum += float(np.mean(task_reward))
             self.episodes.step(task_reward, dones, infos)
             norm_obs = self.normalizer.observations(obs)
-            norm_reward = torch.from_numpy(self.normalizer.rewards(reward, dones))
+            norm_reward = self._to_device(self.normalizer.rewards(reward, dones))
             # a truncated episode did not end: its last reward also earns the value of where it stopped
             cut = [i for i in np.flatnonzero(truncated & ~terminated) if i in finals]
             if cut:
                 final = self.normalizer.observations(np.stack([finals[i][0] for i in cut]), update=False)
                 with torch.no_grad():
-                    norm_reward[cut] += cfg.gamma * self.model.values(torch.from_numpy(final))
+                    norm_reward[cut] += cfg.gamma * self.model.values(self._to_device(final))
             r.obs[t], r.actions[t], r.log_probs[t], r.values[t] = self._obs, action, log_prob, value
             r.rewards[t], r.starts[t] = norm_reward, self._starts
-            self._obs = torch.from_numpy(norm_obs)
-            self._starts = torch.from_numpy(dones.astype(np.float32))
+            self._obs = self._to_device(norm_obs)
+            self._starts = self._to_device(dones.astype(np.float32))
             self.steps += cfg.num_envs * p.world_size
         with torch.no_grad():
             last_values = self.model.values(self._obs)
@@ -356,10 +374,10 @@ class Trainer:
         if cfg.update_threads is not None:    # the physics pool is idle now: its cores may serve the update
             torch.set_num_threads(cfg.update_threads)
         for _ in range(cfg.epochs):
-            order = torch.randperm(total)
+            order = torch.randperm(total).to(self.device)    # the CPU generator's: the same order on every device
             for start in range(0, total, cfg.minibatch_size):
                 mb = order[start:start + cfg.minibatch_size]
-                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=cfg.update_bf16):
+                with torch.autocast(self.device.type, dtype=torch.bfloat16, enabled=cfg.update_bf16):
                     mean, values = self.model.action_mean(self.model.policy_net(obs[mb])), self.model.values(obs[mb])
                 dist = torch.distributions.Normal(mean.float(), self.model.log_std.exp())
                 values = values.float()
@@ -487,7 +505,7 @@ class Trainer:
         return {
             "format": CHECKPOINT_FORMAT, "config": self.config.as_dict(), "steps": int(self.steps),
             "iterations": int(self.iterations), "learning_rate": float(self.learning_rate),
-            "model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
+            "model": cpu_tensors(self.model.state_dict()), "optimizer": cpu_tensors(self.optimizer.state_dict()),
             "obs_rms": self.normalizer.obs_rms.state(), "ret_rms": self.normalizer.ret_rms.state(),
             "style": style, "curriculum_level": self.all_curriculum_levels(),
             "torch_rng": torch.get_rng_state(), "world_size": self.parallel.world_size,
@@ -532,7 +550,7 @@ class Trainer:
         self.normalizer.obs_rms.load(state["obs_rms"])
         self.normalizer.ret_rms.load(state["ret_rms"])
         if self.style is not None and state.get("style") is not None:
-            disc = AMPDiscriminator.from_state(state["style"]["discriminator"])
+            disc = AMPDiscriminator.from_state(state["style"]["discriminator"], device=self.device)
             if disc.input_dim != self.style.reference.dim:
                 raise ValueError(f"the checkpoint's discriminator judges {disc.input_dim} numbers, "
                                  f"this run's reference windows have {self.style.reference.dim}")
@@ -670,7 +688,7 @@ def build_style(config: TrainConfig, reference, rank: int = 0) -> AMPStyleReward
     return AMPStyleReward(reference, w_task=config.w_task, w_style=config.w_style, seed=config.seed + rank,
                           update_interval=config.disc_update_interval, updates_per_round=config.disc_updates,
                           config=discriminator_config(config), background_training=config.disc_background,
-                          scoring=config.disc_scoring)
+                          scoring=config.disc_scoring, device=config.device)
 
 
 class RunLog:
