@@ -17,8 +17,9 @@ Measured, each size in its own try (a failure is recorded and the next size runs
   core) at ``--c-size`` worlds, the CPU baseline of the same run;
 - ``train warp`` / ``train c``: the lean trainer (``stairenv.training.Trainer``, PPO + AMP, the default
   recipe: 16-step rollouts, 5 epochs of 1,024-sample minibatches) for a few iterations after one
-  warm-up iteration, env steps/s end to end (collect + update) and the collect alone. The policy runs on
-  the CPU: the trainer has no device option yet (``policy_device`` in the JSON says so).
+  warm-up iteration, env steps/s end to end (collect + update) and the collect alone. The policy,
+  the update and the discriminator run on ``--train-device`` (auto: cuda where torch sees a GPU;
+  ``policy_device`` in the JSON says which).
 
 Each measurement stops at its time budget (``--budget`` seconds of timed steps) and none starts after
 ``--deadline`` seconds, so the whole run is bounded (about 5-6 minutes with the defaults, most of it
@@ -136,11 +137,12 @@ def bench_train(n: int, physics: str, args, venv=None) -> dict:
     from stairenv.training import Trainer, TrainConfig, build_style, make_env
 
     threads = max(1, (os.cpu_count() or 2) // 2)
+    device = args.train_device if args.train_device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
     config = TrainConfig(num_envs=n, physics=physics, total_steps=10**12, torch_threads=threads,
-                         checkpoint_every=10**12)
+                         checkpoint_every=10**12, device=device)
     venv = venv if venv is not None and venv.num_envs == n else make_env(config)
     trainer = Trainer(config, build_style(config, default_reference(venv)), venv)
-    out = {"worlds": n, "physics": physics, "policy_device": "cpu", "torch_threads": threads,
+    out = {"worlds": n, "physics": physics, "policy_device": device, "torch_threads": threads,
            "cuda_visible_to_torch": bool(torch.cuda.is_available()), "rollout_steps": config.rollout_steps}
     start = time.perf_counter()
     trainer.collect()
@@ -182,6 +184,8 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--train-size", type=int, default=4096, help="worlds of the trainer with Warp (0: none)")
     p.add_argument("--train-c-size", type=int, default=256, help="worlds of the trainer with C (0: none)")
     p.add_argument("--train-iterations", type=int, default=3)
+    p.add_argument("--train-device", default="auto", help="torch device of the trainer: auto (cuda if torch sees "
+                   "a GPU, else cpu), cpu, cuda")
     p.add_argument("--budget", type=float, default=15.0, help="seconds of timed steps per measurement")
     p.add_argument("--deadline", type=float, default=330.0,
                    help="seconds after which no further measurement starts (the JSON keeps what was done)")
