@@ -376,3 +376,30 @@ def test_grounded_termination_ends_a_low_pelvis_on_an_upright_path_only():
     assert "grounded" not in info and not terminated
     with pytest.raises(ValueError, match="min_root_height"):
         PlaMoEnv(min_root_height=0.0)
+
+
+def test_height_termination_ends_a_head_far_below_its_target_only():
+    """``max_z_error`` (training aid): a crawl's start (head ~0.3 m up) on a walk path ends at the first step
+    as z_off_path; on a crawl path it goes on, and so does a standing start on a crawl path (the head
+    above its target does not count); without the aid ``info`` has no such key."""
+    from importlib.resources import files
+
+    crawl = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+
+    def first_step(init="reference", **keywords):
+        env = PlaMoEnv(init=init, reference_motion=crawl, matched_starts=False, terrain="flat",
+                       max_xy_error=100.0, **keywords)
+        env.reset(seed=2)
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        return terminated, info
+
+    terminated, info = first_step(locomotion="walk", max_z_error=0.5)
+    assert info["z_off_path"] and terminated and info["z_error"] > 0.5 and not info["fell"]
+    terminated, info = first_step(locomotion="crawl", max_z_error=0.5)
+    assert not info["z_off_path"] and not terminated
+    terminated, info = first_step(init="default", locomotion="crawl", max_z_error=0.5)
+    assert info["z_error"] > 0.5 and not info["z_off_path"] and not terminated
+    terminated, info = first_step(locomotion="walk")
+    assert "z_off_path" not in info
+    with pytest.raises(ValueError, match="max_z_error"):
+        PlaMoEnv(max_z_error=0.0)

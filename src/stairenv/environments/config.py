@@ -283,6 +283,10 @@ class PlaMoTrainingAids(ReferenceStarts):
         None, Check("float", 0.0, 2.0, low_open=True, optional=True),
         "pelvis height above the terrain that ends an episode while the path asks for more than a crawl; "
         "None = off")
+    max_z_error: float | None = checked(
+        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
+        "head height (m) below its target that ends an episode: no going on all fours where the path asks "
+        "to walk; None = off")
 
 
 @checked_config

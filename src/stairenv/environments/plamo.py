@@ -87,6 +87,12 @@ class PlaMoEnv(HumanoidEnv):
     above the terrain while the path's head height is above ``ABOVE_CRAWL_HEAD`` (0.525 m, between the
     highest crawl and the lowest crouch-walk): sitting and scooting along an upright path ends there.
 
+    **Height termination** (``max_z_error``, a training aid; None = off): an episode also ends
+    (``info["z_off_path"]``, present only with the aid) when the head is more than ``max_z_error`` below
+    its target: going on all fours along a walk path (which the grounded termination lets pass while the
+    pelvis stays up) ends there. Above the target it does not act, so a standing start on a crawl path
+    has time to get down.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
@@ -120,6 +126,7 @@ class PlaMoEnv(HumanoidEnv):
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         self.speed_levels = aids.speed_levels
         self.min_root_height = aids.min_root_height
+        self.max_z_error = aids.max_z_error
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -286,15 +293,15 @@ class PlaMoEnv(HumanoidEnv):
             hx, hy, hz = head_rows[k]
             terms = task.path_reward_values(target, head_rows[k], float(path.yaw[i]), float(path.pitch[i]),
                                             head_yaw, head_pitch, max_body_z[k])
-            rows.append((terms, target[0] - hx, target[1] - hy, abs(target[2] - hz), hz - head_ground,
+            rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground,
                          float(path.head[i])))
         obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                                       root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
         xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
         outcomes = []
         for k, env in enumerate(envs):
-            terms, _, _, z_error, head_clearance, path_head = rows[k]
-            xy_error = xy_errors[k]
+            terms, _, _, head_below, head_clearance, path_head = rows[k]
+            xy_error, z_error = xy_errors[k], abs(head_below)
             # the two reasons an episode ends early, each in info: the head at the ground, the path lost
             fell, off_path = head_clearance < env.min_head_height, xy_error > env.max_xy_error
             results = {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}
@@ -302,6 +309,9 @@ class PlaMoEnv(HumanoidEnv):
             if env.min_root_height is not None:  # the training aid: no sitting where the path asks to stand
                 results["grounded"] = bool(path_head > ABOVE_CRAWL_HEAD and root_height[k] < env.min_root_height)
                 ended = ended or results["grounded"]
+            if env.max_z_error is not None:  # the training aid: no going on all fours where the path asks to walk
+                results["z_off_path"] = bool(head_below > env.max_z_error)
+                ended = ended or results["z_off_path"]
             outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
                                         dict(zip(task.REWARD_TERMS, terms)), ended, results))
         return outcomes
