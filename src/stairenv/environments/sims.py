@@ -187,9 +187,9 @@ class SIMSEnv(HumanoidEnv):
       it is succeeding at that step. Standing still then no longer pays for the whole episode.
     - Grounded termination (``min_root_height``; every skill but getup): an episode ends (terminated,
       ``info["grounded"] = True``, present only with the aid) when the pelvis is less than
-      ``min_root_height`` above the floor, i.e. the character sits or lies on the floor; seated or
-      lying on a piece (seats and beds 0.25 m high at least) the pelvis stays above a threshold below
-      that. Sitting down on the spot then no longer earns the style reward of a sit.
+      ``min_root_height`` above the floor, i.e. the character sits or lies on the floor. Seated or lying
+      on a piece the pelvis is higher (seats and beds are 0.25 m high at least: keep the threshold below
+      that). Sitting down on the spot then no longer earns the style reward of a sit.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
