@@ -11,6 +11,7 @@ import pytest
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.environments.sims import START_PENETRATION, SIMSEnv
 from stairenv.motion import interaction_starts
+from stairenv.rotations import heading_angle, wrap_angle
 from stairenv.tasks import curriculum
 
 FAST = {"text_encoder": "hashing", "scene_resample_every": 1}
@@ -261,7 +262,7 @@ def test_a_pelvis_below_min_root_height_ends_the_episode_and_a_seated_one_does_n
 
 # --- start-from-front curriculum (training aid) -------------------------------------------------------
 def _yaw_gap(a: float, b: float) -> float:
-    return abs((a - b + math.pi) % (2.0 * math.pi) - math.pi)
+    return abs(float(wrap_angle(a - b)))
 
 
 def test_front_starts_begin_in_front_of_the_seat_with_the_back_to_it_and_widen_with_the_level():
@@ -280,9 +281,7 @@ def test_front_starts_begin_in_front_of_the_seat_with_the_back_to_it_and_widen_w
             bearings[level].append(_yaw_gap(math.atan2(offset[1], offset[0]), facing))
             if level == 0:
                 assert 0.35 < np.hypot(*offset) < 1.1     # the sit's lateral spot is drawn anew: a little slack
-                root_quat = env.data.qpos[3:7]
-                yaw = math.atan2(2 * (root_quat[0] * root_quat[3] + root_quat[1] * root_quat[2]),
-                                 1 - 2 * (root_quat[2] ** 2 + root_quat[3] ** 2))
+                yaw = float(heading_angle(env.data.xmat[env._idx.pelvis_id].reshape(3, 3)))
                 headings[0].append(_yaw_gap(yaw, facing))
     assert max(bearings[0]) < math.radians(45) and max(headings[0]) < math.radians(60)
     assert max(bearings[9]) > math.radians(90)
