@@ -516,14 +516,23 @@ class SIMSEnv(HumanoidEnv):
             return self._free_xy[int(rng.integers(0, len(self._free_xy)))].copy()
         distance = self.start_distance if distance is None else distance
         centre = target.position if target is not None else np.zeros(2)
-        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
-        for _ in range(100):
-            angle = rng.uniform(-math.pi, math.pi)
-            xy = centre + rng.uniform(*distance) * np.array([math.cos(angle), math.sin(angle)])
-            if not any(b.contains_xy(xy[None])[0] for b in boxes):
-                return xy
+        found = self._clear_point(rng, centre, distance)
+        if found is not None:
+            return found[0]
         radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
         return centre + np.array([radius, 0.0])
+
+    def _clear_point(self, rng: np.random.Generator, centre: np.ndarray, distance: tuple[float, float],
+                     bearing: float = 0.0, spread: float = math.pi) -> tuple[np.ndarray, float] | None:
+        """A point ``distance`` from ``centre`` at a bearing within ``bearing`` +- ``spread``, clear of the
+        furniture, and that bearing (100 tries; None if none was clear)."""
+        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
+        for _ in range(100):
+            angle = bearing + rng.uniform(-spread, spread)
+            xy = centre + rng.uniform(*distance) * np.array([math.cos(angle), math.sin(angle)])
+            if not any(b.contains_xy(xy[None])[0] for b in boxes):
+                return xy, angle
+        return None
 
     def _front_start(self, rng: np.random.Generator, target: PlacedFurniture) -> tuple[np.ndarray, float]:
         """A standing start of the ``start_from_front`` curriculum: the spot where the interaction start
@@ -533,14 +542,12 @@ class SIMSEnv(HumanoidEnv):
         and any heading, as a plain start's."""
         _, _, facing, origin = self._seat_start_frames(rng, target, self.skill)
         spread = math.pi * (self.curriculum_level + 1) / self.start_distance_levels
-        low, high = self.episode_start_distance()
-        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
-        for _ in range(100):
-            bearing = facing + rng.uniform(-spread, spread)
-            xy = origin[:2] + rng.uniform(low, high) * np.array([math.cos(bearing), math.sin(bearing)])
-            if not any(b.contains_xy(xy[None])[0] for b in boxes):
-                return xy, float(bearing + rng.uniform(-spread, spread))
-        return self._random_start(rng, target, (low, high)), float(rng.uniform(-math.pi, math.pi))
+        distance = self.episode_start_distance()
+        found = self._clear_point(rng, origin[:2], distance, facing, spread)
+        if found is not None:
+            xy, bearing = found
+            return xy, float(bearing + rng.uniform(-spread, spread))
+        return self._random_start(rng, target, distance), float(rng.uniform(-math.pi, math.pi))
 
     def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
         """(x, y) of a random walk goal ``walk_distance`` from ``start``: a free floor point (rooms; any
