@@ -381,7 +381,7 @@ KINDS = {
         "max_xy_error": Number(0.0, 100.0, low_open=True), "min_head_height": UNIT, "matched_starts": Bool(),
         "speed_levels": Number(0, 100, integer=True), "constant_paths": Bool(),
         "min_root_height": Optional(Number(0.0, 2.0, low_open=True)),
-        "max_z_error": Optional(Number(0.0, 10.0, low_open=True)),
+        "max_z_error": Optional(Number(0.0, 10.0, low_open=True)), "aid_grace": Number(0.0, 10.0),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

@@ -403,3 +403,38 @@ def test_height_termination_ends_a_head_far_below_its_target_only():
     assert "z_off_path" not in info
     with pytest.raises(ValueError, match="max_z_error"):
         PlaMoEnv(max_z_error=0.0)
+
+
+def test_aid_grace_lets_a_crawl_rise_with_its_path():
+    """``aid_grace``: the height aids judge the lowest head the path asked for over the last ``aid_grace``
+    seconds. A crawl (head ~0.3 m, pelvis < 0.4 m) whose path has just risen to a walk's head height is
+    ended by both aids without grace; with a grace longer than the rise it goes on, and once the path has
+    stood that high for longer than the grace it ends as before."""
+    from importlib.resources import files
+
+    crawl = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+
+    def step_after_rise(grace, risen_for):
+        env = PlaMoEnv(init="reference", reference_motion=crawl, matched_starts=False, terrain="flat",
+                       locomotion="crawl", max_xy_error=100.0, min_root_height=0.4, max_z_error=0.4,
+                       aid_grace=grace)
+        env.reset(seed=2)
+        path = env.path
+        times = np.arange(len(path.head)) * path.dt
+        head = np.where(times >= 1.0 - risen_for - 1e-9, 1.4, path.head)   # the path rose this long before 1 s
+        points = path.points.copy()
+        points[:, 2] += head - path.head
+        env.path = path._replace(head=head, points=points)
+        env._steps = int(round(1.0 / env.dt)) - 1          # the step below ends 1 s into the episode
+        assert times[-1] > 2.0
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        return terminated, info
+
+    terminated, info = step_after_rise(0.0, risen_for=0.2)
+    assert terminated and info["grounded"] and info["z_off_path"]
+    terminated, info = step_after_rise(0.5, risen_for=0.2)
+    assert not info["grounded"] and not info["z_off_path"] and not terminated
+    terminated, info = step_after_rise(0.5, risen_for=0.8)
+    assert terminated and info["grounded"] and info["z_off_path"]
+    with pytest.raises(ValueError, match="aid_grace"):
+        PlaMoEnv(aid_grace=-1.0)

@@ -287,6 +287,9 @@ class PlaMoTrainingAids(ReferenceStarts):
         None, Check("float", 0.0, 10.0, low_open=True, optional=True),
         "head height (m) below its target that ends an episode: no going on all fours where the path asks "
         "to walk; None = off")
+    aid_grace: float = checked(0.0, Check("float", 0.0, 10.0),
+                               "seconds over which min_root_height and max_z_error judge the lowest head the "
+                               "path asked for, so a rise from a crawl has time; 0 = the target of the instant")
 
 
 @checked_config

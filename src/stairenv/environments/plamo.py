@@ -91,7 +91,9 @@ class PlaMoEnv(HumanoidEnv):
     (``info["z_off_path"]``, present only with the aid) when the head is more than ``max_z_error`` below
     its target: going on all fours along a walk path (which the grounded termination lets pass while the
     pelvis stays up) ends there. Above the target it does not act, so a standing start on a crawl path
-    has time to get down.
+    has time to get down. With ``aid_grace`` > 0 both aids judge the lowest head height the path asked
+    for over the last ``aid_grace`` seconds instead of this instant's, so a segment that rises (crawl ->
+    walk, a ``transition``-second blend) leaves a crawling character time to get up.
 
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
@@ -127,6 +129,7 @@ class PlaMoEnv(HumanoidEnv):
         self.speed_levels = aids.speed_levels
         self.min_root_height = aids.min_root_height
         self.max_z_error = aids.max_z_error
+        self.aid_grace = aids.aid_grace
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -293,24 +296,26 @@ class PlaMoEnv(HumanoidEnv):
             hx, hy, hz = head_rows[k]
             terms = task.path_reward_values(target, head_rows[k], float(path.yaw[i]), float(path.pitch[i]),
                                             head_yaw, head_pitch, max_body_z[k])
-            rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground,
-                         float(path.head[i])))
+            path_head = float(path.head[i])
+            # aid_grace: the aids judge the lowest head the path asked for lately (0 = this instant's)
+            rise = path_head - float(path.head[path.index(t - env.aid_grace):i + 1].min()) if env.aid_grace else 0.0
+            rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground, path_head, rise))
         obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                                       root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
         xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
         outcomes = []
         for k, env in enumerate(envs):
-            terms, _, _, head_below, head_clearance, path_head = rows[k]
+            terms, _, _, head_below, head_clearance, path_head, rise = rows[k]
             xy_error, z_error = xy_errors[k], abs(head_below)
             # the two reasons an episode ends early, each in info: the head at the ground, the path lost
             fell, off_path = head_clearance < env.min_head_height, xy_error > env.max_xy_error
             results = {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}
             ended = fell or off_path
             if env.min_root_height is not None:  # the training aid: no sitting where the path asks to stand
-                results["grounded"] = bool(path_head > ABOVE_CRAWL_HEAD and root_height[k] < env.min_root_height)
+                results["grounded"] = bool(path_head - rise > ABOVE_CRAWL_HEAD and root_height[k] < env.min_root_height)
                 ended = ended or results["grounded"]
             if env.max_z_error is not None:  # the training aid: no going on all fours where the path asks to walk
-                results["z_off_path"] = bool(head_below > env.max_z_error)
+                results["z_off_path"] = bool(head_below - rise > env.max_z_error)
                 ended = ended or results["z_off_path"]
             outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
                                         dict(zip(task.REWARD_TERMS, terms)), ended, results))
