@@ -207,6 +207,46 @@ def write_combined(strips: list[Image.Image], path: Path, max_width: int, max_kb
     print(f"wrote {path} ({len(png) / 1000:.0f} KB)")
 
 
+def add_follow_camera_options(parser: argparse.ArgumentParser, *, every: int, distance: float, elevation: float,
+                              combined: str) -> None:
+    """The options of a filmstrip whose frames the env's follow camera renders during an episode
+    (``filmstrip_tracking.py``, ``filmstrip_sims.py``)."""
+    parser.add_argument("--frames", type=int, default=8, help="frames per strip (default: %(default)s)")
+    parser.add_argument("--every", type=int, default=every, help="render every this many steps (default: %(default)s)")
+    parser.add_argument("--width", type=int, default=240, help="pixels per frame (default: %(default)s)")
+    parser.add_argument("--height", type=int, default=240, help="pixels per frame (default: %(default)s)")
+    parser.add_argument("--distance", type=float, default=distance, help="camera distance, m (default: %(default)s)")
+    parser.add_argument("--elevation", type=float, default=elevation, help="camera elevation, deg (default: %(default)s)")
+    parser.add_argument("--combined", type=Path, default=Path(combined), help="the combined PNG (default: %(default)s)")
+    parser.add_argument("--combined-width", type=int, default=1200, help="(default: %(default)s)")
+    parser.add_argument("--combined-max-kb", type=float, default=400.0, help="(default: %(default)s)")
+
+
+def film_follow_camera(env: gym.Env, policy, seed: int,
+                       every: int) -> tuple[list[np.ndarray], list[float], list[dict]]:
+    """One episode from ``seed``: the follow camera's frames (the first, every ``every`` steps, the last),
+    their times (s), and every step's ``info``."""
+    if callable(getattr(policy, "reset", None)):
+        policy.reset(seed)
+    obs, _ = env.reset(seed=seed)
+    images, times, infos = [env.render()], [0.0], []
+    while True:
+        obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+        infos.append(info)
+        ended = terminated or truncated
+        if len(infos) % every == 0 or ended:
+            images.append(env.render())
+            times.append(len(infos) * env.unwrapped.dt)
+        if ended:
+            return images, times, infos
+
+
+def follow_camera_strip(images: list[np.ndarray], times: list[float], frames: int, caption: str) -> Image.Image:
+    """``frames`` of an episode's rendered frames, spread evenly, as one captioned strip."""
+    keep = frame_indices(len(images), frames)
+    return filmstrip([images[k] for k in keep], [times[k] for k in keep], caption)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)

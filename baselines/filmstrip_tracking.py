@@ -33,7 +33,8 @@ import numpy as np  # noqa: E402
 import stairenv  # noqa: E402,F401  (registers the envs)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the strip layout is filmstrip_climb's, beside us
-from filmstrip_climb import filmstrip, frame_indices, write_combined  # noqa: E402
+from filmstrip_climb import (add_follow_camera_options, film_follow_camera, follow_camera_strip,  # noqa: E402
+                             write_combined)
 from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS, TRACKING_TERRAIN_SIZE  # noqa: E402
 from stairenv.policy_loading import load_policy  # noqa: E402
 
@@ -45,42 +46,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--terrain", default="flat", choices=TERRAINS, help="(default: %(default)s)")
     parser.add_argument("--locomotions", nargs="+", default=list(LOCOMOTIONS), choices=LOCOMOTIONS)
     parser.add_argument("--seed", type=int, default=0, help="the episodes' reset seed (default: %(default)s)")
-    parser.add_argument("--frames", type=int, default=8, help="frames per strip (default: %(default)s)")
-    parser.add_argument("--every", type=int, default=3, help="render every this many steps (default: %(default)s)")
-    parser.add_argument("--width", type=int, default=240, help="pixels per frame (default: %(default)s)")
-    parser.add_argument("--height", type=int, default=240, help="pixels per frame (default: %(default)s)")
-    parser.add_argument("--distance", type=float, default=3.0, help="camera distance, m (default: %(default)s)")
-    parser.add_argument("--elevation", type=float, default=-12.0, help="camera elevation, deg (default: %(default)s)")
-    parser.add_argument("--combined", type=Path, default=Path("filmstrips/plamo_tracking.png"),
-                        help="the combined PNG (default: %(default)s)")
-    parser.add_argument("--combined-width", type=int, default=1200, help="(default: %(default)s)")
-    parser.add_argument("--combined-max-kb", type=float, default=400.0, help="(default: %(default)s)")
+    add_follow_camera_options(parser, every=3, distance=3.0, elevation=-12.0, combined="filmstrips/plamo_tracking.png")
     return parser
 
 
-def film_episode(env: gym.Env, policy, seed: int, every: int) -> tuple[list[np.ndarray], list[float], str]:
-    """One episode: frames every ``every`` steps (and the last), their times, and a caption tail."""
-    base = env.unwrapped
-    if callable(getattr(policy, "reset", None)):
-        policy.reset(seed)
-    obs, _ = env.reset(seed=seed)
-    images, times, xy, z = [env.render()], [0.0], [], []
-    steps = 0
-    while True:
-        obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
-        steps += 1
-        if not info["physics_unstable"]:
-            xy.append(info["xy_error"])
-            z.append(info["z_error"])
-        ended = terminated or truncated
-        if steps % every == 0 or ended:
-            images.append(env.render())
-            times.append(steps * base.dt)
-        if ended:
-            break
-    ending = ("physics unstable" if info["physics_unstable"] else "fell" if info.get("fell")
-              else "lost the path" if info.get("off_path") else "time limit")
-    return images, times, f"{ending} at {steps * base.dt:.1f} s, XY {np.mean(xy):.2f} m, Z {np.mean(z):.2f} m"
+def caption_tail(infos: list[dict], dt: float) -> str:
+    """How the episode ended, when, and its mean XY / Z head error."""
+    last = infos[-1]
+    stable = [info for info in infos if not info["physics_unstable"]]
+    ending = ("physics unstable" if last["physics_unstable"] else "fell" if last.get("fell")
+              else "lost the path" if last.get("off_path") else "time limit")
+    return (f"{ending} at {len(infos) * dt:.1f} s, XY {np.mean([i['xy_error'] for i in stable]):.2f} m, "
+            f"Z {np.mean([i['z_error'] for i in stable]):.2f} m")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,11 +72,10 @@ def main(argv: list[str] | None = None) -> int:
                        render_mode="rgb_array", width=args.width, height=args.height)
         env.unwrapped.set_camera(args.elevation, args.distance)
         policy = load_policy(args.policy, env, seed=args.seed)
-        images, times, tail = film_episode(env, policy, args.seed, args.every)
+        images, times, infos = film_follow_camera(env, policy, args.seed, args.every)
+        tail = caption_tail(infos, env.unwrapped.dt)
         env.close()
-        keep = frame_indices(len(images), args.frames)
-        strips.append(filmstrip([images[k] for k in keep], [times[k] for k in keep],
-                                f"{locomotion} on {args.terrain}: {tail}"))
+        strips.append(follow_camera_strip(images, times, args.frames, f"{locomotion} on {args.terrain}: {tail}"))
         print(f"{locomotion}: {tail}")
     write_combined(strips, args.combined, args.combined_width, args.combined_max_kb)
     return 0

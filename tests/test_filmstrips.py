@@ -42,3 +42,19 @@ def test_tracking_filmstrip(tmp_path, baseline_script):
                                                        "--height", "64", "--combined", str(out)]) == 0
     image = iio.imread(out)
     assert image.shape[0] > 2 * 64 and image.std() > 5  # two strips, something drawn
+
+
+def test_sims_filmstrip(tmp_path, baseline_script, capsys):
+    """One strip per seed; ``--level`` starts the front curriculum at that level (a zero policy stands
+    by the seat and does not sit: no success in its caption)."""
+    out = tmp_path / "sims.png"
+    assert baseline_script("filmstrip_sims").main(["--policy", "zero", "--seeds", "0", "1", "--frames", "3",
+                                                   "--every", "20", "--width", "64", "--height", "64",
+                                                   "--env-kwarg", "start_from_front=True",
+                                                   "--env-kwarg", "start_distance_levels=10", "--level", "0",
+                                                   "--combined", str(out)]) == 0
+    image = iio.imread(out)
+    assert image.shape[0] > 2 * 64 and image.std() > 5  # two strips, something drawn
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("seed ")]
+    assert len(lines) == 2 and not any("succeeded" in line for line in lines)
+    assert baseline_script("filmstrip_sims").main(["--policy", "zero", "--level", "0", "--combined", str(out)]) == 2
