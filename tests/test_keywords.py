@@ -20,6 +20,7 @@ from stairenv.environments.interlevel import REWARDS, STAIRS_RANGES, InterLevelE
 from stairenv.environments.plamo import MAX_TERRAIN_CELLS, PATH_GENERATORS, PlaMoEnv
 from stairenv.environments.plamo_scene import SCENE_KINDS, SPEED_PROFILES, PlaMoSceneEnv
 from stairenv.environments.sims import (
+    CURRICULUM_SKILLS,
     GETUP_FROM,
     MAX_TEXT_DIM,
     NEAR_START_SKILLS,
@@ -403,7 +404,7 @@ KINDS = {
         "fall_height": Number(0.0, 1.5), "terminate_on_success": Bool(),
         # only the near-start skills take near starts, and levels only in object scenes
         "interaction_start_fraction": lambda s: UNIT if s["skill"] in NEAR_START_SKILLS else Number(0.0, 0.0),
-        "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in NEAR_START_SKILLS
+        "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in CURRICULUM_SKILLS
                                                   and s["scene"] == "object" else 0, integer=True),
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
         # needs start_distance_levels, which no preset sets: only False

@@ -139,6 +139,29 @@ def test_curriculum_starts_within_the_level_range():
         assert distance <= max(high, radius) + 0.05
 
 
+def test_walk_curriculum_grows_the_goal_distance_and_keeps_the_starts():
+    """Walk: the level grows the goal's distance from the start within ``walk_distance``; the start itself
+    is placed as without the aid (the same draws: with the top level's range the goal is the same too)."""
+    walk_distance = (1.0, 5.0)
+    env = SIMSEnv(skill="walk", start_distance_levels=4, walk_distance=walk_distance, **FAST)
+    plain = SIMSEnv(skill="walk", walk_distance=walk_distance, **FAST)
+    for seed in range(8):
+        env.reset(seed=seed)
+        plain.reset(seed=seed)
+        assert env.curriculum_level == 0 and env.episode_walk_distance() == (1.0, 2.0)
+        assert env.episode_start_distance() == plain.start_distance
+        np.testing.assert_array_equal(_pelvis(env), _pelvis(plain))
+        goal_distance = float(np.hypot(*(env._start - env.goal.root_target[:2])))
+        assert 1.0 - 1e-9 <= goal_distance <= 2.0 + 1e-9
+    _end_episode(env, success=True, progress=1.0)
+    env.reset()
+    assert env.curriculum_level == 1 and env.episode_walk_distance() == (1.0, 3.0)
+    env.curriculum_level = 3                         # the top level: the plain env's goals, draw for draw
+    env.reset(seed=11)
+    plain.reset(seed=11)
+    np.testing.assert_array_equal(env.goal.root_target, plain.goal.root_target)
+
+
 def test_interaction_starts_are_not_judged_by_the_curriculum():
     env = SIMSEnv(skill="sit", start_distance_levels=3, interaction_start_fraction=1.0, **FAST)
     env.reset(seed=1)
@@ -171,7 +194,7 @@ def test_growing_range_and_levels():
     ({"start_distance_levels": 2.5}, ValueError, "start_distance_levels"),
     ({"start_distance_levels": "3"}, TypeError, "start_distance_levels"),
     ({"start_distance_levels": 3, "scene": "room"}, ValueError, "start_distance_levels"),
-    ({"start_distance_levels": 3, "skill": "walk"}, ValueError, "start_distance_levels"),
+    ({"start_distance_levels": 3, "skill": "getup"}, ValueError, "start_distance_levels"),
 ])
 def test_bad_values_are_refused_naming_the_keyword(kwargs, error, match):
     with pytest.raises(error, match=match):

@@ -18,6 +18,7 @@ from stairenv.environments.base import HumanoidEnv, StepOutcome
 from stairenv.environments.config import document_keywords, keyword_signature, resolve
 # the checks of SIMS' keywords are SIMSConfig's; named here too, as before
 from stairenv.environments.sims_config import (  # noqa: F401
+    CURRICULUM_SKILLS,
     GETUP_FROM,
     HASHING_DIMS,
     MAX_TEXT_DIM,
@@ -169,7 +170,8 @@ class SIMSEnv(HumanoidEnv):
       (present only with the aid) tells which.
     - Start-distance curriculum (``start_distance_levels`` N, object scenes): each world holds a level
       (``curriculum_level``, 0 at its first reset); level k draws the start distance from the first
-      (k + 1) / N of the ``start_distance`` range (the top level: all of it). An episode that started
+      (k + 1) / N of the ``start_distance`` range (walk: the goal's distance from the first part of
+      ``walk_distance``, its start placed as without the aid; the top level: all of it). An episode that started
       standing moves its world up a level when it succeeded (``success_once``), down one when it ended
       without success having closed less than half the distance (on the ground) between its start and
       the goal's root target; episodes cut by the trainer (``reset(options={"episode_cut": True})``)
@@ -340,9 +342,16 @@ class SIMSEnv(HumanoidEnv):
     def episode_start_distance(self) -> tuple[float, float]:
         """The start distance range (m) of this world's episodes: ``start_distance``, or with
         ``start_distance_levels`` its curriculum level's part of it."""
-        if not self.start_distance_levels or self.curriculum_level is None:
+        if not self.start_distance_levels or self.curriculum_level is None or self.skill == "walk":
             return self.start_distance
         return curriculum.growing_range(self.curriculum_level, self.start_distance_levels, *self.start_distance)
+
+    def episode_walk_distance(self) -> tuple[float, float]:
+        """The walk goal's distance range (m): ``walk_distance``, or with ``start_distance_levels`` its
+        curriculum level's part of it."""
+        if not self.start_distance_levels or self.curriculum_level is None:
+            return self.walk_distance
+        return curriculum.growing_range(self.curriculum_level, self.start_distance_levels, *self.walk_distance)
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Get up: seated or lying on the piece; otherwise standing (or in a reference state) on the floor."""
@@ -550,17 +559,18 @@ class SIMSEnv(HumanoidEnv):
         return self._random_start(rng, target, distance), float(rng.uniform(-math.pi, math.pi))
 
     def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
-        """(x, y) of a random walk goal ``walk_distance`` from ``start``: a free floor point (rooms; any
+        """(x, y) of a random walk goal ``episode_walk_distance()`` from ``start``: a free floor point (rooms; any
         free point if none is that far) or a point clear of the furniture (object scenes)."""
+        low, high = self.episode_walk_distance()
         if self._free_xy is not None and len(self._free_xy):
             d = np.linalg.norm(self._free_xy - start, axis=1)
-            ok = np.flatnonzero((d >= self.walk_distance[0]) & (d <= self.walk_distance[1]))
+            ok = np.flatnonzero((d >= low) & (d <= high))
             pool = ok if len(ok) else np.arange(len(self._free_xy))
             return self._free_xy[int(rng.choice(pool))].copy()
         boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
         for _ in range(100):
             angle = rng.uniform(-math.pi, math.pi)
-            xy = start + rng.uniform(*self.walk_distance) * np.array([math.cos(angle), math.sin(angle)])
+            xy = start + rng.uniform(low, high) * np.array([math.cos(angle), math.sin(angle)])
             if not any(b.contains_xy(xy[None])[0] for b in boxes):
                 return xy
         return start.copy()

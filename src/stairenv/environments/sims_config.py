@@ -41,6 +41,8 @@ HASHING_DIMS = (8, MAX_TEXT_DIM)
 #: The skills whose training aids start near the furniture (walk has no piece to start at; get up
 #: already starts seated or lying on it).
 NEAR_START_SKILLS = ("sit", "lie", "reach")
+#: the skills a start-distance curriculum grows (walk: the goal's distance)
+CURRICULUM_SKILLS = NEAR_START_SKILLS + ("walk",)
 
 
 # --- the checks of single keywords and of keywords together ---------------------------------------
@@ -222,8 +224,9 @@ class SIMSTrainingAids(ReferenceStarts):
 
     interaction_start_fraction: float = checked(0.0, UNIT, "sit, lie, reach: share of episodes that start "
                                                 "in a frame of the skill's clip made for their piece")
-    start_distance_levels: int = checked(0, Check("int", 0, 100), "sit, lie, reach in object scenes: levels "
-                                         "of a success-driven curriculum growing start_distance; 0 = off")
+    start_distance_levels: int = checked(0, Check("int", 0, 100), "sit, lie, reach, walk in object scenes: levels "
+                                         "of a success-driven curriculum growing start_distance (walk: "
+                                         "walk_distance); 0 = off")
     start_from_front: bool = checked(False, Check("bool"), "sit, lie with start_distance_levels: a standing "
                                      "start's bearing and heading grow with the level too, from in front of the "
                                      "piece with the back to it (level 0) to any (the top level)")
@@ -265,10 +268,11 @@ class SIMSConfig(HumanoidConfig):
         if aids.min_root_height is not None and skill == "getup":
             raise ValueError("min_root_height does not apply to the getup skill (its episodes start low); "
                              "leave it None")
-        if aids.start_distance_levels and (skill not in NEAR_START_SKILLS or scene.room is not None
+        if aids.start_distance_levels and (skill not in CURRICULUM_SKILLS or scene.room is not None
                                            or scene.kind != "object"):
             raise ValueError(f"start_distance_levels needs scene='object' and one of the skills "
-                             f"{list(NEAR_START_SKILLS)} (start_distance places those starts); leave it 0")
+                             f"{list(CURRICULUM_SKILLS)} (start_distance places their starts, walk_distance the "
+                             "walk's goal); leave it 0")
 
     @property
     def families(self) -> tuple[str, ...]:
@@ -276,7 +280,7 @@ class SIMSConfig(HumanoidConfig):
         return check_families(self.scene.families, self.task.skill, self.task.getup_from)
 
 
-__all__ = ["GETUP_FROM", "MAX_TEXT_DIM", "NEAR_START_SKILLS", "SCENES", "SKILL_FAMILIES", "TEXT_ENCODERS",
+__all__ = ["CURRICULUM_SKILLS", "GETUP_FROM", "MAX_TEXT_DIM", "NEAR_START_SKILLS", "SCENES", "SKILL_FAMILIES", "TEXT_ENCODERS",
            "SIMSConfig", "SIMSObservation", "SIMSScene", "SIMSTask", "SIMSTermination", "SIMSText",
            "SIMSTrainingAids", "check_captions", "check_families", "check_room_hosts", "check_text_encoder",
            "host_families"]
