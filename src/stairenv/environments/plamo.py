@@ -298,8 +298,11 @@ class PlaMoEnv(HumanoidEnv):
                                             head_yaw, head_pitch, max_body_z[k])
             path_head = float(path.head[i])
             # aid_grace: the aids judge the lowest head the path asked for lately (0 = this instant's)
-            rise = path_head - float(path.head[path.index(t - env.aid_grace):i + 1].min()) if env.aid_grace else 0.0
-            rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground, path_head, rise))
+            rise = 0.0
+            if env.aid_grace:
+                rise = path_head - float(path.head[path.index(t - env.aid_grace):i + 1].min())
+            rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground, path_head,
+                         rise))
         obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                                       root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
         xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
@@ -312,7 +315,8 @@ class PlaMoEnv(HumanoidEnv):
             results = {"xy_error": xy_error, "z_error": z_error, "fell": fell, "off_path": off_path}
             ended = fell or off_path
             if env.min_root_height is not None:  # the training aid: no sitting where the path asks to stand
-                results["grounded"] = bool(path_head - rise > ABOVE_CRAWL_HEAD and root_height[k] < env.min_root_height)
+                results["grounded"] = bool(path_head - rise > ABOVE_CRAWL_HEAD
+                                           and root_height[k] < env.min_root_height)
                 ended = ended or results["grounded"]
             if env.max_z_error is not None:  # the training aid: no going on all fours where the path asks to walk
                 results["z_off_path"] = bool(head_below - rise > env.max_z_error)

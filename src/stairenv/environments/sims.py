@@ -171,7 +171,8 @@ class SIMSEnv(HumanoidEnv):
     - Start-distance curriculum (``start_distance_levels`` N, object scenes): each world holds a level
       (``curriculum_level``, 0 at its first reset); level k draws the start distance from the first
       (k + 1) / N of the ``start_distance`` range (walk: the goal's distance from the first part of
-      ``walk_distance``, its start placed as without the aid; the top level: all of it). An episode that started
+      ``walk_distance``, its start placed as without the aid; the top level: all of it). An episode that
+      started
       standing moves its world up a level when it succeeded (``success_once``), down one when it ended
       without success having closed less than half the distance (on the ground) between its start and
       the goal's root target; episodes cut by the trainer (``reset(options={"episode_cut": True})``)
@@ -559,8 +560,8 @@ class SIMSEnv(HumanoidEnv):
         return self._random_start(rng, target, distance), float(rng.uniform(-math.pi, math.pi))
 
     def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
-        """(x, y) of a random walk goal ``episode_walk_distance()`` from ``start``: a free floor point (rooms; any
-        free point if none is that far) or a point clear of the furniture (object scenes)."""
+        """(x, y) of a random walk goal ``episode_walk_distance()`` from ``start``: a free floor point
+        (rooms; any free point if none is that far) or a point clear of the furniture (object scenes)."""
         low, high = self.episode_walk_distance()
         if self._free_xy is not None and len(self._free_xy):
             d = np.linalg.norm(self._free_xy - start, axis=1)

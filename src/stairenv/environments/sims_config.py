@@ -280,7 +280,7 @@ class SIMSConfig(HumanoidConfig):
         return check_families(self.scene.families, self.task.skill, self.task.getup_from)
 
 
-__all__ = ["CURRICULUM_SKILLS", "GETUP_FROM", "MAX_TEXT_DIM", "NEAR_START_SKILLS", "SCENES", "SKILL_FAMILIES", "TEXT_ENCODERS",
-           "SIMSConfig", "SIMSObservation", "SIMSScene", "SIMSTask", "SIMSTermination", "SIMSText",
+__all__ = ["CURRICULUM_SKILLS", "GETUP_FROM", "MAX_TEXT_DIM", "NEAR_START_SKILLS", "SCENES", "SKILL_FAMILIES",
+           "TEXT_ENCODERS", "SIMSConfig", "SIMSObservation", "SIMSScene", "SIMSTask", "SIMSTermination", "SIMSText",
            "SIMSTrainingAids", "check_captions", "check_families", "check_room_hosts", "check_text_encoder",
            "host_families"]
