@@ -212,12 +212,15 @@ def add_follow_camera_options(parser: argparse.ArgumentParser, *, every: int, di
     """The options of a filmstrip whose frames the env's follow camera renders during an episode
     (``filmstrip_tracking.py``, ``filmstrip_sims.py``)."""
     parser.add_argument("--frames", type=int, default=8, help="frames per strip (default: %(default)s)")
-    parser.add_argument("--every", type=int, default=every, help="render every this many steps (default: %(default)s)")
+    parser.add_argument("--every", type=int, default=every,
+                        help="render every this many steps (default: %(default)s)")
     parser.add_argument("--width", type=int, default=240, help="pixels per frame (default: %(default)s)")
     parser.add_argument("--height", type=int, default=240, help="pixels per frame (default: %(default)s)")
     parser.add_argument("--distance", type=float, default=distance, help="camera distance, m (default: %(default)s)")
-    parser.add_argument("--elevation", type=float, default=elevation, help="camera elevation, deg (default: %(default)s)")
-    parser.add_argument("--combined", type=Path, default=Path(combined), help="the combined PNG (default: %(default)s)")
+    parser.add_argument("--elevation", type=float, default=elevation,
+                        help="camera elevation, deg (default: %(default)s)")
+    parser.add_argument("--combined", type=Path, default=Path(combined),
+                        help="the combined PNG (default: %(default)s)")
     parser.add_argument("--combined-width", type=int, default=1200, help="(default: %(default)s)")
     parser.add_argument("--combined-max-kb", type=float, default=400.0, help="(default: %(default)s)")
 
