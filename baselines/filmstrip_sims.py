@@ -5,7 +5,8 @@ seat, lies with the head on the pillow, reaches while standing balanced, gets up
 
 Each strip is one episode from its seed, rendered by the env's follow camera every ``--every`` steps;
 ``--frames`` of the frames, spread evenly, make the strip. Its caption names the skill, the piece of
-furniture, how the episode ended (success, fell, time limit) and the contact error at the end.
+furniture, how the episode ended (success, fell, time limit, or an aid's grounded or stalled) and the
+contact error at the end.
 
 The env is the registered id with the evaluation's settings (no training aids) unless ``--env-kwarg``
 adds some, e.g. the front curriculum's starts at a level (``--env-kwarg start_from_front=True
@@ -50,12 +51,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def ending_of(info: dict) -> str:
+    """How an episode ended, from its last ``info``; the training aids' endings (grounded, stalled) are
+    named too, since a filmstrip of an aid's run must not call them a time limit."""
+    for key, name in (("physics_unstable", "physics unstable"), ("fell", "fell"), ("grounded", "grounded"),
+                      ("stalled", "stalled"), ("success", "succeeded")):
+        if info.get(key):
+            return name
+    return "time limit"
+
+
 def caption_tail(env: gym.Env, infos: list[dict]) -> str:
     """The piece, how the episode ended and when, the contact error at the end, the first success."""
     target = getattr(env.unwrapped, "_target", None)
     dt, last = env.unwrapped.dt, infos[-1]
-    ending = ("physics unstable" if last.get("physics_unstable") else "fell" if last.get("fell")
-              else "succeeded" if last.get("success") else "time limit")
+    ending = ending_of(last)
     first = next((k for k, info in enumerate(infos) if info.get("success")), None)
     reached = "" if first is None else f", first within reach at {(first + 1) * dt:.1f} s"
     return (f"{'floor' if target is None else target.family}: {ending} at {len(infos) * dt:.1f} s, contact error "

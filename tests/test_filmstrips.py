@@ -58,3 +58,13 @@ def test_sims_filmstrip(tmp_path, baseline_script, capsys):
     lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("seed ")]
     assert len(lines) == 2 and not any("succeeded" in line for line in lines)
     assert baseline_script("filmstrip_sims").main(["--policy", "zero", "--level", "0", "--combined", str(out)]) == 2
+
+
+def test_sims_filmstrip_names_the_aids_endings(baseline_script):
+    """A run with the grounded or stall aid ends so, and its caption says which, not 'time limit'."""
+    ending_of = baseline_script("filmstrip_sims").ending_of
+    assert ending_of({"grounded": True, "fell": False}) == "grounded"
+    assert ending_of({"stalled": True}) == "stalled"
+    assert ending_of({"fell": True, "grounded": False}) == "fell"
+    assert ending_of({"success": True}) == "succeeded"
+    assert ending_of({"grounded": False, "stalled": False}) == "time limit"
