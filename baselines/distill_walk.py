@@ -1,0 +1,161 @@
+#!/usr/bin/env python
+"""Distil the shipped InterLevel climber into a SIMS-Walk-v0 policy (DAgger), as the start of a walk run.
+
+The climber (``stairenv.pretrained.load("InterLevel-v0")``) walks to a marker on its feet without falling;
+a SIMS-Walk policy trained from scratch spends millions of samples learning to stay up. Both drive the
+same humanoid with the same 28 actions at 30 Hz, and their observations share the 113-D proprioception, so
+the climber can teach the walk by imitation (Ross et al. 2011, DAgger): it sees a SIMS walk goal as a
+staircase of no height (``climber_view``) and labels the states the student visits; the student, a
+network of the SIMS-Walk run's own shape and observation normaliser, is fitted to the labels.
+
+The output is the ``--template`` lean checkpoint (a SIMS-Walk run's: normaliser, value network,
+optimiser, discriminator) with the student's actor in place of its own, for
+``train_ppo.py --config baselines/recipes/sims_walk.toml --init-from OUT``: PPO + AMP then teach what the
+climber cannot (stopping at the goal, the styles, the furniture the blind climber walks into).
+
+    python baselines/distill_walk.py --template checkpoints/SIMS-Walk-v0/w4_checkpoint_2500608.pt \\
+        --out runs/walk_distilled.pt
+
+DAgger here: iteration 0 is the climber's own rollout; from then on each step's action is the
+climber's with probability ``0.5 ** i`` (else the student's), with Gaussian noise (``--action-noise``)
+so that the data covers small recoveries. Every visited state is labelled with the climber's action;
+the student is fitted on all the data so far (mean squared error of its mean action).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from stairenv import pretrained
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
+from stairenv.tasks.interlevel import OBSERVATION_SIZE as CLIMBER_OBS_SIZE
+from stairenv.tasks.interlevel import OBSERVATION_STRUCTURE as CLIMBER
+from stairenv.training.config import TrainConfig
+from stairenv.training.ppo import ActorCritic, Normalizer, make_env, read_checkpoint
+
+#: the training aid that shortens goals at the curriculum's first levels: the data should cover 1-5 m
+LEFT_OUT_AIDS = ("start_distance_levels",)
+
+
+def climber_view(obs: np.ndarray, structure: dict[str, slice], start_distance: np.ndarray) -> np.ndarray:
+    """(B, 118) the climber's observation of SIMS walk observations ``obs`` (B, size): the proprioception
+    as it is (same layout), the walk target (a point at standing pelvis height, heading frame) as the top
+    marker, ``start_distance`` (the target's distance when the episode began) as the marker distance, and
+    the heading's angle to the target as the angle to the ascent direction (a flight of no height whose
+    ascent points at the target)."""
+    goals = obs[:, structure["goal_positions"]].reshape(len(obs), -1, 3)
+    masks = obs[:, structure["goal_mask"]] > 0.5
+    if (masks.sum(axis=1) != 1).any():
+        raise ValueError("climber_view needs one target per world (a walk goal's pelvis target)")
+    target = goals[masks]                                      # (B, 3): the one target of each world
+    out = np.empty((len(obs), CLIMBER_OBS_SIZE))
+    out[:, :PROPRIOCEPTION_SIZE] = obs[:, :PROPRIOCEPTION_SIZE]
+    out[:, CLIMBER["target_offset"]] = target
+    out[:, CLIMBER["marker_distance"]] = start_distance[:, None]
+    out[:, CLIMBER["stairs_angle"]] = -np.arctan2(target[:, 1], target[:, 0])[:, None]
+    return out
+
+
+def ground_distance(obs: np.ndarray, structure: dict[str, slice]) -> np.ndarray:
+    goals = obs[:, structure["goal_positions"]].reshape(len(obs), -1, 3)
+    target = goals[obs[:, structure["goal_mask"]] > 0.5]
+    return np.hypot(target[:, 0], target[:, 1])
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--template", type=Path, required=True,
+                        help="a lean checkpoint of a SIMS-Walk-v0 run: the student's shape, normaliser and the rest")
+    parser.add_argument("--out", type=Path, required=True, help="the checkpoint to write (for --init-from)")
+    parser.add_argument("--iterations", type=int, default=6, help="DAgger iterations (default: 6)")
+    parser.add_argument("--steps", type=int, default=300, help="env steps per iteration (default: 300 = 10 s)")
+    parser.add_argument("--n-envs", type=int, default=64)
+    parser.add_argument("--epochs", type=int, default=4, help="passes over all the data per iteration")
+    parser.add_argument("--action-noise", type=float, default=0.05, help="std of the executed actions' noise")
+    parser.add_argument("--learning-rate", type=float, default=3e-4)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--physics-threads", type=int, default=1)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    template = read_checkpoint(args.template)
+    config = TrainConfig.from_dict(template["config"])
+    if config.env_id != "SIMS-Walk-v0":
+        print(f"--template: a SIMS-Walk-v0 run's checkpoint is needed, this one is {config.env_id}'s", file=sys.stderr)
+        return 2
+    kwargs = {k: v for k, v in config.env_kwargs.items() if k not in LEFT_OUT_AIDS}
+    config = config.replace(env_kwargs=kwargs, num_envs=args.n_envs, physics_threads=args.physics_threads,
+                            seed=args.seed)
+    teacher = pretrained.load("InterLevel-v0")
+    venv = make_env(config)
+    structure = venv.envs[0].unwrapped.observation_structure
+    torch.manual_seed(args.seed)
+    rng = np.random.default_rng(args.seed)
+    model = ActorCritic(venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
+                        tuple(config.hidden), config.log_std_init)
+    model.load_state_dict(template["model"])
+    normalizer = Normalizer(model.policy_net[0].in_features, args.n_envs, config.gamma, config.clip_obs,
+                            config.clip_reward)
+    normalizer.obs_rms.load(template["obs_rms"])       # fixed: the run goes on with the template's statistics
+    actor = list(model.policy_net.parameters()) + list(model.action_mean.parameters())
+    optimizer = torch.optim.Adam(actor, lr=args.learning_rate)
+
+    def student(obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            x = torch.as_tensor(normalizer.observations(obs, update=False))
+            return model.action_mean(model.policy_net(x)).numpy().astype(np.float64)
+
+    inputs, labels = [], []
+    obs, _ = venv.reset(seed=args.seed)
+    start = ground_distance(obs, structure)
+    for iteration in range(args.iterations):
+        begun = time.perf_counter()
+        beta = 0.5 ** iteration
+        successes = falls = grounded = episodes = 0
+        for _ in range(args.steps):
+            label = np.clip(teacher(climber_view(obs, structure, start)), -1.0, 1.0)
+            inputs.append(normalizer.observations(obs, update=False))
+            labels.append(label.astype(np.float32))
+            act = label if beta == 1.0 else np.where(rng.uniform(size=(len(obs), 1)) < beta, label, student(obs))
+            act = np.clip(act + args.action_noise * rng.standard_normal(act.shape), -1.0, 1.0)
+            # SAME_STEP autoreset: an ended world's row is already its next episode's first observation
+            obs, _, terminated, truncated, infos, _ = venv.step_worlds(act, reset_ended=True)
+            done = terminated | truncated
+            if done.any():
+                ended = [infos[i] for i in np.flatnonzero(done)]
+                episodes += len(ended)
+                successes += sum(bool(info.get("success")) for info in ended)
+                falls += sum(bool(info.get("fell")) for info in ended)
+                grounded += sum(bool(info.get("grounded")) for info in ended)
+                start = np.where(done, ground_distance(obs, structure), start)
+        x, y = torch.as_tensor(np.concatenate(inputs)), torch.as_tensor(np.concatenate(labels))
+        losses = []
+        for _ in range(args.epochs):
+            for batch in torch.randperm(len(x)).split(1024):
+                loss = torch.mean((model.action_mean(model.policy_net(x[batch])) - y[batch]) ** 2)
+                optimizer.zero_grad()
+                loss.backward()
+                optimizer.step()
+                losses.append(loss.item())
+        print(f"iteration {iteration}: teacher share {beta:.2f}, {len(x):,} samples, episodes ended {episodes} "
+              f"(success {successes}, fell {falls}, grounded {grounded}), fit loss {np.mean(losses[-20:]):.4f}, "
+              f"{time.perf_counter() - begun:.0f} s", flush=True)
+    venv.close()
+    state = dict(template)
+    state["model"] = {k: v.detach().clone() for k, v in model.state_dict().items()}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(state, args.out)
+    print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,76 @@
+"""baselines/distill_walk.py: the climber's view of a SIMS walk goal, and the checkpoint it writes."""
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+import stairenv  # noqa: F401  (registers the ids)
+from stairenv.tasks.interlevel import OBSERVATION_STRUCTURE as CLIMBER
+from stairenv.training.ppo import read_checkpoint
+
+TEMPLATE = Path(__file__).resolve().parents[1] / "checkpoints" / "SIMS-Walk-v0" / "w4_checkpoint_2500608.pt"
+
+
+def test_climber_view_of_a_walk_goal_by_hand(baseline_script):
+    """The climber sees the walk target as its top marker, in its heading frame (the InterLevel formula
+    computed here from the pelvis pose), the start distance as the marker distance, and the heading's
+    angle to the target as the angle to the ascent; the proprioception is passed as it is."""
+    distill = baseline_script("distill_walk")
+    env = gym.make("SIMS-Walk-v0", text_encoder="hashing")
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        obs, *_ = env.step(env.action_space.sample() * 0.2)
+    u = env.unwrapped
+    pelvis, rotation = u.data.xpos[1], u.data.xmat[1].reshape(3, 3)
+    yaw = np.arctan2(rotation[1, 0], rotation[0, 0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = np.asarray(u.goal.root_target) - pelvis
+    view = distill.climber_view(obs[None], u.observation_structure, np.array([4.0]))[0]
+    np.testing.assert_allclose(view[CLIMBER["target_offset"]], [c * d[0] + s * d[1], -s * d[0] + c * d[1], d[2]],
+                               atol=1e-9)
+    assert view[CLIMBER["marker_distance"]][0] == 4.0
+    target_yaw = np.arctan2(d[1], d[0])
+    expected = (yaw - target_yaw + np.pi) % (2 * np.pi) - np.pi
+    assert abs(view[CLIMBER["stairs_angle"]][0] - expected) < 1e-9
+    np.testing.assert_array_equal(view[:113], obs[:113])
+    np.testing.assert_allclose(distill.ground_distance(obs[None], u.observation_structure), [np.hypot(d[0], d[1])],
+                               atol=1e-9)
+
+
+def test_climber_view_needs_one_target_per_world(baseline_script):
+    """A goal of several targets (lie: pelvis and head) or of none has no marker for the climber."""
+    env = gym.make("SIMS-Walk-v0", text_encoder="hashing")
+    obs, _ = env.reset(seed=0)
+    structure = env.unwrapped.observation_structure
+    view = baseline_script("distill_walk").climber_view
+    for mask in (np.zeros(structure["goal_mask"].stop - structure["goal_mask"].start), None):
+        bad = obs.copy()
+        if mask is None:
+            bad[structure["goal_mask"]] = 1.0
+        else:
+            bad[structure["goal_mask"]] = mask
+        with pytest.raises(ValueError, match="one target"):
+            view(bad[None], structure, np.ones(1))
+
+
+def test_distill_writes_the_template_with_a_new_actor(baseline_script, tmp_path):
+    """One short DAgger iteration: the output is the template's checkpoint (value network, normaliser,
+    discriminator unchanged) whose actor moved towards the climber's actions, readable as a checkpoint."""
+    out = tmp_path / "distilled.pt"
+    assert baseline_script("distill_walk").main(["--template", str(TEMPLATE), "--out", str(out), "--iterations", "1",
+                                                "--steps", "4", "--n-envs", "2", "--epochs", "2"]) == 0
+    template, distilled = read_checkpoint(TEMPLATE), read_checkpoint(out)
+    assert distilled["config"] == template["config"] and distilled["steps"] == template["steps"]
+    for name, value in template["model"].items():
+        same = torch.equal(value, distilled["model"][name])
+        assert same == (not name.startswith(("policy_net", "action_mean"))), name
+    np.testing.assert_array_equal(np.asarray(distilled["obs_rms"]["mean"]), np.asarray(template["obs_rms"]["mean"]))
+
+
+def test_distill_refuses_another_envs_template(baseline_script, tmp_path, capsys):
+    climb = Path(__file__).resolve().parents[1] / "checkpoints" / "PlaMo-v0" / "p14_checkpoint_7501824.pt"
+    assert baseline_script("distill_walk").main(["--template", str(climb), "--out", str(tmp_path / "x.pt")]) == 2
+    assert "SIMS-Walk-v0" in capsys.readouterr().err
