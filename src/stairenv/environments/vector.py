@@ -354,34 +354,36 @@ def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
     """``VectorEnv._add_info`` over all worlds at once: the same keys, arrays, dtypes (the first world
     with the key decides) and ``_key`` masks, a key at a time instead of a world at a time."""
     n = len(infos)
+    # Worlds grouped by their keys, in order: a step's infos have one set (every world stepped) or a few
+    # (worlds just reset report fewer keys), so a key's worlds come from its groups, not a test per world.
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for i, info in enumerate(infos):
+        groups.setdefault(tuple(info), []).append(i)
     batched: dict[str, Any] = {}
-    first_keys = infos[0].keys() if infos else {}.keys()
-    if all(info.keys() == first_keys for info in infos):    # a step's usual case: every world, the same keys
-        everyone = list(range(n))
-        keyed = ((key, everyone, [info[key] for info in infos]) for key in first_keys)
-    else:
-        keyed = ((key, worlds, [infos[i][key] for i in worlds]) for key, worlds in (
-            (key, [i for i, info in enumerate(infos) if key in info])
-            for key in dict.fromkeys(key for info in infos for key in info)))
-    for key, worlds, values in keyed:
+    for key in dict.fromkeys(key for keys in groups for key in keys):    # first seen first, as world by world
+        holders = [worlds for keys, worlds in groups.items() if key in keys]
+        worlds = holders[0] if len(holders) == 1 else sorted(i for worlds in holders for i in worlds)
+        everyone = len(worlds) == n
+        where = slice(None) if everyone else worlds
+        values = [info[key] for info in infos] if everyone else [infos[i][key] for i in worlds]
         first = values[0]
         if key != "final_obs" and isinstance(first, dict):
-            inner: list[dict[str, Any]] = [{}] * n
-            for i, value in zip(worlds, values):
-                inner[i] = value
+            inner: list[dict[str, Any]] = values if everyone else [{}] * n
+            if not everyone:
+                for i, value in zip(worlds, values):
+                    inner[i] = value
             array = _stack_infos(inner)
         elif key != "final_obs" and (type(first) in (int, float, bool) or isinstance(first, np.number)):
             array = np.zeros(n, dtype=type(first))
-            array[worlds] = values
+            array[where] = values
         elif key != "final_obs" and isinstance(first, np.ndarray):
             array = np.zeros((n, *first.shape), dtype=first.dtype)
-            array[worlds] = values
-        else:
+            array[where] = values
+        else:    # one object per world (a tuple stays a tuple): not unpacked as a sequence would be
             array = np.full(n, None, dtype=object)
-            for i, value in zip(worlds, values):
-                array[i] = value
+            array[where] = np.fromiter(values, dtype=object, count=len(values))
         mask = np.zeros(n, dtype=bool)
-        mask[worlds] = True
+        mask[where] = True
         batched[key], batched[f"_{key}"] = array, mask
     return batched
 
