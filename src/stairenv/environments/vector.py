@@ -7,7 +7,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 
 1. every world's action checked first (shape, a non-real dtype, NaN/inf: ``ValueError`` naming the worlds),
    nothing applied if one is bad;
-2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
+2. ``HumanoidEnv._prepare_worlds``: the action map of all worlds in one array operation (each world's row
+   then copied into its ctrl), per world ``_before_physics``;
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
    ``os.cpu_count()`` threads taking the worlds one at a time and calling ``mujoco.mj_step``, GIL
    released). Meanwhile, in the calling thread: the worlds whose episode ended at the last step are
@@ -15,7 +16,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
    For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
-   the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
+   the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
+   speeds as arrays; ``mj_kinematics`` per stable world), the stable worlds' state
    read as one batch (``_read_worlds``: ``read_states``; SIMS, whose worlds' models differ, stacks each
    world's read), the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
    ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
@@ -24,13 +26,13 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    per world in the physics thread right after its physics. Either way the code of the single env's
    ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
-Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
-PlaMoScene (its worlds' models differ) the whole finish; for InterLevel the divergence check's
-time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
+Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
+``_before_physics``, ``reset``; for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel
+``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
 heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
 also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
-scalars and the ends. Batched: the action checks, the physics, InterLevel's, PlaMo's and SIMS' step
-outcomes, the assembly of obs / reward / flags / info.
+scalars and the ends. Batched: the action checks, the action map, the physics, the divergence and speed
+check (InterLevel, PlaMo, SIMS), their step outcomes, the assembly of obs / reward / flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -209,8 +211,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
-        for i in stepping:
-            envs[i]._prepare_step(actions[i])
+        type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             for i in resetting:
