@@ -391,12 +391,11 @@ class HumanoidEnv(gym.Env):
             worlds = [envs[k] for k in stable]
             state = cls._read_worlds(worlds)
             outcomes = cls._step_outcomes(worlds, state)
-            features = amp_features(state)
-            for k, env, outcome, frame in zip(stable, worlds, outcomes, features):
+            amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
+            for k, env, outcome, world_amp_obs in zip(stable, worlds, outcomes, amp_obs):
                 env._outcome = outcome
-                env._amp.push_features(frame)
                 results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
-                              env._full_info(outcome, unstable=False, terms=True))
+                              env._full_info(outcome, unstable=False, terms=True, amp_obs=world_amp_obs))
         return results
 
     @classmethod
@@ -421,10 +420,13 @@ class HumanoidEnv(gym.Env):
                                 self._unstable_results(last))
         return outcome.obs, 0.0, False, True, self._full_info(outcome, unstable=True, terms=True)
 
-    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool) -> dict[str, Any]:
+    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool,
+                   amp_obs: np.ndarray | None = None) -> dict[str, Any]:
+        """``info``: the task's part, then what every env reports. ``amp_obs``: the style history's
+        ``flat()`` where the caller has it already (``_finish_worlds``: a row of the batch's)."""
         info = self._info(outcome.results)
-        info.update(time=self._steps * self.dt, physics_unstable=unstable, amp_obs=self._amp.flat(),
-                    reference_start=self._reference_start)
+        info.update(time=self._steps * self.dt, physics_unstable=unstable,
+                    amp_obs=self._amp.flat() if amp_obs is None else amp_obs, reference_start=self._reference_start)
         if terms:
             info.update(outcome.terms)
         return info

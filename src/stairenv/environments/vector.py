@@ -47,6 +47,7 @@ of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives. ``reset(seed=s)`` see
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -363,7 +364,7 @@ def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
     batched: dict[str, Any] = {}
     for key in dict.fromkeys(key for keys in groups for key in keys):    # first seen first, as world by world
         holders = [worlds for keys, worlds in groups.items() if key in keys]
-        worlds = holders[0] if len(holders) == 1 else sorted(i for worlds in holders for i in worlds)
+        worlds = holders[0] if len(holders) == 1 else sorted(itertools.chain.from_iterable(holders))
         everyone = len(worlds) == n
         where = slice(None) if everyone else worlds
         values = [info[key] for info in infos] if everyone else [infos[i][key] for i in worlds]
