@@ -126,3 +126,19 @@ def test_batched_env_is_scored_in_one_call_per_step():
                                       style_reward(batched, style.config.loss))
     assert [len(windows) for windows, _ in calls] == [8] * 6  # one call of all 8 windows per step
     wrapper.close()
+
+
+def test_pushing_a_batch_of_feature_histories_equals_one_by_one():
+    """``FeatureHistory.push_each`` (the batched env's style features) leaves each history and its
+    ``flat()`` as ``push_features`` world by world does."""
+    from stairenv.style.features import AMP_FEATURE_SIZE, FeatureHistory
+
+    rng = np.random.default_rng(0)
+    batched, single = [FeatureHistory(3) for _ in range(4)], [FeatureHistory(3) for _ in range(4)]
+    for _ in range(5):
+        features = rng.normal(size=(4, AMP_FEATURE_SIZE))
+        flat = FeatureHistory.push_each(batched, features)
+        for k, (history, alone) in enumerate(zip(batched, single)):
+            alone.push_features(features[k])
+            assert np.array_equal(history.frames, alone.frames)
+            assert np.array_equal(flat[k], alone.flat())

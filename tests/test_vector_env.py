@@ -378,3 +378,25 @@ def test_thread_pool_raises_a_failure_without_hanging():
     assert sorted(seen) == list(range(6))
     with pytest.raises(ValueError, match="group"):
         ThreadPoolPhysics(2, group=0)
+
+
+def test_stacked_infos_equal_gymnasium_add_info_world_by_world():
+    """``_stack_infos`` (key by key, worlds grouped by their keys) gives ``VectorEnv._add_info``'s arrays,
+    dtypes, masks and key order where worlds report different keys (a NEXT_STEP reset's fewer keys)."""
+    from stairenv.environments.vector import _stack_infos
+
+    infos = [{"a": 1.5, "b": np.arange(3.0), "c": "x", "d": {"e": True}},
+             {"c": "y", "a": 2, "f": np.float32(4.0)},
+             {},
+             {"a": 3.5, "b": np.ones(3), "d": {"e": False, "g": 7}, "c": ("t", 1)}]
+    world_by_world = gym.vector.VectorEnv.__new__(gym.vector.VectorEnv)    # only _add_info and num_envs
+    world_by_world.num_envs = len(infos)
+    expected: dict = {}
+    for i, info in enumerate(infos):
+        expected = world_by_world._add_info(expected, info, i)
+    stacked = _stack_infos(infos)
+    assert list(stacked) == list(expected)
+    assert_same(stacked, expected)
+    for key, array in expected.items():
+        if isinstance(array, np.ndarray):
+            assert stacked[key].dtype == array.dtype, key

@@ -28,6 +28,7 @@ from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
+_DIVERGENCE_WARNINGS = [_BADQACC, _BADQVEL, _BADQPOS]
 
 # Speeds no body of this character reaches while the physics is sound. Saturated
 # actions (bang-bang, clipped Gaussians) peak below ~90 rad/s at the joints and the
@@ -203,7 +204,7 @@ class HumanoidEnv(gym.Env):
         low, high = self.model.actuator_ctrlrange.T.copy()
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
         self._bind_data_views()
-        self._speed_start, self._speed_limits = self._idx.qvel_root.start, speed_limits(self._idx)
+        self._speed_limits = speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
         self._needs_reset = True
@@ -213,12 +214,14 @@ class HumanoidEnv(gym.Env):
 
     # Views into ``self.data`` that each step reads or writes, made once per MjData (its buffers never
     # move). A copy of the env (``copy.deepcopy``, pickle) gets its own views of its own data.
-    _DATA_VIEWS = ("_warning_counts", "_ctrl", "_qvel", "_state_views")
+    _DATA_VIEWS = ("_warning_counts", "_ctrl", "_speeds", "_state_views")
 
     def _bind_data_views(self) -> None:
         data = self.data
         self._warning_counts = data.warning.number
-        self._ctrl, self._qvel = data.ctrl, data.qvel
+        self._ctrl = data.ctrl
+        #: the character's velocities, root first, as ``speed_limits`` bounds them
+        self._speeds = data.qvel[self._idx.qvel_root.start:self._idx.qvel_joints.stop]
         self._state_views = read_state(data, self._idx) if self._idx.body_slice is not None else None
 
     def __getstate__(self) -> dict[str, Any]:
@@ -326,8 +329,27 @@ class HumanoidEnv(gym.Env):
     def _prepare_step(self, action: np.ndarray) -> None:
         """What comes before the physics: the (checked) action applied, ``_before_physics``."""
         self._apply_action(action)
+        self._after_action()
+
+    def _after_action(self) -> None:
+        """``_prepare_step`` once the action is applied: ``_before_physics``, the time the physics must reach."""
         self._before_physics()
         self._expected_time = self.data.time + self.frame_skip * self.model.opt.timestep
+
+    @classmethod
+    def _prepare_worlds(cls, envs: list[HumanoidEnv], actions: np.ndarray) -> None:
+        """``_prepare_step`` of many worlds of this class (row k of ``actions``: world k's checked action),
+        each world's ctrl as its ``_prepare_step`` writes it: where the class keeps this action map, the PD
+        targets of all worlds in one array operation, then copied into each world's ctrl."""
+        if cls._apply_action is not HumanoidEnv._apply_action or not envs:
+            for env, action in zip(envs, actions):
+                env._prepare_step(action)
+            return
+        offsets = np.array([env._ctrl_offset for env in envs])
+        scales = np.array([env._ctrl_scale for env in envs])
+        for env, ctrl in zip(envs, offsets + scales * actions):    # _apply_action's operations, row by row
+            env._ctrl[:] = ctrl
+            env._after_action()
 
     def _physics(self) -> None:
         """``frame_skip`` physics steps (a batched env runs them for all its worlds instead)."""
@@ -355,13 +377,13 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _finish_worlds(cls, envs: list[HumanoidEnv]) -> list[tuple]:
         """``_finish_step`` of many worlds of this class, batch-first: each world's result equals its
-        ``_finish_step``. The divergence check per world, the state of the stable worlds read as one
-        batch, ``_step_outcomes`` and the style features in one call each."""
+        ``_finish_step``. The divergence and speed check over the batch (``_sound_worlds``), the state of
+        the stable worlds read as one batch, ``_step_outcomes`` and the style features in one call each."""
         results: list[tuple | None] = [None] * len(envs)
         stable = []
-        for k, env in enumerate(envs):
+        for k, (env, sound) in enumerate(zip(envs, cls._sound_worlds(envs))):
             env._steps += 1
-            if env._physics_sound(env._expected_time):
+            if sound:
                 stable.append(k)
             else:
                 results[k] = env._unstable_step()
@@ -369,12 +391,11 @@ class HumanoidEnv(gym.Env):
             worlds = [envs[k] for k in stable]
             state = cls._read_worlds(worlds)
             outcomes = cls._step_outcomes(worlds, state)
-            features = amp_features(state)
-            for k, env, outcome, frame in zip(stable, worlds, outcomes, features):
+            amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
+            for k, env, outcome, world_amp_obs in zip(stable, worlds, outcomes, amp_obs):
                 env._outcome = outcome
-                env._amp.push_features(frame)
                 results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
-                              env._full_info(outcome, unstable=False, terms=True))
+                              env._full_info(outcome, unstable=False, terms=True, amp_obs=world_amp_obs))
         return results
 
     @classmethod
@@ -399,10 +420,13 @@ class HumanoidEnv(gym.Env):
                                 self._unstable_results(last))
         return outcome.obs, 0.0, False, True, self._full_info(outcome, unstable=True, terms=True)
 
-    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool) -> dict[str, Any]:
+    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool,
+                   amp_obs: np.ndarray | None = None) -> dict[str, Any]:
+        """``info``: the task's part, then what every env reports. ``amp_obs``: the style history's
+        ``flat()`` where the caller has it already (``_finish_worlds``: a row of the batch's)."""
         info = self._info(outcome.results)
-        info.update(time=self._steps * self.dt, physics_unstable=unstable, amp_obs=self._amp.flat(),
-                    reference_start=self._reference_start)
+        info.update(time=self._steps * self.dt, physics_unstable=unstable,
+                    amp_obs=self._amp.flat() if amp_obs is None else amp_obs, reference_start=self._reference_start)
         if terms:
             info.update(outcome.terms)
         return info
@@ -467,16 +491,41 @@ class HumanoidEnv(gym.Env):
         warnings = self._warning_counts
         if (data.time < expected_time - 1e-9 or warnings[_BADQACC] or warnings[_BADQVEL] or warnings[_BADQPOS]
                 or not self._speeds_plausible()):
-            self._needs_reset = True
-            gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
+            self._mark_unstable()
             return False
         # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
         mujoco.mj_kinematics(self.model, data)
         return True
 
+    @classmethod
+    def _sound_worlds(cls, envs: list[HumanoidEnv]) -> list[bool]:
+        """``_physics_sound(env._expected_time)`` of each of ``envs`` (worlds of one configuration), with the
+        same effects: its checks as arrays over the batch where the class keeps them (else world by world)."""
+        if cls._physics_sound is not HumanoidEnv._physics_sound or \
+                cls._speeds_plausible is not HumanoidEnv._speeds_plausible:
+            return [env._physics_sound(env._expected_time) for env in envs]
+        times = np.array([env.data.time for env in envs])
+        expected = np.array([env._expected_time for env in envs])
+        warned = np.array([env._warning_counts for env in envs])[:, _DIVERGENCE_WARNINGS].any(axis=1)
+        speeds = np.array([env._speeds for env in envs])
+        # as _physics_sound's scalar tests: a NaN time or speed compares False
+        plausible = (np.abs(speeds) <= envs[0]._speed_limits).all(axis=1)
+        sound = (~(times < expected - 1e-9) & ~warned & plausible).tolist()
+        for env, world_sound in zip(envs, sound):
+            if world_sound:
+                mujoco.mj_kinematics(env.model, env.data)
+            else:
+                env._mark_unstable()
+        return sound
+
+    def _mark_unstable(self) -> None:
+        """The physics failed the divergence or speed check: a reset needed, and a warning."""
+        self._needs_reset = True
+        gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
+
     def _speeds_plausible(self) -> bool:
         """False once the character moves faster than its body can (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``)."""
-        return within_limits(self._qvel, self._speed_start, self._speed_limits)
+        return within_limits(self._speeds, 0, self._speed_limits)
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

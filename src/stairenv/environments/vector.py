@@ -7,7 +7,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 
 1. every world's action checked first (shape, a non-real dtype, NaN/inf: ``ValueError`` naming the worlds),
    nothing applied if one is bad;
-2. per world: ``_prepare_step`` (the action map, ``_before_physics``);
+2. ``HumanoidEnv._prepare_worlds``: the action map of all worlds in one array operation (each world's row
+   then copied into its ctrl), per world ``_before_physics``;
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
    ``os.cpu_count()`` threads taking the worlds one at a time and calling ``mujoco.mj_step``, GIL
    released). Meanwhile, in the calling thread: the worlds whose episode ended at the last step are
@@ -15,7 +16,8 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
    For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
-   the divergence and speed check per world (a compiled pass over its qvel), the stable worlds' state
+   the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
+   speeds as arrays; ``mj_kinematics`` per stable world), the stable worlds' state
    read as one batch (``_read_worlds``: ``read_states``; SIMS, whose worlds' models differ, stacks each
    world's read), the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
    ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
@@ -24,13 +26,13 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    per world in the physics thread right after its physics. Either way the code of the single env's
    ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
-Per-world parts (Python, one world at a time): the action map, ``_before_physics``, ``reset``; for
-PlaMoScene (its worlds' models differ) the whole finish; for InterLevel the divergence check's
-time and warning counts, ``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
+Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
+``_before_physics``, ``reset``; for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel
+``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
 heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
 also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
-scalars and the ends. Batched: the action checks, the physics, InterLevel's, PlaMo's and SIMS' step
-outcomes, the assembly of obs / reward / flags / info.
+scalars and the ends. Batched: the action checks, the action map, the physics, the divergence and speed
+check (InterLevel, PlaMo, SIMS), their step outcomes, the assembly of obs / reward / flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -45,6 +47,7 @@ of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives. ``reset(seed=s)`` see
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -209,8 +212,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
-        for i in stepping:
-            envs[i]._prepare_step(actions[i])
+        type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             for i in resetting:
@@ -354,34 +356,36 @@ def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
     """``VectorEnv._add_info`` over all worlds at once: the same keys, arrays, dtypes (the first world
     with the key decides) and ``_key`` masks, a key at a time instead of a world at a time."""
     n = len(infos)
+    # Worlds grouped by their keys, in order: a step's infos have one set (every world stepped) or a few
+    # (worlds just reset report fewer keys), so a key's worlds come from its groups, not a test per world.
+    groups: dict[tuple[str, ...], list[int]] = {}
+    for i, info in enumerate(infos):
+        groups.setdefault(tuple(info), []).append(i)
     batched: dict[str, Any] = {}
-    first_keys = infos[0].keys() if infos else {}.keys()
-    if all(info.keys() == first_keys for info in infos):    # a step's usual case: every world, the same keys
-        everyone = list(range(n))
-        keyed = ((key, everyone, [info[key] for info in infos]) for key in first_keys)
-    else:
-        keyed = ((key, worlds, [infos[i][key] for i in worlds]) for key, worlds in (
-            (key, [i for i, info in enumerate(infos) if key in info])
-            for key in dict.fromkeys(key for info in infos for key in info)))
-    for key, worlds, values in keyed:
+    for key in dict.fromkeys(key for keys in groups for key in keys):    # first seen first, as world by world
+        holders = [worlds for keys, worlds in groups.items() if key in keys]
+        worlds = holders[0] if len(holders) == 1 else sorted(itertools.chain.from_iterable(holders))
+        everyone = len(worlds) == n
+        where = slice(None) if everyone else worlds
+        values = [info[key] for info in infos] if everyone else [infos[i][key] for i in worlds]
         first = values[0]
         if key != "final_obs" and isinstance(first, dict):
-            inner: list[dict[str, Any]] = [{}] * n
-            for i, value in zip(worlds, values):
-                inner[i] = value
+            inner: list[dict[str, Any]] = values if everyone else [{}] * n
+            if not everyone:
+                for i, value in zip(worlds, values):
+                    inner[i] = value
             array = _stack_infos(inner)
         elif key != "final_obs" and (type(first) in (int, float, bool) or isinstance(first, np.number)):
             array = np.zeros(n, dtype=type(first))
-            array[worlds] = values
+            array[where] = values
         elif key != "final_obs" and isinstance(first, np.ndarray):
             array = np.zeros((n, *first.shape), dtype=first.dtype)
-            array[worlds] = values
-        else:
+            array[where] = values
+        else:    # one object per world (a tuple stays a tuple): not unpacked as a sequence would be
             array = np.full(n, None, dtype=object)
-            for i, value in zip(worlds, values):
-                array[i] = value
+            array[where] = np.fromiter(values, dtype=object, count=len(values))
         mask = np.zeros(n, dtype=bool)
-        mask[worlds] = True
+        mask[where] = True
         batched[key], batched[f"_{key}"] = array, mask
     return batched
 

@@ -139,3 +139,14 @@ class FeatureHistory:
 
     def flat(self) -> np.ndarray:
         return self.frames.reshape(-1).copy()
+
+    @staticmethod
+    def push_each(histories: list[FeatureHistory], features: np.ndarray) -> np.ndarray:
+        """``push_features`` of each of ``histories`` (row k of ``features``: history k's new frame) as array
+        operations over the batch; returns their ``flat()``, one row each, of one new array."""
+        frames = np.array([history.frames for history in histories])
+        frames[:, :-1] = frames[:, 1:]
+        frames[:, -1] = features
+        for history, own in zip(histories, frames):
+            history.frames[...] = own
+        return frames.reshape(len(histories), -1)
