@@ -405,6 +405,40 @@ def test_height_termination_ends_a_head_far_below_its_target_only():
         PlaMoEnv(max_z_error=0.0)
 
 
+def test_upright_termination_ends_a_standing_head_on_a_crawl_path_after_its_grace():
+    """``max_z_above`` (training aid): a standing start (head ~1.5 m) on a crawl path (head ~0.3 m) goes on
+    for ``z_above_grace`` seconds, then ends as z_above_path; a crawl start on the same path does not; a
+    walk path never ends so; with no grace it ends at the first step; without the aid ``info`` has no key."""
+    from importlib.resources import files
+
+    crawl = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+
+    def step_at(seconds, init="default", locomotion="crawl", **keywords):
+        env = PlaMoEnv(init=init, reference_motion=crawl, matched_starts=False, terrain="flat",
+                       locomotion=locomotion, max_xy_error=100.0, **keywords)
+        env.reset(seed=2)
+        env._steps = int(round(seconds / env.dt)) - 1          # the step below ends this far into the episode
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        return terminated, info
+
+    terminated, info = step_at(0.5, max_z_above=0.5)             # within the default 1 s grace
+    assert not info["z_above_path"] and not terminated and info["z_error"] > 0.5
+    terminated, info = step_at(1.5, max_z_above=0.5)
+    assert info["z_above_path"] and terminated and not info["fell"]
+    terminated, info = step_at(0.1, max_z_above=0.5, z_above_grace=0.0)
+    assert info["z_above_path"] and terminated
+    terminated, info = step_at(1.5, init="reference", max_z_above=0.5)
+    assert not info["z_above_path"] and not terminated
+    terminated, info = step_at(1.5, locomotion="walk", max_z_above=0.5)
+    assert not info["z_above_path"]
+    terminated, info = step_at(1.5)
+    assert "z_above_path" not in info
+    with pytest.raises(ValueError, match="max_z_above"):
+        PlaMoEnv(max_z_above=0.0)
+    with pytest.raises(ValueError, match="z_above_grace"):
+        PlaMoEnv(z_above_grace=-1.0)
+
+
 def test_aid_grace_lets_a_crawl_rise_with_its_path():
     """``aid_grace``: the height aids judge the lowest head the path asked for over the last ``aid_grace``
     seconds. A crawl (head ~0.3 m, pelvis < 0.4 m) whose path has just risen to a walk's head height is

@@ -287,6 +287,13 @@ class PlaMoTrainingAids(ReferenceStarts):
         None, Check("float", 0.0, 10.0, low_open=True, optional=True),
         "head height (m) below its target that ends an episode: no going on all fours where the path asks "
         "to walk; None = off")
+    max_z_above: float | None = checked(
+        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
+        "head height (m) above its target that ends an episode: no walking upright where the path asks to "
+        "crouch or crawl; None = off")
+    z_above_grace: float = checked(1.0, Check("float", 0.0, 10.0),
+                                   "seconds to get down: max_z_above acts from this far into an episode and "
+                                   "judges the highest head the path asked for over the last this many")
     aid_grace: float = checked(0.0, Check("float", 0.0, 10.0),
                                "seconds over which min_root_height and max_z_error judge the lowest head the "
                                "path asked for, so a rise from a crawl has time; 0 = the target of the instant")

@@ -95,6 +95,13 @@ class PlaMoEnv(HumanoidEnv):
     for over the last ``aid_grace`` seconds instead of this instant's, so a segment that rises (crawl ->
     walk, a ``transition``-second blend) leaves a crawling character time to get up.
 
+    **Upright termination** (``max_z_above``, a training aid; None = off): an episode also ends
+    (``info["z_above_path"]``, present only with the aid) when the head is more than ``max_z_above`` above
+    its target: walking upright along a crouch-walk or crawl path ends there. It acts from
+    ``z_above_grace`` seconds into the episode (a standing start on a crawl path has that long to get
+    down) and judges the highest head the path asked for over the last ``z_above_grace`` seconds, so a
+    segment that drops (walk -> crawl) leaves the character that long to follow it down.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
@@ -130,6 +137,7 @@ class PlaMoEnv(HumanoidEnv):
         self.min_root_height = aids.min_root_height
         self.max_z_error = aids.max_z_error
         self.aid_grace = aids.aid_grace
+        self.max_z_above, self.z_above_grace = aids.max_z_above, aids.z_above_grace
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -301,14 +309,20 @@ class PlaMoEnv(HumanoidEnv):
             rise = 0.0
             if env.aid_grace:
                 rise = path_head - float(path.head[path.index(t - env.aid_grace):i + 1].min())
+            # max_z_above: judged from z_above_grace into the episode, against the highest head asked lately
+            above = None
+            if env.max_z_above is not None:
+                grace = env.z_above_grace
+                drop = float(path.head[path.index(t - grace):i + 1].max()) - path_head if grace else 0.0
+                above = t > grace and (hz - target[2]) - drop > env.max_z_above
             rows.append((terms, target[0] - hx, target[1] - hy, target[2] - hz, hz - head_ground, path_head,
-                         rise))
+                         rise, above))
         obs[:, :PROPRIOCEPTION_SIZE] = proprioception(body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
                                                       root_height, np.empty((n, PROPRIOCEPTION_SIZE)))
         xy_errors = np.hypot([row[1] for row in rows], [row[2] for row in rows]).tolist()
         outcomes = []
         for k, env in enumerate(envs):
-            terms, _, _, head_below, head_clearance, path_head, rise = rows[k]
+            terms, _, _, head_below, head_clearance, path_head, rise, above = rows[k]
             xy_error, z_error = xy_errors[k], abs(head_below)
             # the two reasons an episode ends early, each in info: the head at the ground, the path lost
             fell, off_path = head_clearance < env.min_head_height, xy_error > env.max_xy_error
@@ -321,6 +335,9 @@ class PlaMoEnv(HumanoidEnv):
             if env.max_z_error is not None:  # the training aid: no going on all fours where the path asks to walk
                 results["z_off_path"] = bool(head_below - rise > env.max_z_error)
                 ended = ended or results["z_off_path"]
+            if above is not None:  # the training aid: no walking upright where the path asks to crouch or crawl
+                results["z_above_path"] = bool(above)
+                ended = ended or results["z_above_path"]
             outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
                                         dict(zip(task.REWARD_TERMS, terms)), ended, results))
         return outcomes

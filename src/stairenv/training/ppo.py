@@ -51,8 +51,8 @@ from stairenv.training.config import TrainConfig
 from stairenv.training.distributed import LOCAL, Local
 
 #: the task's results logged at each episode's end (InterLevel's; other families log what they report)
-EPISODE_KEYS = ("progress", "success", "fell", "stalled", "off_path", "grounded", "z_off_path", "contact_error",
-                "xy_error", "z_error")
+EPISODE_KEYS = ("progress", "success", "fell", "stalled", "off_path", "grounded", "z_off_path", "z_above_path",
+                "contact_error", "xy_error", "z_error")
 CHECKPOINT_FORMAT = "stairenv-ppo-amp/1"
 
 
