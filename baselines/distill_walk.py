@@ -43,29 +43,33 @@ from stairenv.training.ppo import ActorCritic, Normalizer, make_env, read_checkp
 LEFT_OUT_AIDS = ("start_distance_levels",)
 
 
+def walk_targets(obs: np.ndarray, structure: dict[str, slice]) -> np.ndarray:
+    """(B, 3) each world's one goal target (heading frame, relative to the root) from its observation."""
+    goals = obs[:, structure["goal_positions"]].reshape(len(obs), -1, 3)
+    masks = obs[:, structure["goal_mask"]] > 0.5
+    if (masks.sum(axis=1) != 1).any():
+        raise ValueError("climber_view needs one target per world (a walk goal's pelvis target)")
+    return goals[masks]
+
+
+def ground_distance(obs: np.ndarray, structure: dict[str, slice]) -> np.ndarray:
+    target = walk_targets(obs, structure)
+    return np.hypot(target[:, 0], target[:, 1])
+
+
 def climber_view(obs: np.ndarray, structure: dict[str, slice], start_distance: np.ndarray) -> np.ndarray:
     """(B, 118) the climber's observation of SIMS walk observations ``obs`` (B, size): the proprioception
     as it is (same layout), the walk target (a point at standing pelvis height, heading frame) as the top
     marker, ``start_distance`` (the target's distance when the episode began) as the marker distance, and
     the heading's angle to the target as the angle to the ascent direction (a flight of no height whose
     ascent points at the target)."""
-    goals = obs[:, structure["goal_positions"]].reshape(len(obs), -1, 3)
-    masks = obs[:, structure["goal_mask"]] > 0.5
-    if (masks.sum(axis=1) != 1).any():
-        raise ValueError("climber_view needs one target per world (a walk goal's pelvis target)")
-    target = goals[masks]                                      # (B, 3): the one target of each world
+    target = walk_targets(obs, structure)
     out = np.empty((len(obs), CLIMBER_OBS_SIZE))
     out[:, :PROPRIOCEPTION_SIZE] = obs[:, :PROPRIOCEPTION_SIZE]
     out[:, CLIMBER["target_offset"]] = target
     out[:, CLIMBER["marker_distance"]] = start_distance[:, None]
     out[:, CLIMBER["stairs_angle"]] = -np.arctan2(target[:, 1], target[:, 0])[:, None]
     return out
-
-
-def ground_distance(obs: np.ndarray, structure: dict[str, slice]) -> np.ndarray:
-    goals = obs[:, structure["goal_positions"]].reshape(len(obs), -1, 3)
-    target = goals[obs[:, structure["goal_mask"]] > 0.5]
-    return np.hypot(target[:, 0], target[:, 1])
 
 
 def build_parser() -> argparse.ArgumentParser:
