@@ -427,9 +427,12 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
         return None, None
     if args.init_from.suffix != ".zip":
         try:
-            return None, read_checkpoint(args.init_from)
+            state = read_checkpoint(args.init_from)
         except CheckpointError as err:
             raise SystemExit(f"--init-from: {err}") from None
+        if args.fresh_discriminator:    # the actor, value and statistics only (e.g. a walker into reach)
+            state["style"] = None
+        return None, state
     checkpoint = checkpoint_file(args.init_from)
     amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
     state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
@@ -519,9 +522,12 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
             trainer.load_state(init, weights_only=True)
         except (RuntimeError, ValueError, KeyError) as err:
             raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
-                             "--policy-hidden and --env it was trained with") from None
-        say(f"initialised from {args.init_from} (weights, optimiser, statistics"
-            f"{', discriminator' if init.get('style') else ''})")
+                             "--policy-hidden and --env it was trained with, or --fresh-discriminator where "
+                             "only the style's inputs differ") from None
+        discriminator = ", discriminator" if init.get("style") else ""
+        if args.fresh_discriminator:
+            discriminator = "; a fresh discriminator (--fresh-discriminator)"
+        say(f"initialised from {args.init_from} (weights, optimiser, statistics{discriminator})")
     log = RunLog(run_dir) if first else None
     start_steps, start, start_cpu = trainer.steps, time.perf_counter(), time.process_time()
     try:

@@ -263,6 +263,17 @@ def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
     out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
     assert "at 32 steps" in out and "trained 32 env steps" in out
 
+    # A sit run's weights into reach, which SIMS does not condition on text: the discriminator's inputs
+    # differ, so it is refused unless the run asks for a fresh discriminator.
+    into_reach = ["--init-from", str(checkpoint), "--env", "SIMS-Reach-v0", "--timesteps", "32", *tiny]
+    done = subprocess.run([sys.executable, str(SCRIPT), *into_reach], cwd=tmp_path,
+                          env={**os.environ, "MUJOCO_GL": "egl"}, capture_output=True, text=True, timeout=600)
+    assert done.returncode != 0 and "--fresh-discriminator" in done.stderr
+    out = run_script([*into_reach, "--fresh-discriminator"], tmp_path)
+    assert "a fresh discriminator" in out and "trained 32 env steps" in out
+    reach = read_checkpoint(tmp_path / "SIMS-Reach-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt")
+    assert reach["config"]["amp_text_condition"] is False and reach["style"] is not None
+
 
 def test_resume_equals_an_uninterrupted_run(tmp_path):
     """Serial physics, PPO + AMP (discriminator trained in the background): training on from a checkpoint
