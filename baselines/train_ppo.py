@@ -420,9 +420,12 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
             raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
                              "with the lean trainer start a new run from it with --init-from")
         try:
-            return read_checkpoint(args.resume), None
+            state = read_checkpoint(args.resume)
         except CheckpointError as err:
             raise SystemExit(f"--resume: {err}") from None
+        if args.fresh_discriminator:    # everything but the style: a new discriminator (not exact)
+            state["style"] = None
+        return state, None
     if args.init_from is None:
         return None, None
     if args.init_from.suffix != ".zip":
@@ -513,6 +516,8 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
                              "text-conditioned run written before checkpoints recorded amp_text_condition needs "
                              "--amp-text-condition again") from None
         note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
+        if args.fresh_discriminator:
+            note += "; a fresh discriminator (--fresh-discriminator)"
         saved_ranks = int(resume.get("world_size", 1))
         if saved_ranks != parallel.world_size:
             note += f" (written by {saved_ranks} ranks, going on with {parallel.world_size}: not exact)"

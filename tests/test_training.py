@@ -262,6 +262,8 @@ def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
     assert read_checkpoint(checkpoint)["config"]["amp_text_condition"] is True
     out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
     assert "at 32 steps" in out and "trained 32 env steps" in out
+    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", "--fresh-discriminator", *tiny], tmp_path)
+    assert "at 32 steps" in out and "a fresh discriminator" in out
 
     # A sit run's weights into reach, which SIMS does not condition on text: the discriminator's inputs
     # differ, so it is refused unless the run asks for a fresh discriminator.
