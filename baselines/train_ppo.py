@@ -412,6 +412,17 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
         raise SystemExit(f"train_ppo: {err}") from None
 
 
+def _read_lean(path: Path, flag: str, fresh_discriminator: bool) -> dict:
+    """A lean checkpoint; with ``--fresh-discriminator`` without its style state (a new discriminator)."""
+    try:
+        state = read_checkpoint(path)
+    except CheckpointError as err:
+        raise SystemExit(f"{flag}: {err}") from None
+    if fresh_discriminator:
+        state["style"] = None
+    return state
+
+
 def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
     """``(resume_state, init_state)`` read from ``--resume`` / ``--init-from`` (a lean ``.pt``; for
     ``--init-from`` also an SB3 ``.zip`` with its statistics and AMP state beside it)."""
@@ -419,23 +430,11 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
         if args.resume.suffix == ".zip":
             raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
                              "with the lean trainer start a new run from it with --init-from")
-        try:
-            state = read_checkpoint(args.resume)
-        except CheckpointError as err:
-            raise SystemExit(f"--resume: {err}") from None
-        if args.fresh_discriminator:    # everything but the style: a new discriminator (not exact)
-            state["style"] = None
-        return state, None
+        return _read_lean(args.resume, "--resume", args.fresh_discriminator), None
     if args.init_from is None:
         return None, None
     if args.init_from.suffix != ".zip":
-        try:
-            state = read_checkpoint(args.init_from)
-        except CheckpointError as err:
-            raise SystemExit(f"--init-from: {err}") from None
-        if args.fresh_discriminator:    # the actor, value and statistics only (e.g. a walker into reach)
-            state["style"] = None
-        return None, state
+        return None, _read_lean(args.init_from, "--init-from", args.fresh_discriminator)
     checkpoint = checkpoint_file(args.init_from)
     amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
     state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
