@@ -52,7 +52,9 @@ over a preset. The runs behind each setting are in ``docs/reproducing.md``.
 checkpoint's (lean ``.pt`` or SB3 ``.zip``) policy and value weights, optimiser state, statistics and discriminator
 (task and style weights, the discriminator's instance noise and gradient penalty from this run's
 flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained
-policy. ``--resume`` continues a run exactly (the checkpoint's own settings and step count).
+policy. ``--reset-std`` (lean trainer) also starts the policy's action noise at ``--log-std-init`` again:
+a trained policy's noise has shrunk, which on a new task explores little and, under ``--target-kl``, holds
+the rate down. ``--resume`` continues a run exactly (the checkpoint's own settings and step count).
 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
@@ -225,6 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fresh-discriminator", action="store_true",
                    help="with --resume: train a new discriminator (--disc-* flags) instead of the AMP state "
                         "saved beside the checkpoint")
+    p.add_argument("--reset-std", action="store_true",
+                   help="with --init-from (lean trainer): start the policy's action noise at --log-std-init, not "
+                        "at the checkpoint's (a trained policy's noise has shrunk: on a new task it explores "
+                        "little and, with --target-kl, holds the rate down)")
     p.add_argument("--eval-episodes", type=int, default=50, help="0 skips the final evaluation")
     p.add_argument("--eval-max-episode-steps", type=int, default=None, help="shorter evaluation episodes")
     p.add_argument("--style", choices=("amp", "none"), default="amp", help="add the AMP style reward")
@@ -324,6 +330,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         raise SystemExit("--fresh-discriminator only applies to --resume or --init-from with --style amp")
     if args.resume is not None and args.init_from is not None:
         raise SystemExit("--resume continues a run, --init-from starts a new one from a checkpoint: give one")
+    if args.reset_std and (args.init_from is None or args.trainer != "lean"):
+        raise SystemExit("--reset-std only applies to --init-from with the lean trainer (a resume stays exact)")
     return args
 
 
@@ -434,12 +442,15 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
     if args.init_from is None:
         return None, None
     if args.init_from.suffix != ".zip":
-        return None, _read_lean(args.init_from, "--init-from", args.fresh_discriminator)
-    checkpoint = checkpoint_file(args.init_from)
-    amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
-    state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
-    saved = curriculum_state_beside(checkpoint)
-    state["curriculum_level"] = json.loads(saved.read_text())["curriculum_level"] if saved else []
+        state = _read_lean(args.init_from, "--init-from", args.fresh_discriminator)
+    else:
+        checkpoint = checkpoint_file(args.init_from)
+        amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
+        state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
+        saved = curriculum_state_beside(checkpoint)
+        state["curriculum_level"] = json.loads(saved.read_text())["curriculum_level"] if saved else []
+    if args.reset_std:
+        state["model"]["log_std"] = torch.full_like(state["model"]["log_std"], float(args.log_std_init))
     return None, state
 
 
@@ -531,6 +542,8 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         discriminator = ", discriminator" if init.get("style") else ""
         if args.fresh_discriminator:
             discriminator = "; a fresh discriminator (--fresh-discriminator)"
+        if args.reset_std:
+            discriminator += f"; action noise reset to log std {args.log_std_init:g} (--reset-std)"
         say(f"initialised from {args.init_from} (weights, optimiser, statistics{discriminator})")
     log = RunLog(run_dir) if first else None
     start_steps, start, start_cpu = trainer.steps, time.perf_counter(), time.process_time()

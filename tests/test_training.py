@@ -239,6 +239,20 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
                       "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
+    # --reset-std: a new run from the trained weights whose action noise starts at --log-std-init again
+    # (a new task from a trained policy); the other weights are the checkpoint's.
+    start = read_checkpoint(run_dir / "checkpoints" / "checkpoint_256.pt")
+    out = run_script(["--init-from", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std",
+                      "--log-std-init", "-1.0", "--timesteps", "128", "--eval-episodes", "0", *tiny[:-2],
+                      "--logdir", str(tmp_path / "reset")], tmp_path)
+    assert "action noise reset to log std -1 (--reset-std)" in out
+    after = read_checkpoint(tmp_path / "reset" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_128.pt")
+    assert torch.allclose(after["model"]["log_std"], torch.full_like(after["model"]["log_std"], -1.0), atol=0.02)
+    assert not torch.allclose(start["model"]["log_std"], after["model"]["log_std"], atol=0.5)
+    done = subprocess.run([sys.executable, str(SCRIPT), "--resume", str(run_dir / "checkpoints" / "checkpoint_256.pt"),
+                           "--reset-std", *tiny], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert done.returncode != 0 and "--reset-std only applies to --init-from" in done.stderr
+
 
 def test_climb_cache_workers_synthesise_the_runs_staircases_first(tmp_path):
     """--climb-cache-workers: the climbs of every staircase the run's stair starts can draw (here 2 heights x
