@@ -225,7 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "observation statistics and (with AMP) discriminator, with this run's settings "
                         "(a recipe change on a trained policy); step count from 0")
     p.add_argument("--fresh-discriminator", action="store_true",
-                   help="with --resume: train a new discriminator (--disc-* flags) instead of the AMP state "
+                   help="with --resume or --init-from: train a new discriminator (--disc-* flags) instead of the AMP state "
                         "saved beside the checkpoint")
     p.add_argument("--reset-std", action="store_true",
                    help="with --init-from (lean trainer): start the policy's action noise at --log-std-init, not "

@@ -240,7 +240,7 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
     # --reset-std: a new run from the trained weights whose action noise starts at --log-std-init again
-    # (a new task from a trained policy); the other weights are the checkpoint's.
+    # (a new task from a trained policy); a resume refuses the flag (it stays exact).
     start = read_checkpoint(run_dir / "checkpoints" / "checkpoint_256.pt")
     out = run_script(["--init-from", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std",
                       "--log-std-init", "-1.0", "--timesteps", "128", "--eval-episodes", "0", *tiny[:-2],
