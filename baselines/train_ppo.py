@@ -225,8 +225,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "observation statistics and (with AMP) discriminator, with this run's settings "
                         "(a recipe change on a trained policy); step count from 0")
     p.add_argument("--fresh-discriminator", action="store_true",
-                   help="with --resume or --init-from: train a new discriminator (--disc-* flags) instead of the AMP state "
-                        "saved beside the checkpoint")
+                   help="with --resume or --init-from: train a new discriminator (--disc-* flags) instead of "
+                        "the AMP state saved beside the checkpoint")
     p.add_argument("--reset-std", action="store_true",
                    help="with --init-from (lean trainer): start the policy's action noise at --log-std-init, not "
                         "at the checkpoint's (a trained policy's noise has shrunk: on a new task it explores "
