@@ -539,12 +539,12 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
             raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
                              "--policy-hidden and --env it was trained with, or --fresh-discriminator where "
                              "only the style's inputs differ") from None
-        discriminator = ", discriminator" if init.get("style") else ""
+        taken = ", discriminator" if init.get("style") else ""
         if args.fresh_discriminator:
-            discriminator = "; a fresh discriminator (--fresh-discriminator)"
+            taken = "; a fresh discriminator (--fresh-discriminator)"
         if args.reset_std:
-            discriminator += f"; action noise reset to log std {args.log_std_init:g} (--reset-std)"
-        say(f"initialised from {args.init_from} (weights, optimiser, statistics{discriminator})")
+            taken += f"; action noise reset to log std {args.log_std_init:g} (--reset-std)"
+        say(f"initialised from {args.init_from} (weights, optimiser, statistics{taken})")
     log = RunLog(run_dir) if first else None
     start_steps, start, start_cpu = trainer.steps, time.perf_counter(), time.process_time()
     try:
