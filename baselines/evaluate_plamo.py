@@ -13,7 +13,9 @@ from stairenv.evaluation.plamo import LOCOMOTIONS, TERRAINS, evaluate
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--policy", required=True, help="'random', 'zero' or a Stable-Baselines3 model .zip")
+    parser.add_argument("--policy", required=True,
+                        help="'random', 'zero', 'pretrained' (the policy shipped for the env), an exported .npz or a "
+                             "Stable-Baselines3 model .zip")
     parser.add_argument("--env", default="PlaMo-v0")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per terrain x locomotion")
     parser.add_argument("--seed", type=int, default=0)

@@ -18,7 +18,9 @@ from stairenv.evaluation.policies import load_policy
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("what", choices=("scenes", "slalom", "plot"))
-    parser.add_argument("--policy", default="zero", help="'random', 'zero' or a Stable-Baselines3 model .zip")
+    parser.add_argument("--policy", default="zero",
+                        help="'random', 'zero', 'pretrained' (the policy shipped for the env), an exported .npz or a "
+                             "Stable-Baselines3 model .zip")
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--max-episode-steps", type=int, default=None)

@@ -34,7 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     from stairenv.screenplays.database import DIFFICULTIES
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--policy", help="policy for every skill: zero, random, kinematic, an SB3 .zip or ALGO:path")
+    parser.add_argument("--policy", help="policy for every skill: zero, random, kinematic, pretrained (each skill's "
+                                             "shipped policy), an exported .npz, an SB3 .zip or ALGO:path")
     for skill in SKILLS:
         parser.add_argument(f"--{skill}", metavar="SPEC", help=f"{skill} policy (overrides --policy)")
     parser.add_argument("--tables", nargs="+", choices=("skills", "scripts"), default=["skills", "scripts"],

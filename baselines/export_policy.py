@@ -1,10 +1,16 @@
-"""Export a trained SB3 PPO policy to a numpy ``.npz`` (``stairenv.pretrained``).
+"""Export a trained policy to a numpy ``.npz`` (``stairenv.pretrained``).
 
 The exported file needs neither torch nor Stable-Baselines3 and runs no code when
-opened; it holds the actor's layers, the VecNormalize observation statistics saved
-beside the checkpoint, and a JSON config (the env id, the run's settings and, if
-given, an evaluation file's contents).
+opened; it holds the actor's layers, the observation statistics and a JSON config (the env
+id, the run's settings and, if given, notes on the run and an evaluation file's contents).
 
+The model is either
+- a lean trainer's checkpoint ``.pt`` (``train_ppo.py``'s default trainer; read without running
+  code from it): its actor, its observation statistics and its run's settings, or
+- an SB3 PPO checkpoint ``.zip`` (``--trainer sb3``), with the VecNormalize ``.pkl`` saved beside it.
+
+    python baselines/export_policy.py checkpoints/PlaMo-v0/p18_checkpoint_16001024.pt --out PlaMo-v0.npz \\
+        --config notes.json --evaluation table2.json
     python baselines/export_policy.py runs/InterLevel-v0/seed0/final_model.zip --out InterLevel-v0.npz
 """
 
@@ -19,26 +25,63 @@ import gymnasium as gym
 
 import stairenv  # noqa: F401  (registers the env ids)
 from stairenv.evaluation.policies import load_policy
-from stairenv.pretrained import from_sb3, load_file
+from stairenv.pretrained import NumpyPolicy, check_sizes, from_sb3, load_file
+
+SB3_DEFAULT_ENV = "InterLevel-v0"
+
+
+def from_lean_checkpoint(path: str, env_id: str | None) -> NumpyPolicy:
+    """The policy of a lean checkpoint; ``ValueError`` if ``env_id`` is given and is not the run's. A
+    text-conditioned env's encoder is recorded (``text_encoder_id``), as the run's keywords make it here."""
+    from stairenv.training.ppo import policy_from_checkpoint, read_checkpoint
+
+    policy = policy_from_checkpoint(read_checkpoint(path))
+    trained_on = policy.config["env_id"]
+    if env_id is not None and env_id != trained_on:
+        raise ValueError(f"{path} was trained on {trained_on!r}, not --env {env_id!r}")
+    text_encoder = policy.config["training"].get("env_kwargs", {}).get("text_encoder")
+    env = gym.make(trained_on, **({} if text_encoder is None else {"text_encoder": text_encoder}))
+    try:
+        check_sizes(policy, env.unwrapped, path)
+        if getattr(env.unwrapped, "text_conditioned", False):
+            policy.config["text_encoder_id"] = env.unwrapped.text_encoder_id
+    finally:
+        env.close()
+    return policy
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("model", help="an SB3 PPO checkpoint .zip (its VecNormalize .pkl beside it is used)")
-    parser.add_argument("--env", default="InterLevel-v0", help="the env id the policy was trained on")
+    parser.add_argument("model", help="a lean checkpoint .pt, or an SB3 PPO checkpoint .zip (its VecNormalize "
+                                      ".pkl beside it is used)")
+    parser.add_argument("--env", default=None,
+                        help=f"the env id the policy was trained on (default: the checkpoint's; {SB3_DEFAULT_ENV} "
+                             "for an SB3 .zip)")
     parser.add_argument("--out", required=True, help="the .npz to write")
-    parser.add_argument("--config", help="a JSON file to store with the policy (training settings)")
+    parser.add_argument("--config", help="a JSON object stored with the policy's training settings (its lineage, "
+                                          "wall-clock time, recipe)")
     parser.add_argument("--evaluation", help="a JSON evaluation report to store with the policy")
     args = parser.parse_args(argv)
     if not args.out.endswith(".npz"):
         parser.error(f"--out must end in .npz, got {args.out!r}")
-    env = gym.make(args.env)
-    sb3 = load_policy(args.model, env)  # checks the spaces; the normaliser beside the model
-    config = {"env_id": args.env, "source": Path(args.model).name}
-    for key, path in (("training", args.config), ("evaluation", args.evaluation)):
-        if path:
-            config[key] = json.loads(Path(path).read_text())
-    policy = from_sb3(sb3.model, sb3.obs_normalizer, config)
+    notes = {key: json.loads(Path(path).read_text()) for key, path in (("training", args.config),
+                                                                       ("evaluation", args.evaluation)) if path}
+    if args.model.endswith(".pt"):
+        try:
+            policy = from_lean_checkpoint(args.model, args.env)
+        except ValueError as err:  # CheckpointError included: the file and the fault named
+            parser.error(str(err))
+        config = dict(policy.config, source=Path(args.model).name)
+        if "training" in notes:
+            if not isinstance(notes["training"], dict):
+                parser.error(f"--config {args.config}: a JSON object is needed, got {type(notes['training']).__name__}")
+            config["training"] = dict(config["training"], **notes.pop("training"))
+        policy.config = dict(config, **notes)
+    else:
+        env_id = args.env or SB3_DEFAULT_ENV
+        sb3 = load_policy(args.model, gym.make(env_id))  # checks the spaces; the normaliser beside the model
+        policy = from_sb3(sb3.model, sb3.obs_normalizer, dict({"env_id": env_id, "source": Path(args.model).name},
+                                                              **notes))
     policy.save(args.out)
     print(f"wrote {args.out}: {load_file(args.out)!r}")
     return 0

@@ -63,6 +63,47 @@ def test_policy_for_another_env_is_refused(sb3_run, tmp_path, baseline_script):
         load_policy(str(out), gym.make("PlaMo-v0"))
 
 
+def test_a_lean_checkpoint_exports_as_its_trainer_acts(tmp_path, baseline_script):
+    """``export_policy.py`` on a lean trainer's ``.pt``: the trainer's own deterministic policy, bit for bit,
+    with the run's settings, the notes and the evaluation in its config; another env id is refused."""
+    from stairenv.training import TrainConfig, Trainer
+
+    trainer = Trainer(TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=1,
+                                  style="none", total_steps=16))
+    trainer.collect()
+    trainer.update()  # the weights and statistics move away from their start
+    checkpoint = trainer.save(tmp_path / "checkpoint_16.pt")
+    expected = trainer.policy()
+    trainer.close()
+    notes, evaluation = tmp_path / "notes.json", tmp_path / "evaluation.json"
+    notes.write_text(json.dumps({"lineage": ["a test run"], "wall_clock_training_hours": 0.0}))
+    evaluation.write_text(json.dumps({"success_pct": 1.0}))
+    out = tmp_path / "policy.npz"
+    assert baseline_script("export_policy").main([str(checkpoint), "--out", str(out), "--config", str(notes),
+                                                  "--evaluation", str(evaluation)]) == 0
+    policy = load_file(out, gym.make("InterLevel-v0").unwrapped)
+    assert policy.config["env_id"] == "InterLevel-v0" and policy.config["steps"] == 16
+    assert policy.config["source"] == "checkpoint_16.pt" and policy.config["evaluation"] == {"success_pct": 1.0}
+    assert policy.config["training"]["lineage"] == ["a test run"] and policy.config["training"]["num_envs"] == 2
+    obs = np.random.default_rng(0).normal(size=(5, policy.obs_size))
+    np.testing.assert_array_equal(policy(obs), expected(obs))
+    with pytest.raises(SystemExit):
+        baseline_script("export_policy").main([str(checkpoint), "--out", str(out), "--env", "PlaMo-v0"])
+
+
+def test_an_id_that_shares_a_controller_runs_its_policy():
+    """``PlaMoScene-v0`` and ``PlaMoNaivePaths-v0`` name ``policy = "PlaMo-v0"`` in their presets: they run the
+    path follower trained on ``PlaMo-v0`` (same observation and actions); other ids run their own."""
+    from stairenv.pretrained import policy_id
+
+    assert policy_id("PlaMoScene-v0") == policy_id("PlaMoNaivePaths-v0") == "PlaMo-v0"
+    assert policy_id("SIMS-Walk-v0") == "SIMS-Walk-v0" and policy_id("NoSuchEnv-v0") == "NoSuchEnv-v0"
+    assert shipped_policy_path("PlaMoScene-v0") == shipped_policy_path("PlaMo-v0")
+    for env_id in ("PlaMoScene-v0", "PlaMoNaivePaths-v0"):
+        policy = load(env_id)  # the sizes checked against this id's spaces
+        assert policy.config["env_id"] == "PlaMo-v0"
+
+
 def _write(path, **arrays):
     np.savez(path, **arrays)
     return path
@@ -168,6 +209,64 @@ def test_the_shipped_interlevel_policy_climbs_where_the_zero_policy_does_not():
     env.close()
     assert max(zero) == 0.0
     assert np.mean(shipped) >= 0.25, shipped
+
+
+def _episode(policy, env, seed: int) -> tuple[int, dict, dict]:
+    """(steps survived, the last info, the first info) of one episode."""
+    obs, first = env.reset(seed=seed)
+    for step in range(1, 10**6):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        if terminated or truncated:
+            return step, info, first
+    raise AssertionError("no time limit")
+
+
+def test_the_shipped_path_follower_walks_a_walk_path_where_the_zero_policy_falls():
+    """``PlaMo-v0``'s shipped policy (an interim one: it walks, issue #24) follows flat walk paths at the
+    paper's one height and speed per path: 5 s paths, six unseen seeds. The zero policy falls in about
+    a second on every one."""
+    policy = load("PlaMo-v0")
+    assert policy.config["env_id"] == "PlaMo-v0" and policy.config["evaluation"]["table2"]["rows"]
+    env = gym.make("PlaMo-v0", locomotion="walk", terrain="flat", constant_paths=True, max_episode_steps=150)
+    seeds = range(500_000, 500_006)
+    zero = [_episode(lambda o: np.zeros(28), env, seed)[0] for seed in seeds]
+    shipped = [_episode(policy, env, seed)[0] for seed in seeds]
+    env.close()
+    assert max(zero) < 40, zero
+    assert np.mean(shipped) >= 100 and sum(steps == 150 for steps in shipped) >= 3, shipped
+
+
+def test_the_shipped_walker_stays_up_and_nears_its_goals():
+    """``SIMS-Walk-v0``'s shipped policy (interim, issue #25): text-conditioned, trained with the MiniLM
+    embeddings it records; on six unseen goals over 5 s it stays up where the zero policy falls, and
+    ends nearer its goals than it started, on average."""
+    policy = load("SIMS-Walk-v0")
+    assert policy.config["text_encoder_id"].startswith("all-MiniLM-L6-v2")
+    env = gym.make("SIMS-Walk-v0", max_episode_steps=150)
+    seeds = range(500_000, 500_006)
+    zero = [_episode(lambda o: np.zeros(28), env, seed) for seed in seeds]
+    shipped = [_episode(policy, env, seed) for seed in seeds]
+    env.close()
+    assert all(info["fell"] for _, info, _ in zero), [steps for steps, _, _ in zero]
+    assert not any(info["fell"] for _, info, _ in shipped), [steps for steps, _, _ in shipped]
+    start = np.mean([first["contact_error"] for _, _, first in shipped])
+    end = np.mean([info["contact_error"] for _, info, _ in shipped])
+    assert end < start - 0.3, (start, end)
+
+
+def test_a_text_conditioned_policy_refuses_another_encoder(tmp_path, monkeypatch):
+    """A policy trained on MiniLM embeddings, loaded where the env embeds with the hashing encoder, is
+    refused with both encoders named (it would read the text input as noise)."""
+    from stairenv import pretrained
+
+    arrays = dict(np.load(shipped_policy_path("SIMS-Walk-v0")))
+    config = json.loads(str(arrays["config"]))
+    config["text_encoder_id"] = "another-encoder"
+    arrays["config"] = np.array(json.dumps(config))
+    path = _write(tmp_path / "SIMS-Walk-v0.npz", **arrays)
+    monkeypatch.setattr(pretrained, "shipped_policy_path", lambda env_id: path)
+    with pytest.raises(PolicyFileError, match="another-encoder"):
+        load("SIMS-Walk-v0")
 
 
 def _shipped_arrays():

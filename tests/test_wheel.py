@@ -30,6 +30,7 @@ def test_wheel_installs_and_makes_env(tmp_path):
     presets = {n for n in names if n.startswith("stairenv/envs/") and n.endswith(".toml")}
     assert {"stairenv/envs/InterLevel-v0.toml", "stairenv/envs/InterLevel2D-v0.toml"} <= presets
     assert "stairenv/policies/InterLevel-v0.npz" in names  # the shipped climbing policy
+    assert {"stairenv/policies/PlaMo-v0.npz", "stairenv/policies/SIMS-Walk-v0.npz"} <= set(names)  # interim ones
     assert "stairenv/motion/data/plamo/NOTICE.txt" in names  # builtin:plamo's clips and their notice
     assert len([n for n in names if n.startswith("stairenv/motion/data/plamo/") and n.endswith(".npz")]) >= 12
 
@@ -56,6 +57,7 @@ def test_wheel_installs_and_makes_env(tmp_path):
         "print(sorted(stairenv.ENV_IDS))\n"
         "from stairenv.pretrained import load\n"
         "print(load('InterLevel-v0').action_size)\n"
+        "print(load('PlaMoScene-v0').config['env_id'])\n"
     )
     clean_env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     out = subprocess.run(
@@ -67,3 +69,4 @@ def test_wheel_installs_and_makes_env(tmp_path):
     assert out[2] == "(118,)"
     assert "InterLevel-v0" in out[3] and "InterSceneStairs-v0" in out[3]
     assert out[4] == "28"  # the shipped policy loads from the installed wheel
+    assert out[5] == "PlaMo-v0"  # an id runs the policy its installed preset names

@@ -29,10 +29,9 @@ from pathlib import Path
 from typing import Any
 
 from stairenv.evaluation.cli import env_kwarg_argument
+from stairenv.policy_loading import PRETRAINED  # ``--policy`` for the policy shipped with the package
 
 DEFAULT_ENV = "InterLevel-v0"
-#: ``--policy`` for the trained policy shipped with the package (``stairenv.pretrained``).
-PRETRAINED = "pretrained"
 #: what ``--policy`` falls back to when the package ships no trained policy for the env
 FALLBACK_POLICY = "zero"
 DEFAULT_OUT = "videos/interlevel.mp4"

@@ -21,12 +21,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from stairenv.pretrained import NumpyPolicy, load_file
+from stairenv.pretrained import NumpyPolicy, load_file, shipped_policy_path
 
 Policy = Callable[[np.ndarray], Any]
 
 #: Policy specs understood by :func:`load_policy` besides a model path.
 BUILTIN_POLICIES: tuple[str, ...] = ("random", "zero")
+#: the spec of the policy shipped with the package for the env's id (``stairenv.pretrained``)
+PRETRAINED = "pretrained"
 #: Policy spec of the stories' kinematic stand-in (``stairenv.stories.KinematicStandIn``): not
 #: loaded here; :class:`~stairenv.stories.machine.StoryRunner` builds one for its env.
 KINEMATIC = "kinematic"
@@ -94,7 +96,7 @@ class SB3Policy:
 
 def _policy_spec_error(spec: Any, reason: str) -> ValueError:
     return ValueError(
-        f"policy must be one of {list(BUILTIN_POLICIES)}, a path to a Stable-Baselines3 model .zip, "
+        f"policy must be one of {[*BUILTIN_POLICIES, PRETRAINED]}, a path to a Stable-Baselines3 model .zip, "
         f"or 'ALGO:path' (e.g. 'SAC:runs/model.zip'); got {spec!r}: {reason}"
     )
 
@@ -159,6 +161,7 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     | ``"path/model.zip"`` | ``stable_baselines3.PPO.load(path)``, deterministic ``predict`` |
     | ``"SAC:path/model.zip"`` | the same with another algorithm (SB3, or sb3_contrib if installed) |
     | ``"path/policy.npz"`` | an exported numpy policy (``stairenv.pretrained``; no pickle, no torch) |
+    | ``"pretrained"`` | the numpy policy the package ships for ``env``'s id (``stairenv.pretrained.load``) |
 
     For a model, its VecNormalize statistics (``normalizer_beside``) normalise the
     observations before ``predict`` (statistics frozen).
@@ -174,6 +177,8 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
         return RandomPolicy(env.action_space, seed)
     if not spec.strip():
         raise _policy_spec_error(spec, "empty string")
+    if spec == PRETRAINED:
+        return _shipped_policy(env)
 
     if spec.endswith(".npz"):
         return _numpy_policy(spec, env)
@@ -220,6 +225,17 @@ def load_policy(spec: str, env: gym.Env, seed: int | None = 0, device: str = "cp
     return SB3Policy(model, normalizer, str(model_path))
 
 
+def _shipped_policy(env: gym.Env) -> NumpyPolicy:
+    spec = getattr(getattr(env, "unwrapped", env), "spec", None) or getattr(env, "spec", None)
+    if spec is None:
+        raise ValueError(f"policy {PRETRAINED!r}: the env has no registered id (make it with gym.make) to find "
+                         "the policy shipped for it")
+    path = shipped_policy_path(spec.id)
+    if not path.is_file():
+        raise ValueError(f"policy {PRETRAINED!r}: no trained policy for {spec.id!r} ships with stairenv yet")
+    return load_file(path, env)
+
+
 def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
     return load_file(path, env)  # PolicyFileError (a ValueError) naming the file unless the sizes are the env's
 
@@ -247,6 +263,6 @@ def policy_label(policy: Any, *, detailed: bool = False) -> str:
 
 
 __all__ = [
-    "BUILTIN_POLICIES", "KINEMATIC", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy", "ZeroPolicy",
+    "BUILTIN_POLICIES", "KINEMATIC", "PRETRAINED", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy", "ZeroPolicy",
     "load_policy", "normalizer_beside", "policy_label", "read_normalizer",
 ]

@@ -12,7 +12,9 @@ one runs no code), needing neither torch nor Stable-Baselines3:
 
 The policy is deterministic: the Gaussian's mean, clipped to the action space [-1, 1],
 exactly what ``PPO.predict(obs, deterministic=True)`` returns for the same network.
-Policies shipped with the package live in ``stairenv/policies/<env id>.npz``.
+Policies shipped with the package live in ``stairenv/policies/<env id>.npz``; an id whose preset
+(``envs/<id>.toml``) names ``policy = "<other id>"`` runs that id's policy (the same controller in
+another task, as ``PlaMoScene-v0`` runs ``PlaMo-v0``'s).
 """
 
 from __future__ import annotations
@@ -250,12 +252,23 @@ def _policy_from_arrays(path: Path, arrays: dict[str, np.ndarray]) -> NumpyPolic
     return NumpyPolicy(weights, biases, mean, var, clip, epsilon, config if isinstance(config, dict) else {})
 
 
+def policy_id(env_id: str) -> str:
+    """The id whose shipped policy ``env_id`` runs: its preset's ``policy`` key (an id that shares
+    another's controller, e.g. ``PlaMoScene-v0`` runs ``PlaMo-v0``'s), else ``env_id`` itself."""
+    from stairenv.registration import load_presets
+
+    preset = load_presets().get(env_id, {})
+    return str(preset.get("policy", env_id))
+
+
 def shipped_policy_path(env_id: str) -> Path:
-    return Path(str(resources.files("stairenv"))) / "policies" / f"{env_id}.npz"
+    """Where the package keeps the policy ``env_id`` runs (``stairenv/policies/<policy id>.npz``)."""
+    return Path(str(resources.files("stairenv"))) / "policies" / f"{policy_id(env_id)}.npz"
 
 
 def load(env_id: str) -> NumpyPolicy:
-    """The policy shipped with the package for ``env_id``, its sizes checked against the env's spaces."""
+    """The policy shipped with the package for ``env_id`` (its own, or the one its preset names with
+    ``policy``), its sizes checked against the env's spaces."""
     path = shipped_policy_path(env_id)
     if not path.is_file():
         shipped = sorted(p.stem for p in path.parent.glob("*.npz")) if path.parent.is_dir() else []
@@ -268,11 +281,16 @@ def load(env_id: str) -> NumpyPolicy:
     env = gym.make(env_id)
     try:
         policy = load_file(path, env)
+        trained_with = policy.config.get("text_encoder_id")
+        if trained_with is not None and trained_with != env.unwrapped.text_encoder_id:
+            raise PolicyFileError(f"{path}: trained on the text embeddings of {trained_with!r}; {env_id} embeds "
+                                  f"with {env.unwrapped.text_encoder_id!r} here (pip install 'stairenv[sims]' for "
+                                  "the MiniLM encoder)")
     finally:
         env.close()
-    named = policy.config.get("env_id")
-    if named is not None and named != env_id:
-        raise PolicyFileError(f"{path}: config names env_id {named!r}, not {env_id!r}")
+    named, expected = policy.config.get("env_id"), policy_id(env_id)
+    if named is not None and named != expected:
+        raise PolicyFileError(f"{path}: config names env_id {named!r}, not {expected!r}")
     return policy
 
 

@@ -1,8 +1,9 @@
 """Register every preset in ``envs/`` with Gymnasium.
 
 A preset is a TOML file: ``id``, ``entry_point``, ``max_episode_steps``, an
-optional ``description`` and a ``[kwargs]`` table of the keyword arguments that
-define the env. Ablations are presets of the same class with different kwargs.
+optional ``description``, an optional ``policy`` (the id whose shipped policy this
+one runs, ``stairenv.pretrained``) and a ``[kwargs]`` table of the keyword arguments
+that define the env. Ablations are presets of the same class with different kwargs.
 Every id also gets a ``vector_entry_point``: ``stairenv.environments.vector``'s batched env of its class.
 """
 
@@ -40,6 +41,8 @@ def _load(path: Path) -> dict[str, Any]:
     missing = {"id", "entry_point", "max_episode_steps"} - preset.keys()
     if missing:
         raise ValueError(f"env preset {path} lacks {sorted(missing)}")
+    if not isinstance(preset.get("policy", ""), str):
+        raise ValueError(f"env preset {path}: policy must be an env id (a string), got {preset['policy']!r}")
     preset.setdefault("kwargs", {})
     return preset
 

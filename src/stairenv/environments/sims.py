@@ -455,6 +455,15 @@ class SIMSEnv(HumanoidEnv):
     def embed_text(self, text: str) -> np.ndarray:
         """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
         the reference clips' conditions of a text-conditioned discriminator."""
+        return np.asarray(self._text_encoder().encode([text])[0], dtype=np.float64)
+
+    @property
+    def text_encoder_id(self) -> str:
+        """The ``model_id`` of the encoder the observation's text embedding comes from (a policy trained
+        with one encoder reads another's embeddings as noise: ``stairenv.pretrained.load`` compares them)."""
+        return str(self._text_encoder().model_id)
+
+    def _text_encoder(self):
         if self._encoder is None:
             if isinstance(self._encoder_spec, str):
                 from stairenv.screenplays.embeddings import get_encoder
@@ -464,7 +473,7 @@ class SIMSEnv(HumanoidEnv):
                 self._encoder = self._encoder_spec
             if self._encoder.dim != self.text_dim:
                 raise ValueError(f"text_encoder gives {self._encoder.dim}-d vectors, text_dim is {self.text_dim}")
-        return np.asarray(self._encoder.encode([text])[0], dtype=np.float64)
+        return self._encoder
 
     # --- the character's pose and the scene, for scripted controllers (the kinematic stand-in) -
     def pose(self) -> np.ndarray:

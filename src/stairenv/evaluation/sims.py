@@ -46,12 +46,8 @@ from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.policy_loading import load_policy, policy_label
 from stairenv.screenplays.database import DIFFICULTIES
 from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings
+from stairenv.tasks.sims import SKILL_ENV_IDS
 
-#: The registered env of each skill (Table 1).
-SKILL_ENV_IDS: dict[str, str] = {
-    "sit": "SIMS-Sit-v0", "lie": "SIMS-Lie-v0", "reach": "SIMS-Reach-v0",
-    "walk": "SIMS-Walk-v0", "getup": "SIMS-GetUp-v0",
-}
 #: Skills in Table 1 order (the paper's three first).
 TABLE1_SKILLS: tuple[str, ...] = ("sit", "lie", "reach", "walk", "getup")
 

@@ -61,7 +61,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from stairenv.policy_loading import load_policy, policy_label
+from stairenv.policy_loading import PRETRAINED, load_policy, policy_label
+from stairenv.pretrained import load_file, shipped_policy_path
 from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
 from stairenv.validation import check_int, check_number
@@ -225,14 +226,21 @@ def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | No
     """Resolve policy specs for every skill: a single spec for all, or skill -> spec.
 
     Strings go through :func:`stairenv.policy_loading.load_policy` ("zero", "random", an SB3 .zip,
-    ``ALGO:path``) with ``env`` giving the spaces; :data:`KINEMATIC` stays as it is (the
-    runner binds a stand-in to its own env); callables and models pass through. Skills not
-    in a mapping are left out.
+    ``ALGO:path``) with ``env`` giving the spaces; :data:`PRETRAINED` is each skill's shipped policy
+    (that of its env, :data:`~stairenv.tasks.sims.SKILL_ENV_IDS`); :data:`KINEMATIC` stays as it is
+    (the runner binds a stand-in to its own env); callables and models pass through. Skills not in
+    a mapping are left out.
     """
     out: dict[str, Any] = {}
     loaded: dict[str, Any] = {}
     for skill, spec in policy_specs(specs).items():
-        if isinstance(spec, (str, os.PathLike)) and os.fspath(spec) != KINEMATIC:
+        if isinstance(spec, (str, os.PathLike)) and os.fspath(spec) == PRETRAINED:
+            path = shipped_policy_path(task.SKILL_ENV_IDS[skill])
+            if not path.is_file():
+                raise ValueError(f"policy {PRETRAINED!r} for {skill}: no trained policy for "
+                                 f"{task.SKILL_ENV_IDS[skill]!r} ships with stairenv yet")
+            out[skill] = load_file(path, env)
+        elif isinstance(spec, (str, os.PathLike)) and os.fspath(spec) != KINEMATIC:
             key = os.fspath(spec)
             if key not in loaded:  # one model (or random generator) per distinct spec
                 loaded[key] = load_policy(key, env, seed=seed)

@@ -47,6 +47,11 @@ from stairenv.tasks.terms import RewardTerm, term_names, weighted_values
 from stairenv.world.furniture import PlacedFurniture
 
 SKILLS: tuple[str, ...] = ("walk", "sit", "lie", "reach", "getup")
+#: The registered env of each skill (its Table 1 env, and the id its shipped policy is kept under).
+SKILL_ENV_IDS: dict[str, str] = {
+    "sit": "SIMS-Sit-v0", "lie": "SIMS-Lie-v0", "reach": "SIMS-Reach-v0",
+    "walk": "SIMS-Walk-v0", "getup": "SIMS-GetUp-v0",
+}
 CONTACT_JOINTS: tuple[str, ...] = BODY_NAMES
 NUM_CONTACT_JOINTS = len(CONTACT_JOINTS)
 JOINT = {name: k for k, name in enumerate(CONTACT_JOINTS)}
