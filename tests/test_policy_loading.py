@@ -52,3 +52,27 @@ def test_policy_label_short_and_detailed():
     for policy, short, detailed in cases:
         assert (policy_label(policy), policy_label(policy, detailed=True)) == (short, detailed), policy
         assert stories.describe_policy(policy) == detailed
+
+
+def test_pretrained_is_the_policy_shipped_for_the_envs_id():
+    """``"pretrained"``: the numpy policy shipped for the env's registered id (its preset's ``policy`` id
+    where it names one); an id without one, or an env without an id, is a clear error."""
+    import pytest
+
+    from stairenv.environments.sims import SIMSEnv
+    from stairenv.pretrained import NumpyPolicy
+
+    walk = loading.load_policy("pretrained", gym.make("SIMS-Walk-v0"))
+    assert isinstance(walk, NumpyPolicy) and walk.config["env_id"] == "SIMS-Walk-v0"
+    assert loading.load_policy("pretrained", gym.make("PlaMoScene-v0")).config["env_id"] == "PlaMo-v0"
+    with pytest.raises(ValueError, match="SIMS-Lie-v0"):
+        loading.load_policy("pretrained", gym.make("SIMS-Lie-v0"))
+    bare = SIMSEnv(skill="walk")
+    with pytest.raises(ValueError, match="no registered id"):
+        loading.load_policy("pretrained", bare)
+    # the stories resolve it per skill, whatever env gives the spaces
+    resolved = stories.load_skill_policies({"walk": "pretrained", "sit": KINEMATIC}, bare)
+    assert resolved["walk"].config["env_id"] == "SIMS-Walk-v0" and resolved["sit"] == KINEMATIC
+    with pytest.raises(ValueError, match="SIMS-Sit-v0"):
+        stories.load_skill_policies({"sit": "pretrained"}, bare)
+    bare.close()
