@@ -21,7 +21,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from stairenv.pretrained import NumpyPolicy, load_file, shipped_policy_path
+from stairenv.pretrained import NumpyPolicy, check_text_encoder, load_file, shipped_policy_path
 
 Policy = Callable[[np.ndarray], Any]
 
@@ -233,7 +233,9 @@ def _shipped_policy(env: gym.Env) -> NumpyPolicy:
     path = shipped_policy_path(spec.id)
     if not path.is_file():
         raise ValueError(f"policy {PRETRAINED!r}: no trained policy for {spec.id!r} ships with stairenv yet")
-    return load_file(path, env)
+    policy = load_file(path, env)
+    check_text_encoder(policy, env, path)
+    return policy
 
 
 def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
@@ -263,6 +265,6 @@ def policy_label(policy: Any, *, detailed: bool = False) -> str:
 
 
 __all__ = [
-    "BUILTIN_POLICIES", "KINEMATIC", "PRETRAINED", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy", "ZeroPolicy",
-    "load_policy", "normalizer_beside", "policy_label", "read_normalizer",
+    "BUILTIN_POLICIES", "KINEMATIC", "PRETRAINED", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy",
+    "ZeroPolicy", "load_policy", "normalizer_beside", "policy_label", "read_normalizer",
 ]

@@ -105,6 +105,16 @@ def check_sizes(policy: NumpyPolicy, env: Any, path: str | os.PathLike = "policy
                               f"{expected[0]} and {expected[1]}")
 
 
+def check_text_encoder(policy: NumpyPolicy, env: Any, path: str | os.PathLike = "policy") -> None:
+    """``PolicyFileError`` if ``policy`` was trained on another text encoder's embeddings than the
+    ones ``env`` observes (its config's ``text_encoder_id``; policies without one pass)."""
+    trained_with = policy.config.get("text_encoder_id")
+    here = getattr(getattr(env, "unwrapped", env), "text_encoder_id", None)
+    if trained_with is not None and trained_with != here:
+        raise PolicyFileError(f"{path}: trained on the text embeddings of {trained_with!r}; the env embeds with "
+                              f"{here!r} (pip install 'stairenv[sims]' for the MiniLM encoder)")
+
+
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     from numpy.lib import format as npy
 
@@ -281,11 +291,7 @@ def load(env_id: str) -> NumpyPolicy:
     env = gym.make(env_id)
     try:
         policy = load_file(path, env)
-        trained_with = policy.config.get("text_encoder_id")
-        if trained_with is not None and trained_with != env.unwrapped.text_encoder_id:
-            raise PolicyFileError(f"{path}: trained on the text embeddings of {trained_with!r}; {env_id} embeds "
-                                  f"with {env.unwrapped.text_encoder_id!r} here (pip install 'stairenv[sims]' for "
-                                  "the MiniLM encoder)")
+        check_text_encoder(policy, env, path)
     finally:
         env.close()
     named, expected = policy.config.get("env_id"), policy_id(env_id)

@@ -62,7 +62,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from stairenv.policy_loading import PRETRAINED, load_policy, policy_label
-from stairenv.pretrained import load_file, shipped_policy_path
+from stairenv.pretrained import check_text_encoder, load_file, shipped_policy_path
 from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
 from stairenv.validation import check_int, check_number
@@ -240,6 +240,7 @@ def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | No
                 raise ValueError(f"policy {PRETRAINED!r} for {skill}: no trained policy for "
                                  f"{task.SKILL_ENV_IDS[skill]!r} ships with stairenv yet")
             out[skill] = load_file(path, env)
+            check_text_encoder(out[skill], env, path)
         elif isinstance(spec, (str, os.PathLike)) and os.fspath(spec) != KINEMATIC:
             key = os.fspath(spec)
             if key not in loaded:  # one model (or random generator) per distinct spec
