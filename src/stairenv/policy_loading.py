@@ -230,9 +230,15 @@ def _shipped_policy(env: gym.Env) -> NumpyPolicy:
     if spec is None:
         raise ValueError(f"policy {PRETRAINED!r}: the env has no registered id (make it with gym.make) to find "
                          "the policy shipped for it")
-    path = shipped_policy_path(spec.id)
+    return shipped_policy(spec.id, env)
+
+
+def shipped_policy(env_id: str, env: gym.Env) -> NumpyPolicy:
+    """The policy shipped for ``env_id``, checked against ``env``'s spaces and text encoder;
+    ``ValueError`` naming the id where none ships."""
+    path = shipped_policy_path(env_id)
     if not path.is_file():
-        raise ValueError(f"policy {PRETRAINED!r}: no trained policy for {spec.id!r} ships with stairenv yet")
+        raise ValueError(f"policy {PRETRAINED!r}: no trained policy for {env_id!r} ships with stairenv yet")
     policy = load_file(path, env)
     check_text_encoder(policy, env, path)
     return policy
@@ -266,5 +272,5 @@ def policy_label(policy: Any, *, detailed: bool = False) -> str:
 
 __all__ = [
     "BUILTIN_POLICIES", "KINEMATIC", "PRETRAINED", "STAND_IN_LABEL", "Policy", "RandomPolicy", "SB3Policy",
-    "ZeroPolicy", "load_policy", "normalizer_beside", "policy_label", "read_normalizer",
+    "ZeroPolicy", "load_policy", "normalizer_beside", "policy_label", "read_normalizer", "shipped_policy",
 ]

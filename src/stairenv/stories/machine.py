@@ -61,8 +61,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from stairenv.policy_loading import PRETRAINED, load_policy, policy_label
-from stairenv.pretrained import check_text_encoder, load_file, shipped_policy_path
+from stairenv.policy_loading import PRETRAINED, load_policy, policy_label, shipped_policy
 from stairenv.stories.standin import KINEMATIC, KinematicStandIn
 from stairenv.tasks import sims as task
 from stairenv.validation import check_int, check_number
@@ -235,12 +234,7 @@ def load_skill_policies(specs: Mapping[str, Any] | str, env: Any, seed: int | No
     loaded: dict[str, Any] = {}
     for skill, spec in policy_specs(specs).items():
         if isinstance(spec, (str, os.PathLike)) and os.fspath(spec) == PRETRAINED:
-            path = shipped_policy_path(task.SKILL_ENV_IDS[skill])
-            if not path.is_file():
-                raise ValueError(f"policy {PRETRAINED!r} for {skill}: no trained policy for "
-                                 f"{task.SKILL_ENV_IDS[skill]!r} ships with stairenv yet")
-            out[skill] = load_file(path, env)
-            check_text_encoder(out[skill], env, path)
+            out[skill] = shipped_policy(task.SKILL_ENV_IDS[skill], env)
         elif isinstance(spec, (str, os.PathLike)) and os.fspath(spec) != KINEMATIC:
             key = os.fspath(spec)
             if key not in loaded:  # one model (or random generator) per distinct spec
