@@ -69,7 +69,10 @@ saved beside each checkpoint (``curriculum_<n>_steps.json``) and restored by ``-
 ``--amp-text-condition`` (SIMS envs with ``text_conditioned``): the discriminator
 judges [motion window, text embedding]; each reference clip is embedded from its
 ``meta["text"]`` with the env's encoder, and the env's captions become the
-reference texts of its skill, so agent and reference conditions come from one set.
+reference texts of its skill, so agent and reference conditions come from one set. With
+``--amp-text-captions all`` the env keeps its own captions (the evaluation's: many per style) for the
+policy's observation, and the discriminator is conditioned on the reference text of the caption's
+style (env keyword ``condition_captions``).
 
 Writes to ``--logdir/<env>/seed<k>/``: TensorBoard logs (PPO and ``amp/*``; the lean trainer also
 ``log.jsonl``, one line of scalars per iteration, with the wall and CPU time of each phase per env step),
@@ -238,6 +241,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="folder or .npz of reference clips, or builtin:stairs / builtin:sims (default: the env's)")
     p.add_argument("--amp-text-condition", action="store_true",
                    help="SIMS: condition the discriminator on the caption's text embedding (see above)")
+    p.add_argument("--amp-text-captions", choices=("reference", "all"), default="reference",
+                   help="with --amp-text-condition: the policy sees the reference clips' texts only (reference), "
+                        "or every caption of the env, the discriminator its style's reference text (all)")
     p.add_argument("--init", choices=("default", "reference", "hybrid"), default="hybrid",
                    help="episode start: standing, reference frames, or half/half")
     p.add_argument("--w-task", type=float, default=0.5)
@@ -378,6 +384,17 @@ def run_env_kwargs(args: argparse.Namespace) -> dict:
     return env_kwargs
 
 
+def style_conditions(reference: tuple[tuple[str, str], ...],
+                     captions: tuple[tuple[str, str], ...]) -> tuple[tuple[str, str], ...]:
+    """``condition_captions`` for ``--amp-text-captions all``: each reference style's text, and for a style of
+    the env's ``captions`` that no clip has (sit's clips are unstyled), the neutral clip's text."""
+    texts = dict(reference)
+    for style, _ in captions:
+        if style not in texts and "neutral" in texts:
+            texts[style] = texts["neutral"]
+    return tuple(sorted(texts.items()))
+
+
 def reference_windows(args: argparse.Namespace, env_kwargs: dict) -> ReferenceWindows | None:
     """The discriminator's reference windows (None without AMP): the ``--reference`` clips or the env's
     own, ``--amp-history`` frames at the env's control rate; with ``--amp-text-condition`` each clip's
@@ -392,7 +409,11 @@ def reference_windows(args: argparse.Namespace, env_kwargs: dict) -> ReferenceWi
         if not isinstance(probe, SIMSEnv) or not probe.text_conditioned:
             raise SystemExit(f"--amp-text-condition needs a SIMS env with text_conditioned=True, not {args.env}")
         conditions = text_conditions(library, probe.embed_text)
-        env_kwargs.setdefault("captions", reference_captions(library, probe.skill))
+        pairs = reference_captions(library, probe.skill)
+        if args.amp_text_captions == "all" or "condition_captions" in env_kwargs:  # a resumed "all" run too
+            env_kwargs.setdefault("condition_captions", style_conditions(pairs, probe.captions))
+        else:
+            env_kwargs.setdefault("captions", pairs)
     reference = ReferenceWindows(library, num_frames=args.amp_history, fps=1.0 / probe.dt, conditions=conditions)
     probe.close()
     return reference

@@ -170,3 +170,47 @@ def test_builtin_sets_and_standing_starts():
         env.reset(seed=seed)
         assert env.unwrapped.data.qpos[2] > 0.75
     env.close()
+
+
+def test_condition_captions_give_the_discriminator_the_styles_text():
+    """``condition_captions``: the observation keeps the drawn caption's embedding, ``info["amp_condition"]``
+    is the embedding of its style's text; a repeated style, an uncovered style and an env without text
+    are refused at construction, naming the keyword."""
+    styles = {"happy": "walks with light, springy steps", "sad": "walks slowly with the head bowed"}
+    captions = [("happy", "skips lightly across the room with a wide smile"),
+                ("happy", "walks with light, springy steps"),
+                ("sad", "walks slowly to the bed"), ("sad", "takes a few dragging steps")]
+    env = gym.make("SIMS-Walk-v0", captions=captions, condition_captions=list(styles.items()), **FAST_SIMS)
+    unwrapped = env.unwrapped
+    z = unwrapped.observation_structure["text"]
+    seen = set()
+    for seed in range(12):
+        obs, info = env.reset(seed=seed)
+        seen.add(info["caption"])
+        np.testing.assert_allclose(info["amp_condition"], unwrapped.embed_text(styles[info["style"]]), atol=1e-6)
+        np.testing.assert_allclose(obs[z], unwrapped.embed_text(info["caption"]), atol=1e-6)
+        obs, _, _, _, info = env.step(np.zeros(28, dtype=np.float32))
+        np.testing.assert_allclose(info["amp_condition"], unwrapped.embed_text(styles[info["style"]]), atol=1e-6)
+    assert len(seen) >= 3  # the condition does not depend on which of a style's captions was drawn
+    without = gym.make("SIMS-Walk-v0", captions=captions, **FAST_SIMS)
+    _, info = without.reset(seed=0)
+    np.testing.assert_allclose(info["amp_condition"], without.unwrapped.embed_text(info["caption"]), atol=1e-6)
+    for kwargs, match in ((dict(condition_captions=[*styles.items(), ("sad", "x")]), "each style once"),
+                          (dict(condition_captions=[("happy", "x")]), r"style\(s\) \['sad'\]"),
+                          (dict(condition_captions=list(styles.items()), text_conditioned=False), "text_conditioned")):
+        with pytest.raises(ValueError, match=match):
+            gym.make("SIMS-Walk-v0", captions=captions, **{**FAST_SIMS, **kwargs})
+
+
+def test_style_conditions_fall_back_to_the_neutral_clips_text(baseline_script):
+    """train_ppo --amp-text-captions all: a style of the env's captions that no reference clip has (sit's clips
+    are unstyled) is conditioned on the neutral clip's text; a style with its own clip keeps its text."""
+    train_ppo = baseline_script("train_ppo")
+    library = load_reference_library("builtin:sims")
+    sit_captions = gym.make("SIMS-Sit-v0", **FAST_SIMS).unwrapped.captions
+    sit = train_ppo.style_conditions(reference_captions(library, "sit"), sit_captions)
+    assert dict(sit) == {style: "sit down" for style in {s for s, _ in sit}} and len(sit) > 1
+    walk_reference = reference_captions(library, "walk")
+    walk = dict(train_ppo.style_conditions(walk_reference, (("happy", "skips"), ("sad", "shuffles"))))
+    assert walk == dict(walk_reference)
+    gym.make("SIMS-Sit-v0", condition_captions=sit, **FAST_SIMS).reset(seed=0)  # covers every caption's style

@@ -16,6 +16,8 @@ import torch
 from stable_baselines3.common.vec_env import VecEnv
 
 import stairenv  # noqa: F401
+from stairenv.environments.sims import reference_captions
+from stairenv.motion.rsi import load_reference_library
 from stairenv.training import CheckpointError, TrainConfig, Trainer, read_checkpoint
 from stairenv.training.ppo import ActorCritic, Normalizer, Rollout
 
@@ -289,6 +291,25 @@ def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
     assert "a fresh discriminator" in out and "trained 32 env steps" in out
     reach = read_checkpoint(tmp_path / "SIMS-Reach-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt")
     assert reach["config"]["amp_text_condition"] is False and reach["style"] is not None
+
+
+def test_amp_text_captions_all_trains_on_every_caption_against_the_styles_texts(tmp_path):
+    """--amp-text-captions all: the env keeps its own captions (the evaluation's) and conditions the
+    discriminator on each style's reference text (condition_captions, recorded); --resume keeps it so."""
+    tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
+            "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
+    run_script(["--env", "SIMS-Walk-v0", "--amp-text-condition", "--amp-text-captions", "all", "--env-kwarg",
+                "text_encoder=hashing", "--timesteps", "32", *tiny], tmp_path)
+    checkpoint = tmp_path / "SIMS-Walk-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
+    kwargs = read_checkpoint(checkpoint)["config"]["env_kwargs"]
+    library = load_reference_library("builtin:sims")
+    assert "captions" not in kwargs
+    assert {tuple(pair) for pair in kwargs["condition_captions"]} >= set(reference_captions(library, "walk"))
+    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
+    assert "at 32 steps" in out
+    resumed = read_checkpoint(tmp_path / "SIMS-Walk-v0" / "seed0" / "checkpoints" / "checkpoint_64.pt")
+    assert "captions" not in resumed["config"]["env_kwargs"]
+    assert resumed["config"]["env_kwargs"]["condition_captions"] == kwargs["condition_captions"]
 
 
 def test_resume_equals_an_uninterrupted_run(tmp_path):

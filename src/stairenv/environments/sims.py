@@ -193,6 +193,10 @@ class SIMSEnv(HumanoidEnv):
       ``min_root_height`` above the floor, i.e. the character sits or lies on the floor. Seated or lying
       on a piece the pelvis is higher (seats and beds are 0.25 m high at least: keep the threshold below
       that). Sitting down on the spot then no longer earns the style reward of a sit.
+    - Style conditions (``condition_captions``, text-conditioned): ``info["amp_condition"]`` is the
+      embedding of one text per style (the reference clips' texts) instead of the drawn caption's, while
+      the observation keeps the caption's. A policy then trains on every caption of a style (the
+      evaluation draws from them all) against a discriminator conditioned as its reference clips are.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
@@ -213,6 +217,12 @@ class SIMSEnv(HumanoidEnv):
         self._encoder_spec = text.text_encoder
         self._encoder = None
         self.captions = skill_captions(self.skill) if text.captions is None else text.captions
+        self.condition_texts = None if aids.condition_captions is None else dict(aids.condition_captions)
+        if self.condition_texts is not None:
+            missing = sorted({style for style, _ in self.captions} - set(self.condition_texts))
+            if missing:
+                raise ValueError(f"condition_captions has no text for the captions' style(s) {missing}")
+        self._condition_z: dict[str, np.ndarray] = {}
         self.start_distance, self.walk_distance = goal.start_distance, goal.walk_distance
         self.target_speed, self.speed_from_style = goal.target_speed, goal.speed_from_style
         observation, termination = config.observation, config.termination
@@ -443,6 +453,11 @@ class SIMSEnv(HumanoidEnv):
         self.goal = goal
         self.caption, self.style = caption, style
         self._z = self.embed_text(f"{caption}") if self.text_conditioned else np.zeros(self.text_dim)
+        self._amp_z = self._z
+        if self.condition_texts is not None and style in self.condition_texts:
+            if style not in self._condition_z:
+                self._condition_z[style] = self.embed_text(self.condition_texts[style])
+            self._amp_z = self._condition_z[style]
         self._target_speed = speed
 
     def _start_tracking(self, state) -> None:
@@ -845,7 +860,7 @@ class SIMSEnv(HumanoidEnv):
             "style": self.style,
             **results,
             "success_once": self._success_once,
-            "amp_condition": self._z.astype(np.float32),
+            "amp_condition": self._amp_z.astype(np.float32),
         }
 
     # --- rendering ----------------------------------------------------------------------------

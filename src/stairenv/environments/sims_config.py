@@ -239,6 +239,11 @@ class SIMSTrainingAids(ReferenceStarts):
                                             "all skills but getup: end an episode when the pelvis is less than "
                                             "this above the floor (sitting or lying on the floor; seated on a "
                                             "piece it is higher); None = never")
+    condition_captions: tuple[tuple[str, str], ...] | None = checked(
+        None, Check("call", call=check_captions, optional=True),
+        "text-conditioned: (style, text) pairs, one per style; info['amp_condition'] is then the embedding of "
+        "the drawn caption's style's text here (a discriminator's condition), while the observation keeps the "
+        "caption's; None = the caption's")
 
 
 @checked_config
@@ -265,6 +270,18 @@ class SIMSConfig(HumanoidConfig):
         if aids.start_from_front and (skill not in ("sit", "lie") or not aids.start_distance_levels):
             raise ValueError(f"start_from_front needs the skill sit or lie (not {skill!r}) and start_distance_levels "
                              "(it grows with that curriculum); leave it False")
+        if aids.condition_captions is not None:
+            styles = [style for style, _ in aids.condition_captions]
+            repeated = sorted({style for style in styles if styles.count(style) > 1})
+            if repeated:
+                raise ValueError(f"condition_captions must name each style once; repeated: {repeated}")
+            if not self.text.text_conditioned:
+                raise ValueError("condition_captions needs text_conditioned=True (without it the condition is "
+                                 "zeros); leave it None")
+            if self.text.captions is not None:
+                missing = sorted({style for style, _ in self.text.captions} - set(styles))
+                if missing:
+                    raise ValueError(f"condition_captions has no text for the captions' style(s) {missing}")
         if aids.min_root_height is not None and skill == "getup":
             raise ValueError("min_root_height does not apply to the getup skill (its episodes start low); "
                              "leave it None")
