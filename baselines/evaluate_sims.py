@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="env text encoder (default: the env's, auto)")
     parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable; values parsed as Python literals, else strings")
+    parser.add_argument("--policy-captions", action="store_true",
+                        help="Table 1: draw each skill's captions from those its exported policy trained on "
+                             "(recorded in the .npz) instead of the env's own")
     parser.add_argument("--label", help="Method name in the table (default: from the policies)")
     parser.add_argument("--csv", metavar="PATH", help="write the rows of all tables as CSV")
     parser.add_argument("--json", metavar="PATH", help="write settings, rows and per-episode / per-script results")
@@ -95,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
             reports.append(evaluate_skills({s: per_skill[s] for s in args.skills}, skills=args.skills,
                                            episodes=args.episodes, seed=args.seed, env_kwargs=env_kwargs,
                                            max_episode_steps=args.max_episode_steps,
-                                           progress_bar=not args.no_progress, label=args.label))
+                                           progress_bar=not args.no_progress, label=args.label,
+                                           policy_captions=args.policy_captions))
         if "scripts" in args.tables:
             settings = MachineSettings(dwell_seconds=args.dwell, max_seconds=args.max_seconds,
                                        stop_on_failure=not args.continue_on_failure)

@@ -106,3 +106,39 @@ def test_cli_script(tmp_path):
     bad = subprocess.run([sys.executable, str(SCRIPT), "--tables", "skills", "--skills", "sit"],
                          check=False, capture_output=True, text=True, timeout=300, env=env)
     assert bad.returncode != 0 and "no policy" in bad.stderr
+
+
+def test_policy_captions_draws_the_captions_the_policy_trained_on(tmp_path):
+    """policy_captions: a policy that recorded its training captions is evaluated on them (the env's text
+    slice holds their embeddings), the settings say which; without the flag the env draws its own."""
+    import gymnasium as gym
+    import numpy as np
+
+    from stairenv.pretrained import NumpyPolicy, PolicyFileError, trained_captions
+
+    env = gym.make("SIMS-Walk-v0", **HASHING).unwrapped
+    text = env.observation_structure["text"]
+    size = env.observation_space.shape[0]
+    trained = [["sad", "walks slowly to the bed"]]
+
+    class Watching(NumpyPolicy):
+        texts: list = []
+
+        def __call__(self, obs):
+            Watching.texts.append(np.asarray(obs)[text].copy())
+            return super().__call__(obs)
+
+    policy = Watching([np.zeros((28, size))], [np.zeros(28)], np.zeros(size), np.ones(size),
+                      config={"training": {"env_kwargs": {"captions": trained}}})
+    assert trained_captions(policy) == (("sad", "walks slowly to the bed"),)
+    report = evaluate_skills({"walk": policy}, skills=("walk",), episodes=3, env_kwargs=HASHING, max_episode_steps=3,
+                             policy_captions=True)
+    assert report.meta["settings"]["policy_captions"] == {"walk": trained}
+    expected = env.embed_text("walks slowly to the bed")
+    assert len(Watching.texts) == 9 and all(np.allclose(z, expected, atol=1e-6) for z in Watching.texts)
+    Watching.texts.clear()
+    evaluate_skills({"walk": policy}, skills=("walk",), episodes=3, env_kwargs=HASHING, max_episode_steps=3)
+    assert not all(np.allclose(z, expected, atol=1e-6) for z in Watching.texts)
+    policy.config = {"training": {"env_kwargs": {"captions": [["sad"]]}}}
+    with pytest.raises(PolicyFileError, match="captions"):
+        trained_captions(policy)

