@@ -130,3 +130,26 @@ def test_default_uses_the_shipped_policy(tmp_path, shipped, capsys):
                  "--out", str(tmp_path / "v.mp4"), "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "random on InterLevel-v0" in out and "shipped with stairenv" not in out
+
+
+def test_policy_captions_films_on_the_captions_the_policy_trained_on(tmp_path):
+    """--policy-captions: a policy that recorded its training captions is filmed on them; without the flag,
+    or for a policy that recorded none, the env draws its own."""
+    import gymnasium as gym
+    import numpy as np
+
+    from stairenv.__main__ import record
+    from stairenv.pretrained import NumpyPolicy
+
+    hashing = {"text_encoder": "hashing"}
+    size = gym.make("SIMS-Walk-v0", **hashing).observation_space.shape[0]
+    trained = [["sad", "walks slowly to the bed"]]
+    path = tmp_path / "walk.npz"
+    NumpyPolicy([np.zeros((28, size))], [np.zeros(28)], np.zeros(size), np.ones(size),
+                config={"env_id": "SIMS-Walk-v0", "training": {"env_kwargs": {"captions": trained}}}).save(path)
+    common = dict(seconds=0.2, width=64, height=48, env_kwargs=hashing, progress_bar=False)
+    summary = record("SIMS-Walk-v0", policy=str(path), out=tmp_path / "a.mp4", policy_captions=True, **common)
+    assert summary["captions"] == (("sad", "walks slowly to the bed"),)
+    assert record("SIMS-Walk-v0", policy=str(path), out=tmp_path / "b.mp4", **common)["captions"] is None
+    assert record("SIMS-Walk-v0", policy="zero", out=tmp_path / "c.mp4", policy_captions=True,
+                  **common)["captions"] is None

@@ -66,6 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--camera-distance", type=float, default=FILM_CAMERA_DISTANCE,
                         help="follow camera distance from the pelvis in m (default: %(default)s)")
     parser.add_argument("--frames-png", metavar="DIR", help="also write one PNG still per second of video into DIR")
+    parser.add_argument("--policy-captions", action="store_true",
+                        help="text-conditioned envs: draw the captions the policy recorded from its training "
+                             "(a policy trained on few captions follows unseen ones worse) instead of the env's")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -145,6 +148,7 @@ def record(
     frames_png: str | Path | None = None,
     progress_bar: bool = True,
     camera_distance: float = FILM_CAMERA_DISTANCE,
+    policy_captions: bool = False,
 ) -> dict[str, Any]:
     """Render ``policy`` in ``env_id`` to the MP4 ``out``: one episode to its end (``seconds`` None;
     at most :data:`MAX_EPISODE_SECONDS`, then its last frame held :data:`OUTCOME_HOLD_SECONDS` with
@@ -152,8 +156,10 @@ def record(
     (``path``, ``frames``, ``fps``, ``steps``, ``episodes``, ``best_progress`` (None unless the env
     reports InterLevel's ``progress``), ``successes``, ``falls``, ``unstable``, ``outcome`` (how the
     last episode filmed ended, :func:`outcome_of`), ``pngs``, ``policy``: the spec loaded,
-    ``note``: :func:`resolve_policy`'s). ``policy`` None or "pretrained" is resolved by
-    :func:`resolve_policy`. Raises ``ValueError`` for bad arguments."""
+    ``note``: :func:`resolve_policy`'s, ``captions``: the policy's captions drawn, else None). ``policy``
+    None or "pretrained" is resolved by :func:`resolve_policy`. ``policy_captions``: a text-conditioned
+    env draws the captions the policy recorded from its training (``stairenv.pretrained.trained_captions``;
+    the env's own where it recorded none or ``env_kwargs`` name some). Raises ``ValueError`` for bad arguments."""
     import gymnasium as gym
     import imageio.v2 as imageio
     import numpy as np
@@ -161,6 +167,7 @@ def record(
 
     import stairenv  # noqa: F401  (registers the envs, picks EGL without a display)
     from stairenv.policy_loading import load_policy
+    from stairenv.pretrained import NumpyPolicy, trained_captions
 
     if seconds is not None and not (isinstance(seconds, (int, float)) and np.isfinite(seconds)
                                     and 0 < seconds <= 600):
@@ -182,6 +189,11 @@ def record(
     env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}))
     try:
         act = load_policy(policy, env, seed=seed)
+        captions = trained_captions(act) if policy_captions and isinstance(act, NumpyPolicy) else None
+        if captions is not None and "captions" not in (env_kwargs or {}):
+            env.close()
+            env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}),
+                           captions=captions)
         fps = int(env.metadata["render_fps"])
         one_episode = seconds is None
         n_frames = max(1, int(round((MAX_EPISODE_SECONDS if one_episode else seconds) * fps)))
@@ -273,7 +285,8 @@ def record(
             writer.close()
     finally:
         env.close()
-    return {"path": str(out), "frames": written, "fps": fps, "pngs": pngs, "policy": policy, "note": note, **stats}
+    return {"path": str(out), "frames": written, "fps": fps, "pngs": pngs, "policy": policy, "note": note,
+            "captions": captions, **stats}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -296,6 +309,7 @@ def main(argv: list[str] | None = None) -> int:
             frames_png=args.frames_png,
             progress_bar=not args.no_progress,
             camera_distance=args.camera_distance,
+            policy_captions=args.policy_captions,
         )
     except ValueError as error:
         parser.error(str(error))
