@@ -158,6 +158,11 @@ class _Encoder:
     ({"captions": [("neutral",)]}, "captions"),
     ({"captions": [("neutral", 3)]}, "captions"),
     ({"captions": [("neutral", "")]}, "captions"),
+    ({"condition_captions": "walk"}, "condition_captions"),
+    ({"condition_captions": [("happy", "walk"), ("happy", "skip")]}, "condition_captions"),
+    ({"condition_captions": [("happy", "walk")]}, "condition_captions"),  # the other styles have no text
+    ({"condition_captions": [("happy", "walk")], "captions": [("happy", "skips")], "text_conditioned": False},
+     "condition_captions"),
     ({"skill": "sit", "families": ("table",)}, "families"),
     ({"skill": "lie", "families": ("chair",)}, "families"),
     ({"skill": "getup", "getup_from": "lie", "families": ("stool",)}, "families"),
@@ -412,6 +417,9 @@ KINDS = {
         "start_from_front": Examples((False,)),
         # getup starts low: only None (an empty number range) there
         "min_root_height": lambda s: Optional(Number(0.0, 2.0 if s["skill"] != "getup" else 0.0, low_open=True)),
+        # one text for each style of the skill's captions, and only where z is observed
+        "condition_captions": lambda s: Optional(Examples(
+            (sorted({(style, "walk") for style, _ in skill_captions(s["skill"])}),) if s["text_conditioned"] else ())),
     },
 }
 # Tried on every keyword: wrong for most, valid for some (True for a bool, None for an optional, ...).

@@ -141,20 +141,24 @@ def check_text_encoder(text_encoder, text_dim) -> int:
     return _check_text_dim(text_encoder, check_int("text_dim", text_dim, 1, MAX_TEXT_DIM))
 
 
-def check_captions(captions) -> tuple[tuple[str, str], ...]:
-    """``captions``: a non-empty list of (style, caption) pairs of non-empty strings, each style one of
-    SIMS' eight or "neutral" (``WALK_STYLES``)."""
+def check_captions(captions, name: str = "captions") -> tuple[tuple[str, str], ...]:
+    """``captions`` (the keyword ``name``): a non-empty list of (style, caption) pairs of non-empty strings,
+    each style one of SIMS' eight or "neutral" (``WALK_STYLES``)."""
     pairs = captions if isinstance(captions, Sequence) and not isinstance(captions, str) else None
     if pairs is None or not all(isinstance(p, Sequence) and not isinstance(p, str) and len(p) == 2 for p in pairs):
-        raise TypeError(f"captions must be None or a list of (style, caption) pairs, got {captions!r:.80}")
+        raise TypeError(f"{name} must be None or a list of (style, caption) pairs, got {captions!r:.80}")
     if not pairs:
-        raise ValueError("captions must hold at least one (style, caption) pair")
-    checked_ = tuple((check_str("captions (style)", style), check_str("captions (caption)", text))
+        raise ValueError(f"{name} must hold at least one (style, caption) pair")
+    checked_ = tuple((check_str(f"{name} (style)", style), check_str(f"{name} (caption)", text))
                      for style, text in pairs)
     unknown = sorted({style for style, _ in checked_} - set(WALK_STYLES))
     if unknown:  # an unknown style would be drawn silently, at the neutral speed, with no reference to match
-        raise ValueError(f"captions: unknown style(s) {unknown}; the styles are {sorted(WALK_STYLES)}")
+        raise ValueError(f"{name}: unknown style(s) {unknown}; the styles are {sorted(WALK_STYLES)}")
     return checked_
+
+
+def _condition_captions(captions) -> tuple[tuple[str, str], ...]:
+    return check_captions(captions, "condition_captions")
 
 
 # --- the groups ------------------------------------------------------------------------------------
@@ -240,7 +244,7 @@ class SIMSTrainingAids(ReferenceStarts):
                                             "this above the floor (sitting or lying on the floor; seated on a "
                                             "piece it is higher); None = never")
     condition_captions: tuple[tuple[str, str], ...] | None = checked(
-        None, Check("call", call=check_captions, optional=True),
+        None, Check("call", call=_condition_captions, optional=True),
         "text-conditioned: (style, text) pairs, one per style; info['amp_condition'] is then the embedding of "
         "the drawn caption's style's text here (a discriminator's condition), while the observation keeps the "
         "caption's; None = the caption's")
