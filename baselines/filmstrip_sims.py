@@ -36,6 +36,7 @@ from filmstrip_climb import (add_follow_camera_options, film_follow_camera, foll
                              write_combined)
 from stairenv.evaluation.cli import env_kwarg_argument  # noqa: E402
 from stairenv.policy_loading import load_policy  # noqa: E402
+from stairenv.pretrained import with_trained_captions  # noqa: E402
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3], help="one strip each (default: 0 1 2 3)")
     parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
                         help="extra env keyword, repeatable (e.g. a training aid)")
+    parser.add_argument("--policy-captions", action="store_true",
+                        help="draw the captions the policy recorded from its training instead of the env's")
     parser.add_argument("--level", type=int, default=None,
                         help="with start_distance_levels: the curriculum level every episode starts at")
     add_follow_camera_options(parser, every=5, distance=3.5, elevation=-20.0, combined="filmstrips/sims.png")
@@ -86,6 +89,11 @@ def main(argv: list[str] | None = None) -> int:
         env = gym.make(args.env, render_mode="rgb_array", width=args.width, height=args.height, **kwargs)
         env.unwrapped.set_camera(args.elevation, args.distance)
         policy = load_policy(args.policy, env, seed=seed)
+        if args.policy_captions and with_trained_captions(kwargs, policy) is not kwargs:
+            env.close()   # again, drawing the captions the policy trained on
+            env = gym.make(args.env, render_mode="rgb_array", width=args.width, height=args.height,
+                           **with_trained_captions(kwargs, policy))
+            env.unwrapped.set_camera(args.elevation, args.distance)
         if args.level is not None:
             env.unwrapped.curriculum_level = args.level   # before the first reset, which keeps a set level
         images, times, infos = film_follow_camera(env, policy, seed, args.every)

@@ -68,3 +68,23 @@ def test_sims_filmstrip_names_the_aids_endings(baseline_script):
     assert ending_of({"fell": True, "grounded": False}) == "fell"
     assert ending_of({"success": True}) == "succeeded"
     assert ending_of({"grounded": False, "stalled": False}) == "time limit"
+
+
+def test_sims_filmstrip_policy_captions(tmp_path, baseline_script, monkeypatch):
+    """--policy-captions: the env is made again with the captions the policy recorded from its training."""
+    import gymnasium as gym
+    import numpy as np
+
+    from stairenv.pretrained import NumpyPolicy
+
+    size = gym.make("SIMS-Walk-v0", text_encoder="hashing").observation_space.shape[0]
+    path = tmp_path / "walk.npz"
+    NumpyPolicy([np.zeros((28, size))], [np.zeros(28)], np.zeros(size), np.ones(size),
+                config={"training": {"env_kwargs": {"captions": [["sad", "walks slowly to the bed"]]}}}).save(path)
+    module = baseline_script("filmstrip_sims")
+    made, make = [], module.gym.make
+    monkeypatch.setattr(module.gym, "make", lambda *args, **kwargs: (made.append(kwargs), make(*args, **kwargs))[1])
+    assert module.main(["--env", "SIMS-Walk-v0", "--policy", str(path), "--policy-captions", "--seeds", "0",
+                        "--frames", "2", "--every", "50", "--width", "48", "--height", "48",
+                        "--env-kwarg", "text_encoder=hashing", "--combined", str(tmp_path / "walk.png")]) == 0
+    assert "captions" not in made[0] and made[-1]["captions"] == (("sad", "walks slowly to the bed"),)

@@ -114,7 +114,7 @@ def test_policy_captions_draws_the_captions_the_policy_trained_on(tmp_path):
     import gymnasium as gym
     import numpy as np
 
-    from stairenv.pretrained import NumpyPolicy, PolicyFileError, trained_captions
+    from stairenv.pretrained import NumpyPolicy, PolicyFileError, trained_captions, with_trained_captions
 
     env = gym.make("SIMS-Walk-v0", **HASHING).unwrapped
     text = env.observation_structure["text"]
@@ -131,6 +131,9 @@ def test_policy_captions_draws_the_captions_the_policy_trained_on(tmp_path):
     policy = Watching([np.zeros((28, size))], [np.zeros(28)], np.zeros(size), np.ones(size),
                       config={"training": {"env_kwargs": {"captions": trained}}})
     assert trained_captions(policy) == (("sad", "walks slowly to the bed"),)
+    given = {"captions": [("happy", "skips")]}
+    assert with_trained_captions(given, policy) is given
+    assert with_trained_captions({}, policy)["captions"] == (("sad", "walks slowly to the bed"),)
     report = evaluate_skills({"walk": policy}, skills=("walk",), episodes=3, env_kwargs=HASHING, max_episode_steps=3,
                              policy_captions=True)
     assert report.meta["settings"]["policy_captions"] == {"walk": trained}

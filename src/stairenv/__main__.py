@@ -167,7 +167,7 @@ def record(
 
     import stairenv  # noqa: F401  (registers the envs, picks EGL without a display)
     from stairenv.policy_loading import load_policy
-    from stairenv.pretrained import NumpyPolicy, trained_captions
+    from stairenv.pretrained import with_trained_captions
 
     if seconds is not None and not (isinstance(seconds, (int, float)) and np.isfinite(seconds)
                                     and 0 < seconds <= 600):
@@ -189,11 +189,12 @@ def record(
     env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}))
     try:
         act = load_policy(policy, env, seed=seed)
-        captions = trained_captions(act) if policy_captions and isinstance(act, NumpyPolicy) else None
-        if captions is not None and "captions" not in (env_kwargs or {}):
+        captions, given = None, dict(env_kwargs or {})
+        filmed_kwargs = with_trained_captions(given, act) if policy_captions else given
+        if filmed_kwargs is not given:
             env.close()
-            env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}),
-                           captions=captions)
+            env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **filmed_kwargs)
+            captions = filmed_kwargs["captions"]
         fps = int(env.metadata["render_fps"])
         one_episode = seconds is None
         n_frames = max(1, int(round((MAX_EPISODE_SECONDS if one_episode else seconds) * fps)))

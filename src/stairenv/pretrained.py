@@ -129,6 +129,14 @@ def trained_captions(policy: NumpyPolicy, path: str | os.PathLike = "policy") ->
     return tuple((style, caption) for style, caption in captions)
 
 
+def with_trained_captions(env_kwargs: dict[str, Any], policy: Any) -> dict[str, Any]:
+    """``env_kwargs`` with ``captions`` set to those ``policy`` recorded from its training (a text-conditioned
+    env then draws them), or ``env_kwargs`` itself where it names captions already or the policy recorded
+    none (not a :class:`NumpyPolicy`, or trained on the env's own)."""
+    captions = trained_captions(policy) if isinstance(policy, NumpyPolicy) and "captions" not in env_kwargs else None
+    return env_kwargs if captions is None else {**env_kwargs, "captions": captions}
+
+
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     from numpy.lib import format as npy
 

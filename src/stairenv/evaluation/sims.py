@@ -44,7 +44,7 @@ import stairenv  # noqa: F401  (registers the envs)
 from stairenv.evaluation.report import Column, Layout, Report, write_reports
 from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.policy_loading import load_policy, policy_label
-from stairenv.pretrained import NumpyPolicy, trained_captions
+from stairenv.pretrained import with_trained_captions
 from stairenv.screenplays.database import DIFFICULTIES
 from stairenv.stories import KINEMATIC, KinematicStandIn, MachineSettings
 from stairenv.tasks.sims import SKILL_ENV_IDS
@@ -226,11 +226,11 @@ def evaluate_skills(
                     act = load_policy(os.fspath(spec), env, seed=seed)
                 else:
                     act = spec
-                captions = trained_captions(act) if policy_captions and isinstance(act, NumpyPolicy) else None
-                if captions is not None and "captions" not in make_kwargs:
+                skill_kwargs = with_trained_captions(make_kwargs, act) if policy_captions else make_kwargs
+                if skill_kwargs is not make_kwargs:
                     env.close()
-                    env = gym.make(SKILL_ENV_IDS[skill], **make_kwargs, captions=captions)
-                    used_captions[skill] = [list(pair) for pair in captions]
+                    env = gym.make(SKILL_ENV_IDS[skill], **skill_kwargs)
+                    used_captions[skill] = [list(pair) for pair in skill_kwargs["captions"]]
                 results = []
                 for i in range(episodes):
                     results.append(_run_skill_episode(env, act, skill, seed + i, i))
