@@ -142,6 +142,9 @@ def test_policy_captions_draws_the_captions_the_policy_trained_on(tmp_path):
     Watching.texts.clear()
     evaluate_skills({"walk": policy}, skills=("walk",), episodes=3, env_kwargs=HASHING, max_episode_steps=3)
     assert not all(np.allclose(z, expected, atol=1e-6) for z in Watching.texts)
+    for odd in ({"training": {"env_kwargs": "captions"}}, {"training": ["env_kwargs"]}):  # no record: the env's
+        policy.config = odd
+        assert trained_captions(policy) is None
     policy.config = {"training": {"env_kwargs": {"captions": [["sad"]]}}}
     with pytest.raises(PolicyFileError, match="captions"):
         trained_captions(policy)

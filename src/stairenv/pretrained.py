@@ -120,7 +120,8 @@ def trained_captions(policy: NumpyPolicy, path: str | os.PathLike = "policy") ->
     ``training.env_kwargs.captions``), or None where it recorded none (the env's own captions):
     ``PolicyFileError`` if the record is not a list of pairs of strings."""
     training = policy.config.get("training")
-    captions = training.get("env_kwargs", {}).get("captions") if isinstance(training, dict) else None
+    env_kwargs = training.get("env_kwargs") if isinstance(training, dict) else None
+    captions = env_kwargs.get("captions") if isinstance(env_kwargs, dict) else None
     if captions is None:
         return None
     if not (isinstance(captions, list) and captions and all(
