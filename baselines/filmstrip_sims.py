@@ -89,10 +89,10 @@ def main(argv: list[str] | None = None) -> int:
         env = gym.make(args.env, render_mode="rgb_array", width=args.width, height=args.height, **kwargs)
         env.unwrapped.set_camera(args.elevation, args.distance)
         policy = load_policy(args.policy, env, seed=seed)
-        if args.policy_captions and with_trained_captions(kwargs, policy) is not kwargs:
+        filmed_kwargs = with_trained_captions(kwargs, policy) if args.policy_captions else kwargs
+        if filmed_kwargs is not kwargs:
             env.close()   # again, drawing the captions the policy trained on
-            env = gym.make(args.env, render_mode="rgb_array", width=args.width, height=args.height,
-                           **with_trained_captions(kwargs, policy))
+            env = gym.make(args.env, render_mode="rgb_array", width=args.width, height=args.height, **filmed_kwargs)
             env.unwrapped.set_camera(args.elevation, args.distance)
         if args.level is not None:
             env.unwrapped.curriculum_level = args.level   # before the first reset, which keeps a set level

@@ -282,10 +282,6 @@ class SIMSConfig(HumanoidConfig):
             if not self.text.text_conditioned:
                 raise ValueError("condition_captions needs text_conditioned=True (without it the condition is "
                                  "zeros); leave it None")
-            if self.text.captions is not None:
-                missing = sorted({style for style, _ in self.text.captions} - set(styles))
-                if missing:
-                    raise ValueError(f"condition_captions has no text for the captions' style(s) {missing}")
         if aids.min_root_height is not None and skill == "getup":
             raise ValueError("min_root_height does not apply to the getup skill (its episodes start low); "
                              "leave it None")
