@@ -472,3 +472,44 @@ def test_aid_grace_lets_a_crawl_rise_with_its_path():
     assert terminated and info["grounded"] and info["z_off_path"]
     with pytest.raises(ValueError, match="aid_grace"):
         PlaMoEnv(aid_grace=-1.0)
+
+
+def test_pose_imitation_is_deepmimics_pose_reward_against_the_start_clip_played_on():
+    """``pose_reward`` w (training aid): reward_pose = w exp(-2 sum_j (q_ref_j - q_j)^2), q_ref the start
+    clip at its start time plus the episode's time, computed here by hand from the joint angles; it is part of
+    the reward; 0 on a standing start; absent (and the reward unchanged) without the aid."""
+    import math
+    from importlib.resources import files
+
+    crawl = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+
+    def env_with(**keywords):
+        return PlaMoEnv(reference_motion=crawl, matched_starts=False, terrain="flat", locomotion="crawl",
+                        max_xy_error=100.0, **keywords)
+
+    env = env_with(init="reference", pose_reward=1.5)
+    env.reset(seed=4)
+    clip, start_time = env._reference_clip
+    assert clip.name == "dm_crawl"
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        _, reward, _, _, info = env.step(rng.normal(0.0, 0.1, 28))
+        reference = clip.sample(start_time + env._steps * env.dt)[0, 7:]
+        joints = env.data.qpos[env._idx.qpos_joints]
+        expected = 1.5 * math.exp(-2.0 * sum((a - b) ** 2 for a, b in zip(reference, joints)))
+        assert info["reward_pose"] == pytest.approx(expected, rel=1e-12)
+        path_terms = sum(info[name] for name in ("reward_position", "reward_height", "reward_direction", "reward_body"))
+        assert reward == pytest.approx(path_terms + expected, rel=1e-12)
+    env.reset(seed=4)  # the first step after a reference start: near the clip, the term well above 0
+    assert 0.05 < env.step(np.zeros(28))[4]["reward_pose"] <= 1.5
+    standing = env_with(init="default", pose_reward=1.5)
+    standing.reset(seed=4)
+    assert standing.step(np.zeros(28))[4]["reward_pose"] == 0.0
+    plain, aided = env_with(init="reference"), env_with(init="reference", pose_reward=1.5)
+    plain.reset(seed=4), aided.reset(seed=4)
+    _, plain_reward, _, _, plain_info = plain.step(np.zeros(28))
+    _, aided_reward, _, _, aided_info = aided.step(np.zeros(28))
+    assert "reward_pose" not in plain_info
+    assert aided_reward == pytest.approx(plain_reward + aided_info["reward_pose"], rel=1e-12)
+    with pytest.raises(ValueError, match="pose_reward"):
+        PlaMoEnv(pose_reward=-1.0)

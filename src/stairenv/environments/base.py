@@ -191,6 +191,7 @@ class HumanoidEnv(gym.Env):
         self._viewer: HumanViewer | None = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
         self._reference_start = False
+        self._reference_clip = None
         self.model: mujoco.MjModel | None = None
 
     def _compile(self, spec: mujoco.MjSpec) -> None:
@@ -436,10 +437,14 @@ class HumanoidEnv(gym.Env):
         """A reference state ``(qpos (35,), qvel (34,))`` to start from, or None to start standing:
         always with ``init="reference"``, in ``hybrid_fraction`` of the episodes with "hybrid". Drawn
         from ``library`` (a ``MotionLibrary``), by default the env's start clips."""
+        self._reference_clip = None
         if not (self.init == "reference" or (self.init == "hybrid" and rng.uniform() < self.hybrid_fraction)):
             return None
         library = self._library if library is None else library
-        qpos, qvel = library.states(*library.sample(1, rng))
+        clip_ids, times = library.sample(1, rng)
+        qpos, qvel = library.states(clip_ids, times)
+        #: the clip and time the episode started from (a task may imitate the clip on from there)
+        self._reference_clip = (library.clips[int(clip_ids[0])], float(times[0]))
         return qpos[0], qvel[0]
 
     def _place_at(self, xy, heading: float, reference: tuple[np.ndarray, np.ndarray] | None,

@@ -297,6 +297,9 @@ class PlaMoTrainingAids(ReferenceStarts):
     aid_grace: float = checked(0.0, Check("float", 0.0, 10.0),
                                "seconds over which min_root_height and max_z_error judge the lowest head the "
                                "path asked for, so a rise from a crawl has time; 0 = the target of the instant")
+    pose_reward: float = checked(0.0, Check("float", 0.0, 10.0),
+                                 "weight of a pose-imitation term (reward_pose) on reference starts: the start "
+                                 "clip played on from the start frame; 0 = off")
 
 
 @checked_config

@@ -102,6 +102,11 @@ class PlaMoEnv(HumanoidEnv):
     down) and judges the highest head the path asked for over the last ``z_above_grace`` seconds, so a
     segment that drops (walk -> crawl) leaves the character that long to follow it down.
 
+    **Pose imitation** (``pose_reward`` w, a training aid; 0 = off): the reward gains
+    ``reward_pose`` = w exp(-2 sum_j (q_ref_j - q_j)^2) over the joint angles (DeepMimic's pose reward),
+    q_ref the start clip played on from the start frame (0 on a standing start): a character started
+    in a crawl is paid for going on crawling while the path steers it.
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
@@ -138,6 +143,7 @@ class PlaMoEnv(HumanoidEnv):
         self.max_z_error = aids.max_z_error
         self.aid_grace = aids.aid_grace
         self.max_z_above, self.z_above_grace = aids.max_z_above, aids.z_above_grace
+        self.pose_reward = aids.pose_reward
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -338,9 +344,22 @@ class PlaMoEnv(HumanoidEnv):
             if above is not None:  # the training aid: no walking upright where the path asks to crouch or crawl
                 results["z_above_path"] = bool(above)
                 ended = ended or results["z_above_path"]
-            outcomes.append(StepOutcome(obs[k], terms[0] + terms[1] + terms[2] + terms[3],
-                                        dict(zip(task.REWARD_TERMS, terms)), ended, results))
+            reward, named_terms = terms[0] + terms[1] + terms[2] + terms[3], dict(zip(task.REWARD_TERMS, terms))
+            if env.pose_reward:  # the training aid: imitate the start clip, played on from the start frame
+                pose = env._pose_term(state.dof_pos[k])
+                named_terms["reward_pose"] = pose
+                reward += pose
+            outcomes.append(StepOutcome(obs[k], reward, named_terms, ended, results))
         return outcomes
+
+    def _pose_term(self, joints: np.ndarray) -> float:
+        """``pose_reward`` times ``task.pose_imitation_term`` against the start clip at the start time plus
+        the episode's time; 0 on a standing start (no clip to imitate)."""
+        if self._reference_clip is None:
+            return 0.0
+        clip, start_time = self._reference_clip
+        reference = clip.sample(start_time + self._steps * self.dt)[0, 7:]  # a clip row: root (7), joints
+        return self.pose_reward * task.pose_imitation_term(reference, joints)
 
     def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
                          head: np.ndarray) -> tuple[float, float]:

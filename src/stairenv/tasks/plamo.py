@@ -90,6 +90,16 @@ TERMS = (RewardTerm("reward_position", position_term, "w_position"),
 REWARD_TERMS = term_names(TERMS)
 
 
+C_POSE = 2.0  # DeepMimic's pose-reward sharpness
+
+
+def pose_imitation_term(reference_joints: np.ndarray, joints: np.ndarray, c_pose: float = C_POSE) -> float:
+    """A training aid's imitation term, DeepMimic's pose reward on our hinge joints:
+    exp(-c_pose * sum_j (q_ref_j - q_j)^2), the joint angles in rad (a 3-axis joint as its three hinges)."""
+    d = np.asarray(reference_joints, dtype=np.float64) - np.asarray(joints, dtype=np.float64)
+    return math.exp(-c_pose * float(d @ d))
+
+
 def coupled_max_speed(head_height: np.ndarray, z_min: float = Z_MIN, v_max: float = V_MAX) -> np.ndarray:
     """PlaMo's v_max(z) = min(1 + 4 (z - z_min) / (1.2 - z_min), V_max), at least 1 m/s."""
     z = np.asarray(head_height, dtype=np.float64)
