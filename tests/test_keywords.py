@@ -389,7 +389,7 @@ KINDS = {
         "min_root_height": Optional(Number(0.0, 2.0, low_open=True)),
         "max_z_error": Optional(Number(0.0, 10.0, low_open=True)), "aid_grace": Number(0.0, 10.0),
         "max_z_above": Optional(Number(0.0, 10.0, low_open=True)), "z_above_grace": Number(0.0, 10.0),
-        "pose_reward": Number(0.0, 10.0),
+        "pose_reward": Number(0.0, 10.0), "pose_sharpness": Number(0.0, 100.0, low_open=True),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

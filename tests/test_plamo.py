@@ -511,5 +511,15 @@ def test_pose_imitation_is_deepmimics_pose_reward_against_the_start_clip_played_
     _, aided_reward, _, _, aided_info = aided.step(np.zeros(28))
     assert "reward_pose" not in plain_info
     assert aided_reward == pytest.approx(plain_reward + aided_info["reward_pose"], rel=1e-12)
+    soft = env_with(init="reference", pose_reward=1.5, pose_sharpness=0.1)
+    soft.reset(seed=4)
+    soft.step(np.zeros(28))
+    _, _, _, _, info = soft.step(np.zeros(28))
+    clip, start_time = soft._reference_clip
+    reference = clip.sample(start_time + soft._steps * soft.dt)[0, 7:]
+    squared = float(np.sum((reference - soft.data.qpos[soft._idx.qpos_joints]) ** 2))
+    assert info["reward_pose"] == pytest.approx(1.5 * math.exp(-0.1 * squared), rel=1e-12)
     with pytest.raises(ValueError, match="pose_reward"):
         PlaMoEnv(pose_reward=-1.0)
+    with pytest.raises(ValueError, match="pose_sharpness"):
+        PlaMoEnv(pose_sharpness=0.0)

@@ -300,6 +300,9 @@ class PlaMoTrainingAids(ReferenceStarts):
     pose_reward: float = checked(0.0, Check("float", 0.0, 10.0),
                                  "weight of a pose-imitation term (reward_pose) on reference starts: the start "
                                  "clip played on from the start frame; 0 = off")
+    pose_sharpness: float = checked(2.0, Check("float", 0.0, 100.0, low_open=True),
+                                    "k of reward_pose = pose_reward exp(-k sum_j (q_ref_j - q_j)^2) (rad^-2; "
+                                    "DeepMimic's 2)")
 
 
 @checked_config

@@ -103,7 +103,8 @@ class PlaMoEnv(HumanoidEnv):
     segment that drops (walk -> crawl) leaves the character that long to follow it down.
 
     **Pose imitation** (``pose_reward`` w, a training aid; 0 = off): the reward gains
-    ``reward_pose`` = w exp(-2 sum_j (q_ref_j - q_j)^2) over the joint angles (DeepMimic's pose reward),
+    ``reward_pose`` = w exp(-k sum_j (q_ref_j - q_j)^2) over the 28 joint angles (DeepMimic's pose reward;
+    k = ``pose_sharpness``, DeepMimic's 2 by default),
     q_ref the start clip played on from the start frame (0 on a standing start): a character started
     in a crawl is paid for going on crawling while the path steers it.
 
@@ -143,7 +144,7 @@ class PlaMoEnv(HumanoidEnv):
         self.max_z_error = aids.max_z_error
         self.aid_grace = aids.aid_grace
         self.max_z_above, self.z_above_grace = aids.max_z_above, aids.z_above_grace
-        self.pose_reward = aids.pose_reward
+        self.pose_reward, self.pose_sharpness = aids.pose_reward, aids.pose_sharpness
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         if self.locomotion is not None:
@@ -359,7 +360,7 @@ class PlaMoEnv(HumanoidEnv):
             return 0.0
         clip, start_time = self._reference_clip
         reference = clip.sample(start_time + self._steps * self.dt)[0, 7:]  # a clip row: root (7), joints
-        return self.pose_reward * task.pose_imitation_term(reference, joints)
+        return self.pose_reward * task.pose_imitation_term(reference, joints, self.pose_sharpness)
 
     def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
                          head: np.ndarray) -> tuple[float, float]:
