@@ -12,22 +12,21 @@ path; PPO (``train_ppo.py --init-from OUT``) then has to steer the crawl along i
 
     python baselines/distill_crawl.py --template /work/runs/p18_16m_std2.pt --out runs/crawl_distilled.pt
 
-Iteration i executes the teacher's action with probability ``0.5 ** i`` (else the student's), plus
-Gaussian noise (``--action-noise``); the student is fitted on all the data so far (mean squared error).
+The DAgger loop is ``stairenv.training.dagger``'s, shared with ``distill_walk.py``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from stairenv.training.config import TrainConfig
-from stairenv.training.ppo import ActorCritic, Normalizer, make_env, read_checkpoint
+from stairenv.training.dagger import Student, dagger
+from stairenv.training.ppo import make_env, read_checkpoint
 
 #: the crawl-only env: every path a crawl, every start a crawl frame, the paths at the paper's speeds
 CRAWL_KWARGS = {"locomotion": "crawl", "init": "reference", "matched_starts": True, "speed_levels": 0}
@@ -69,55 +68,28 @@ def main(argv: list[str] | None = None) -> int:
     worlds = [env.unwrapped for env in venv.envs]
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
-    model = ActorCritic(venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
-                        tuple(config.hidden), config.log_std_init)
-    model.load_state_dict(template["model"])
-    normalizer = Normalizer(model.policy_net[0].in_features, args.n_envs, config.gamma, config.clip_obs,
-                            config.clip_reward)
-    normalizer.obs_rms.load(template["obs_rms"])       # fixed: the run goes on with the template's statistics
-    optimizer = torch.optim.Adam(list(model.policy_net.parameters()) + list(model.action_mean.parameters()),
-                                 lr=args.learning_rate)
-
-    def student(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            x = torch.as_tensor(normalizer.observations(obs, update=False))
-            return model.action_mean(model.policy_net(x)).numpy().astype(np.float64)
-
-    inputs, labels = [], []
+    student = Student(template, config, venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
+                      args.n_envs, args.learning_rate)
     obs, _ = venv.reset(seed=args.seed)
-    for iteration in range(args.iterations):
-        begun = time.perf_counter()
-        beta = 0.5 ** iteration
-        episodes = falls = 0
-        pelvis = []
-        for _ in range(args.steps):
-            label = np.stack([playback_action(env) for env in worlds])
-            inputs.append(normalizer.observations(obs, update=False))
-            labels.append(label.astype(np.float32))
-            act = label if beta == 1.0 else np.where(rng.uniform(size=(len(obs), 1)) < beta, label, student(obs))
-            act = np.clip(act + args.action_noise * rng.standard_normal(act.shape), -1.0, 1.0)
-            obs, _, terminated, truncated, infos, _ = venv.step_worlds(act, reset_ended=True)
-            pelvis.append(np.mean(obs[:, 0]))
-            done = terminated | truncated
-            episodes += int(done.sum())
-            falls += sum(bool(infos[i].get("fell")) for i in np.flatnonzero(done))
-        x, y = torch.as_tensor(np.concatenate(inputs)), torch.as_tensor(np.concatenate(labels))
-        losses = []
-        for _ in range(args.epochs):
-            for batch in torch.randperm(len(x)).split(1024):
-                loss = torch.mean((model.action_mean(model.policy_net(x[batch])) - y[batch]) ** 2)
-                optimizer.zero_grad()
-                loss.backward()
-                optimizer.step()
-                losses.append(loss.item())
-        print(f"iteration {iteration}: teacher share {beta:.2f}, {len(x):,} samples, episodes ended {episodes} "
-              f"(fell {falls}), mean root height {np.mean(pelvis):.2f} m, fit loss {np.mean(losses[-20:]):.4f}, "
-              f"{time.perf_counter() - begun:.0f} s", flush=True)
+    root_heights, ended = [], {"episodes": 0, "fell": 0}
+
+    def after_step(obs: np.ndarray, done: np.ndarray, infos: list) -> None:
+        root_heights.append(np.mean(obs[:, 0]))
+        ended["episodes"] += int(done.sum())
+        ended["fell"] += sum(bool(infos[i].get("fell")) for i in np.flatnonzero(done))
+
+    def after_iteration(iteration: int, beta: float, samples: int, loss: float, seconds: float) -> None:
+        print(f"iteration {iteration}: teacher share {beta:.2f}, {samples:,} samples, episodes ended "
+              f"{ended['episodes']} (fell {ended['fell']}), mean root height {np.mean(root_heights):.2f} m, "
+              f"fit loss {loss:.4f}, {seconds:.0f} s", flush=True)
+        root_heights.clear()
+        ended.update(dict.fromkeys(ended, 0))
+
+    dagger(venv, obs, student, lambda obs: np.stack([playback_action(env) for env in worlds]),
+           iterations=args.iterations, steps=args.steps, epochs=args.epochs, action_noise=args.action_noise, rng=rng,
+           after_step=after_step, after_iteration=after_iteration)
     venv.close()
-    state = dict(template)
-    state["model"] = {k: v.detach().clone() for k, v in model.state_dict().items()}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(state, args.out)
+    student.save(template, args.out)
     print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
     return 0
 

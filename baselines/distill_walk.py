@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +36,8 @@ from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_SIZE as CLIMBER_OBS_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_STRUCTURE as CLIMBER
 from stairenv.training.config import TrainConfig
-from stairenv.training.ppo import ActorCritic, Normalizer, make_env, read_checkpoint
+from stairenv.training.dagger import Student, dagger
+from stairenv.training.ppo import make_env, read_checkpoint
 
 #: the training aid that shortens goals at the curriculum's first levels: the data should cover 1-5 m
 LEFT_OUT_AIDS = ("start_distance_levels",)
@@ -103,60 +103,34 @@ def main(argv: list[str] | None = None) -> int:
     structure = venv.envs[0].unwrapped.observation_structure
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
-    model = ActorCritic(venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
-                        tuple(config.hidden), config.log_std_init)
-    model.load_state_dict(template["model"])
-    normalizer = Normalizer(model.policy_net[0].in_features, args.n_envs, config.gamma, config.clip_obs,
-                            config.clip_reward)
-    normalizer.obs_rms.load(template["obs_rms"])       # fixed: the run goes on with the template's statistics
-    actor = list(model.policy_net.parameters()) + list(model.action_mean.parameters())
-    optimizer = torch.optim.Adam(actor, lr=args.learning_rate)
-
-    def student(obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            x = torch.as_tensor(normalizer.observations(obs, update=False))
-            return model.action_mean(model.policy_net(x)).numpy().astype(np.float64)
-
-    inputs, labels = [], []
+    student = Student(template, config, venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
+                      args.n_envs, args.learning_rate)
     obs, _ = venv.reset(seed=args.seed)
-    start = ground_distance(obs, structure)
-    for iteration in range(args.iterations):
-        begun = time.perf_counter()
-        beta = 0.5 ** iteration
-        successes = falls = grounded = episodes = 0
-        for _ in range(args.steps):
-            label = np.clip(teacher(climber_view(obs, structure, start)), -1.0, 1.0)
-            inputs.append(normalizer.observations(obs, update=False))
-            labels.append(label.astype(np.float32))
-            act = label if beta == 1.0 else np.where(rng.uniform(size=(len(obs), 1)) < beta, label, student(obs))
-            act = np.clip(act + args.action_noise * rng.standard_normal(act.shape), -1.0, 1.0)
-            # SAME_STEP autoreset: an ended world's row is already its next episode's first observation
-            obs, _, terminated, truncated, infos, _ = venv.step_worlds(act, reset_ended=True)
-            done = terminated | truncated
-            if done.any():
-                ended = [infos[i] for i in np.flatnonzero(done)]
-                episodes += len(ended)
-                successes += sum(bool(info.get("success")) for info in ended)
-                falls += sum(bool(info.get("fell")) for info in ended)
-                grounded += sum(bool(info.get("grounded")) for info in ended)
-                start = np.where(done, ground_distance(obs, structure), start)
-        x, y = torch.as_tensor(np.concatenate(inputs)), torch.as_tensor(np.concatenate(labels))
-        losses = []
-        for _ in range(args.epochs):
-            for batch in torch.randperm(len(x)).split(1024):
-                loss = torch.mean((model.action_mean(model.policy_net(x[batch])) - y[batch]) ** 2)
-                optimizer.zero_grad()
-                loss.backward()
-                optimizer.step()
-                losses.append(loss.item())
-        print(f"iteration {iteration}: teacher share {beta:.2f}, {len(x):,} samples, episodes ended {episodes} "
-              f"(success {successes}, fell {falls}, grounded {grounded}), fit loss {np.mean(losses[-20:]):.4f}, "
-              f"{time.perf_counter() - begun:.0f} s", flush=True)
+    start = ground_distance(obs, structure)    # each world's goal distance when its episode began
+    ended = {"episodes": 0, "success": 0, "fell": 0, "grounded": 0}
+
+    def label(obs: np.ndarray) -> np.ndarray:
+        return np.clip(teacher(climber_view(obs, structure, start)), -1.0, 1.0)
+
+    def after_step(obs: np.ndarray, done: np.ndarray, infos: list) -> None:
+        nonlocal start
+        if done.any():
+            infos = [infos[i] for i in np.flatnonzero(done)]
+            ended["episodes"] += len(infos)
+            for key in ("success", "fell", "grounded"):
+                ended[key] += sum(bool(info.get(key)) for info in infos)
+            start = np.where(done, ground_distance(obs, structure), start)
+
+    def after_iteration(iteration: int, beta: float, samples: int, loss: float, seconds: float) -> None:
+        print(f"iteration {iteration}: teacher share {beta:.2f}, {samples:,} samples, episodes ended "
+              f"{ended['episodes']} (success {ended['success']}, fell {ended['fell']}, grounded {ended['grounded']}), "
+              f"fit loss {loss:.4f}, {seconds:.0f} s", flush=True)
+        ended.update(dict.fromkeys(ended, 0))
+
+    dagger(venv, obs, student, label, iterations=args.iterations, steps=args.steps, epochs=args.epochs,
+           action_noise=args.action_noise, rng=rng, after_step=after_step, after_iteration=after_iteration)
     venv.close()
-    state = dict(template)
-    state["model"] = {k: v.detach().clone() for k, v in model.state_dict().items()}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(state, args.out)
+    student.save(template, args.out)
     print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
     return 0
 

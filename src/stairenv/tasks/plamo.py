@@ -90,12 +90,10 @@ TERMS = (RewardTerm("reward_position", position_term, "w_position"),
 REWARD_TERMS = term_names(TERMS)
 
 
-C_POSE = 2.0  # DeepMimic's pose-reward sharpness
-
-
-def pose_imitation_term(reference_joints: np.ndarray, joints: np.ndarray, c_pose: float = C_POSE) -> float:
+def pose_imitation_term(reference_joints: np.ndarray, joints: np.ndarray, c_pose: float) -> float:
     """A training aid's imitation term, DeepMimic's pose reward on our hinge joints:
-    exp(-c_pose * sum_j (q_ref_j - q_j)^2), the joint angles in rad (a 3-axis joint as its three hinges)."""
+    exp(-c_pose * sum_j (q_ref_j - q_j)^2), the joint angles in rad (a 3-axis joint as its three hinges);
+    c_pose is the env's ``pose_sharpness`` (DeepMimic's 2 by default)."""
     d = np.asarray(reference_joints, dtype=np.float64) - np.asarray(joints, dtype=np.float64)
     return math.exp(-c_pose * float(d @ d))
 
