@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     dagger(venv, obs, student, label, iterations=args.iterations, steps=args.steps, epochs=args.epochs,
            action_noise=args.action_noise, rng=rng, after_step=after_step, after_iteration=after_iteration)
     venv.close()
-    student.save(template, args.out)
+    student.save(args.out)
     print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
     return 0
 

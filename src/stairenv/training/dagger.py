@@ -26,6 +26,7 @@ class Student:
 
     def __init__(self, template: dict, config: TrainConfig, obs_size: int, action_size: int, num_envs: int,
                  learning_rate: float) -> None:
+        self.template = template
         self.model = ActorCritic(obs_size, action_size, tuple(config.hidden), config.log_std_init)
         self.model.load_state_dict(template["model"])
         self.normalizer = Normalizer(self.model.policy_net[0].in_features, num_envs, config.gamma, config.clip_obs,
@@ -57,9 +58,9 @@ class Student:
                 losses.append(loss.item())
         return float(np.mean(losses[-20:]))
 
-    def save(self, template: dict, out: Path) -> None:
+    def save(self, out: Path) -> None:
         """The template's checkpoint with this actor (and the rest of the template's model) to ``out``."""
-        state = dict(template)
+        state = dict(self.template)
         state["model"] = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
         out.parent.mkdir(parents=True, exist_ok=True)
         torch.save(state, out)
