@@ -385,7 +385,7 @@ KINDS = {
         "terrain_size": Number(2.0, 200.0), "terrain_cell_size": Number(0.01, 1.0),
         "heightmap_size": Number(1, 128, integer=True), "heightmap_extent": Number(0.1, 10.0),
         "max_xy_error": Number(0.0, 100.0, low_open=True), "min_head_height": UNIT, "matched_starts": Bool(),
-        "speed_levels": Number(0, 100, integer=True), "constant_paths": Bool(),
+        "speed_levels": Number(0, 100, integer=True), "speed_levels_by_locomotion": Bool(), "constant_paths": Bool(),
         "min_root_height": Optional(Number(0.0, 2.0, low_open=True)),
         "max_z_error": Optional(Number(0.0, 10.0, low_open=True)), "aid_grace": Number(0.0, 10.0),
         "max_z_above": Optional(Number(0.0, 10.0, low_open=True)), "z_above_grace": Number(0.0, 10.0),

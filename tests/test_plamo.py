@@ -279,6 +279,57 @@ def test_speed_levels_off_leaves_the_paper_paths():
         PlaMoEnv(speed_levels="4")
 
 
+def test_speed_curriculum_per_locomotion_scales_each_sample_and_judges_the_locomotions_asked_for():
+    from stairenv.planning.locomotion import locomotion_labels
+
+    env = PlaMoEnv(speed_levels=4, speed_levels_by_locomotion=True, episode_seconds=3.0, max_xy_error=100.0,
+                   min_head_height=0.0, terrain="flat")
+    env.reset(seed=3)
+    names = env.curriculum_level_names
+    assert names == ("crawl", "crouch-walk", "walk", "run", "sprint") and env.curriculum_level == (0,) * 5
+    assert env.episode_path_config() is env.path_config     # no per-world scale
+    env.curriculum_level = (3, 0, 3, 1, 0)                  # crawl and walk at the paper's speeds
+    env.reset(options={"episode_cut": True})
+    assert env.curriculum_level == (3, 0, 3, 1, 0)
+    scale = np.array([1.0, 0.25, 1.0, 0.5, 0.25])[env._speed_labels]
+    drawn = env.path.speed / scale                          # the speeds before scaling
+    assert np.all(drawn <= task.coupled_max_speed(env.path.head) + 1e-9)
+    np.testing.assert_array_equal(env._speed_labels, locomotion_labels(env.path.head, drawn, names))
+    assert len(set(env._speed_labels.tolist())) >= 2        # (this seed's path asks for several)
+    # a success: up every locomotion the episode asked for, the others stay
+    asked = set(env._speed_labels[:env.path.index(3.0) + 1].tolist())
+    _run(env, round(3.0 / env.dt))
+    env.reset()
+    assert env.curriculum_level == tuple(min(k + 1, 3) if i in asked else k
+                                         for i, k in enumerate((3, 0, 3, 1, 0)))
+    # an early end before half the episode: down only the locomotion asked for when it ended
+    before = env.curriculum_level = (2, 2, 2, 2, 2)
+    env.reset(options={"episode_cut": True})
+    env.max_xy_error = 1e-6
+    env.step(np.zeros(28))
+    ended_on = int(env._speed_labels[env.path.index(env.dt)])
+    env.reset()
+    assert env.curriculum_level == tuple(k - 1 if i == ended_on else k for i, k in enumerate(before))
+
+
+def test_per_locomotion_levels_are_checked_and_a_world_level_counts_for_every_locomotion():
+    env = PlaMoEnv(speed_levels=3, speed_levels_by_locomotion=True)
+    env.curriculum_level = 2
+    assert env.curriculum_level == (2,) * 5
+    env.curriculum_level = [0, 1, 2, 2, 1]                   # as a saved JSON gives it back
+    assert env.curriculum_level == (0, 1, 2, 2, 1)
+    with pytest.raises(ValueError, match="5 ints"):
+        env.curriculum_level = (1, 2)
+    with pytest.raises(ValueError, match="one level per world"):
+        PlaMoEnv(speed_levels=3).curriculum_level = (1, 1, 1, 1, 1)
+    # without speed_levels the keyword does nothing: one level per world, none at all
+    plain = PlaMoEnv(speed_levels_by_locomotion=True)
+    plain.reset(seed=0)
+    assert plain.curriculum_level is None and plain.curriculum_level_names is None
+    with pytest.raises(TypeError, match="speed_levels_by_locomotion"):
+        PlaMoEnv(speed_levels_by_locomotion="yes")
+
+
 def test_speed_curriculum_levels_in_the_batched_env():
     venv = gym.make_vec("PlaMo-v0", num_envs=3, vectorization_mode="vector_entry_point", speed_levels=5)
     venv.reset(seed=0)

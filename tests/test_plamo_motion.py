@@ -219,6 +219,20 @@ def test_nearest_locomotion():
         nearest_locomotion(1.0, 1.0, ())
 
 
+
+def test_locomotion_labels_are_nearest_locomotion_for_every_sample():
+    from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
+
+    rng = np.random.default_rng(0)
+    head, speed = rng.uniform(0.2, 1.6, 3000), rng.uniform(0.0, 5.5, 3000)
+    head[:20], speed[:20] = 0.6, 2.0           # ties: crawl and crouch-walk equally near; walk and run both hold 2
+    head[20:40], speed[20:40] = 1.47, 4.0
+    for names in (list(LOCOMOTIONS), ["walk", "crawl"]):
+        labels = locomotion_labels(head, speed, names)
+        assert [names[k] for k in labels] == [nearest_locomotion(h, v, names) for h, v in zip(head, speed)]
+    with pytest.raises(ValueError, match="at least one"):
+        locomotion_labels(head, speed, [])
+
 def test_matched_starts_begin_in_the_paths_opening_locomotion():
     import gymnasium as gym
 

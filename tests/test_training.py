@@ -3,6 +3,7 @@ mirrors (normalisers, GAE, networks), its checkpoints, and ``train_ppo.py`` runn
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import subprocess
@@ -356,6 +357,39 @@ def test_a_checkpoint_cut_is_not_judged_by_the_curriculum():
         env.step(np.zeros(28))
     env.reset(seed=1)    # a 3-step floor-start episode far below half the stairs: down a level
     assert env.curriculum_level == 1
+
+
+def test_per_locomotion_speed_levels_are_logged_checkpointed_and_restored(tmp_path):
+    """PlaMo's ``speed_levels_by_locomotion``: each locomotion's mean level is logged, a checkpoint keeps
+    every world's tuple, a run with it takes them back; a per-world level is taken for every locomotion,
+    and a run with one level per world does not take tuples."""
+    from stairenv.training import make_env
+    from stairenv.training.ppo import RunLog
+
+    per_kind = {"speed_levels": 3, "speed_levels_by_locomotion": True}
+    config = TrainConfig(env_id="PlaMo-v0", env_kwargs=per_kind, num_envs=2, physics="serial", style="none",
+                         rollout_steps=8, minibatch_size=8, epochs=1, total_steps=16, checkpoint_every=16)
+    trainer = Trainer(config, None, make_env(config))
+    trainer.learn(log=RunLog(tmp_path), checkpoint_dir=tmp_path)
+    logged = json.loads((tmp_path / "log.jsonl").read_text().splitlines()[-1])
+    assert {"curriculum/level_crawl", "curriculum/level_walk", "curriculum/level_sprint"} <= set(logged)
+    state = read_checkpoint(tmp_path / "checkpoint_16.pt")
+    assert all(len(level) == 5 for level in state["curriculum_level"])
+    trainer.close()
+    state["curriculum_level"] = [(2, 1, 0, 1, 2), (0, 0, 2, 2, 1)]
+    again = Trainer(config, None, make_env(config))
+    again.load_state(state, weights_only=True)
+    assert again.curriculum_levels() == [(2, 1, 0, 1, 2), (0, 0, 2, 2, 1)]
+    again.load_state({**state, "curriculum_level": [1, 2], "config": {"env_kwargs": {"speed_levels": 3}}},
+                     weights_only=True)
+    assert again.curriculum_levels() == [(1,) * 5, (2,) * 5]
+    again.close()
+    per_world = config.replace(env_kwargs={"speed_levels": 3})
+    plain = Trainer(per_world, None, make_env(per_world))
+    plain.venv.reset(seed=0)
+    plain.load_state(state, weights_only=True)                 # tuples do not fit one level per world
+    assert plain.curriculum_levels() == [0, 0]
+    plain.close()
 
 
 # --- the device option ------------------------------------------------------------------------------

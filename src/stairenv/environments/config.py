@@ -279,6 +279,9 @@ class PlaMoTrainingAids(ReferenceStarts):
                                    "locomotion (acts only with reference starts)")
     speed_levels: int = checked(0, Check("int", 0, 100),
                                 "levels of a success-driven curriculum scaling path speeds by (k + 1) / N; 0 = off")
+    speed_levels_by_locomotion: bool = checked(
+        False, Check("bool"), "with speed_levels: a level per locomotion type in each world, each path sample's "
+        "speed scaled by its locomotion's level, instead of one level per world")
     min_root_height: float | None = checked(
         None, Check("float", 0.0, 2.0, low_open=True, optional=True),
         "pelvis height above the terrain that ends an episode while the path asks for more than a crawl; "

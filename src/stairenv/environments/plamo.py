@@ -17,7 +17,7 @@ from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TER
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
-from stairenv.planning.locomotion import LOCOMOTIONS, nearest_locomotion
+from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
 from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
@@ -81,6 +81,12 @@ class PlaMoEnv(HumanoidEnv):
     lasted ``episode_seconds`` without ending early (success), down one when it ended early before
     half of them (``stairenv.tasks.curriculum.next_growing_level``); an episode cut by the trainer
     (``reset(options={"episode_cut": True})``) is not judged. Trainers log and checkpoint the level.
+    With ``speed_levels_by_locomotion`` a world holds a level per locomotion type instead
+    (``curriculum_level`` is a tuple in the order of ``curriculum_level_names``, the rows of
+    ``planning.locomotion.LOCOMOTIONS``): each path sample's speed is scaled by the level of the
+    locomotion its drawn head height and speed ask for (``nearest_locomotion``, before scaling); a
+    success moves up every locomotion the episode asked for, an early end before half the episode moves
+    down the one asked for when it ended. So walking reaches the paper's speeds while crawling stays slow.
 
     **Grounded termination** (``min_root_height``, a training aid; None = off): an episode also ends
     (``info["grounded"]``, present only with the aid) when the pelvis is less than ``min_root_height``
@@ -140,13 +146,17 @@ class PlaMoEnv(HumanoidEnv):
         self.matched_starts = aids.matched_starts
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         self.speed_levels = aids.speed_levels
+        self.speed_levels_by_locomotion = bool(aids.speed_levels and aids.speed_levels_by_locomotion)
+        #: what each entry of a per-locomotion ``curriculum_level`` is the level of (None: one level per world)
+        self.curriculum_level_names = tuple(LOCOMOTIONS) if self.speed_levels_by_locomotion else None
+        self._speed_labels: np.ndarray | None = None   # the path samples' locomotions (indices into the names)
         self.min_root_height = aids.min_root_height
         self.max_z_error = aids.max_z_error
         self.aid_grace = aids.aid_grace
         self.max_z_above, self.z_above_grace = aids.max_z_above, aids.z_above_grace
         self.pose_reward, self.pose_sharpness = aids.pose_reward, aids.pose_sharpness
         #: this world's level of the speed curriculum (None until the first reset draws it)
-        self.curriculum_level: int | None = None
+        self.curriculum_level = None
         if self.locomotion is not None:
             path_config = task.PathConfig(head_range=self.locomotion.head_range,
                                           speed_range=self.locomotion.speed_range)
@@ -216,6 +226,27 @@ class PlaMoEnv(HumanoidEnv):
         if self._starts_by_locomotion is None:  # (matched starts drew it before placing the character)
             self._draw_path(rng)
 
+    @property
+    def curriculum_level(self) -> int | tuple[int, ...] | None:
+        """This world's speed-curriculum level: an int, a tuple of ints (one per ``curriculum_level_names``)
+        with ``speed_levels_by_locomotion``, or None before the first reset."""
+        return self._curriculum_level
+
+    @curriculum_level.setter
+    def curriculum_level(self, level) -> None:
+        # a trainer's saved levels: an int (a per-locomotion world takes it for every locomotion), or a
+        # sequence of ints, one per locomotion (JSON gives it back as a list)
+        if level is None or not self.curriculum_level_names:
+            if level is not None and not isinstance(level, (int, np.integer)):
+                raise ValueError(f"curriculum_level must be an int (one level per world), got {level!r}")
+            self._curriculum_level = None if level is None else int(level)
+            return
+        names = self.curriculum_level_names
+        levels = (level,) * len(names) if isinstance(level, (int, np.integer)) else tuple(level)
+        if len(levels) != len(names) or not all(isinstance(k, (int, np.integer)) for k in levels):
+            raise ValueError(f"curriculum_level must be an int or {len(names)} ints (one per {names}), got {level!r}")
+        self._curriculum_level = tuple(min(max(int(k), 0), self.speed_levels - 1) for k in levels)
+
     def _judge_speed_level(self, judge_last: bool) -> None:
         """The speed curriculum's level: 0 at the first reset, then moved by the outcome of the episode
         that just ended, if it took a step and ``judge_last`` (reset has not yet cleared ``_steps``)."""
@@ -227,21 +258,39 @@ class PlaMoEnv(HumanoidEnv):
             return
         progress = steps * self.dt / self.episode_seconds
         success = not self._outcome.terminated and progress >= 1.0 - 1e-9
-        self.curriculum_level = curriculum.next_growing_level(self.curriculum_level, self.speed_levels,
-                                                              success, progress)
+        if not self.speed_levels_by_locomotion:
+            self.curriculum_level = curriculum.next_growing_level(self.curriculum_level, self.speed_levels,
+                                                                  success, progress)
+            return
+        # a success: up every locomotion the episode asked for; an early end: the one asked for at the end
+        asked = self._speed_labels[:self.path.index(steps * self.dt) + 1]
+        judged = set(asked.tolist()) if success else {int(asked[-1])}
+        self.curriculum_level = tuple(
+            curriculum.next_growing_level(level, self.speed_levels, success, progress) if k in judged else level
+            for k, level in enumerate(self.curriculum_level))
 
     def episode_path_config(self) -> task.PathConfig:
-        """``path_config``, its speeds scaled to this world's speed-curriculum level when there is one."""
-        if not self.speed_levels or self.curriculum_level is None:
+        """``path_config``, its speeds scaled to this world's speed-curriculum level when there is one
+        (per locomotion, ``_locomotion_speed_scales`` scales them instead)."""
+        if not self.speed_levels or self.curriculum_level is None or self.speed_levels_by_locomotion:
             return self.path_config
         return dataclasses.replace(self.path_config,
                                    speed_scale=(self.curriculum_level + 1) / self.speed_levels)
 
+    def _locomotion_speed_scales(self, head: np.ndarray, speed: np.ndarray) -> np.ndarray:
+        """Each path sample's speed factor: (level + 1) / N of the locomotion its drawn head height and
+        speed ask for (kept in ``_speed_labels`` for judging the episode)."""
+        self._speed_labels = locomotion_labels(head, speed, self.curriculum_level_names)
+        scales = (np.asarray(self.curriculum_level, dtype=np.float64) + 1.0) / self.speed_levels
+        return scales[self._speed_labels]
+
     def _draw_path(self, rng: np.random.Generator) -> None:
         start, heading = self._start
+        by_locomotion = self.speed_levels_by_locomotion and self.curriculum_level is not None
         self.path = task.random_head_path(
             self.episode_path_config(), rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
             self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
+            scale_speeds=self._locomotion_speed_scales if by_locomotion else None,
         )
 
     def _group_starts(self) -> dict[str, MotionLibrary] | None:

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Locomotion:
@@ -95,3 +97,26 @@ def nearest_locomotion(head_height: float, speed: float, names=None) -> str:
                 max(loc.speed_min - speed, 0.0, speed - loc.speed_max))
 
     return min(names, key=cost)
+
+
+def locomotion_labels(head_height: np.ndarray, speed: np.ndarray, names=None) -> np.ndarray:
+    """``nearest_locomotion`` of every (head height, speed) pair at once: indices into ``names`` (default
+    all, in the table's order), the same choice and tie-breaks as the scalar form."""
+    names = list(LOCOMOTIONS) if names is None else [get_locomotion(n).name for n in names]
+    if not names:
+        raise ValueError("locomotion_labels needs at least one locomotion to choose from")
+    head_height, speed = np.broadcast_arrays(np.asarray(head_height, dtype=np.float64),
+                                             np.asarray(speed, dtype=np.float64))
+    labels = np.zeros(head_height.shape, dtype=np.intp)
+    best_head = best_speed = None
+    for i, name in enumerate(names):
+        loc = LOCOMOTIONS[name]
+        head_cost = np.round(np.abs(loc.head_height - head_height), 9)
+        speed_cost = np.maximum(np.maximum(loc.speed_min - speed, 0.0), speed - loc.speed_max)
+        if best_head is None:
+            best_head, best_speed = head_cost, speed_cost
+            continue
+        better = (head_cost < best_head) | ((head_cost == best_head) & (speed_cost < best_speed))
+        labels[better] = i
+        best_head, best_speed = np.where(better, head_cost, best_head), np.where(better, speed_cost, best_speed)
+    return labels

@@ -46,6 +46,8 @@ def initial_level(levels: int, rng: np.random.Generator) -> int:
 #: Env keywords that turn on a level curriculum (their worlds hold ``curriculum_level``): what a trainer
 #: logs as ``curriculum/level`` and saves with its checkpoints.
 LEVEL_KEYWORDS = ("step_height_levels", "start_distance_levels", "speed_levels")
+#: Env keywords that make a world's level a tuple (one per kind, e.g. per locomotion) instead of an int.
+PER_KIND_KEYWORDS = ("speed_levels_by_locomotion",)
 
 
 def growing_range(level: int, levels: int, low: float, high: float) -> tuple[float, float]:

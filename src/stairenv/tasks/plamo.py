@@ -171,11 +171,14 @@ def _smooth_levels(rng: np.random.Generator, times: np.ndarray, config: PathConf
 
 
 def random_head_path(config: PathConfig, rng: np.random.Generator, duration: float, start_xy: np.ndarray,
-                     start_yaw: float, ground_height, arena_half: float | None = None) -> PathSamples:
+                     start_yaw: float, ground_height, arena_half: float | None = None,
+                     scale_speeds=None) -> PathSamples:
     """A random head path of ``duration`` seconds from ``start_xy`` (pure given rng).
 
     ``ground_height(xy (T, 2)) -> (T,)`` gives the terrain under the path; paths turn back
     before leaving ``arena_half`` (a square of that half size around the origin).
+    ``scale_speeds(head (T,), speed (T,)) -> (T,)``, if given, is each sample's speed factor from the
+    drawn head heights and speeds (a per-locomotion speed curriculum), applied with ``speed_scale``.
     """
     times = np.arange(int(math.ceil(duration / config.dt)) + 1) * config.dt
     head = _smooth_levels(rng, times, config, lambda prev: rng.uniform(*config.head_range))
@@ -186,6 +189,8 @@ def random_head_path(config: PathConfig, rng: np.random.Generator, duration: flo
         fraction = _smooth_levels(rng, times, config, lambda prev: rng.uniform())
         cap = coupled_max_speed(head) if config.coupled else np.full_like(head, V_MAX)
         speed = fraction * cap
+    if scale_speeds is not None:
+        speed = speed * scale_speeds(head, speed)
     speed = speed * config.speed_scale  # (x * 1.0 is x: the default paths are unchanged to the bit)
     turn = _smooth_levels(rng, times, config, lambda prev: rng.uniform(-1, 1) * config.max_turn_rate)
     xy = np.empty((len(times), 2))

@@ -440,6 +440,10 @@ class Trainer:
             levels = [level for level in self.all_curriculum_levels() if level is not None]
             if levels:
                 stats["curriculum/level"] = float(np.mean(levels))
+                names = self.venv.get_attr("curriculum_level_names")[0] if np.ndim(levels[0]) else None
+                if names:    # a level per locomotion (PlaMo's speed_levels_by_locomotion): each one's mean
+                    means = np.mean(levels, axis=0)
+                    stats.update({f"curriculum/level_{name}": float(m) for name, m in zip(names, means)})
             stats.update(self.episodes.means(self.parallel))
             stats["time/steps_per_second"] = (self.steps - start_steps) / (time.perf_counter() - start)
             if log is not None:
@@ -570,7 +574,11 @@ class Trainer:
                     disc.noise_generator.set_state(generators[self.parallel.rank]["noise_rng"])
         saved_kwargs = (state.get("config") or {}).get("env_kwargs") or {}
         same_curriculum = [k for k in curriculum.LEVEL_KEYWORDS if self.config.env_kwargs.get(k)] == [
-            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]
+            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]    # (a per-world level given to a
+        # per-locomotion world counts for every locomotion; the other way round it does not fit: not taken)
+        if any(np.ndim(level) for level in state.get("curriculum_level") or []) and not any(
+                self.config.env_kwargs.get(k) for k in curriculum.PER_KIND_KEYWORDS):
+            same_curriculum = False
         if state.get("curriculum_level") and self.curriculum_levels() and same_curriculum:
             levels = list(state["curriculum_level"])    # every world's, when both runs have a curriculum
             n, p = self.config.num_envs, self.parallel

@@ -124,8 +124,11 @@ def restore_curriculum(venv, path: Path) -> list[int | None]:
     """Give each world its saved level; ``SystemExit`` naming the file when it does not fit this run."""
     try:
         levels = json.loads(path.read_text())["curriculum_level"]
-        if not isinstance(levels, list) or not all(level is None or type(level) is int for level in levels):
-            raise ValueError("curriculum_level must be a list of integers")
+        if not isinstance(levels, list) or not all(
+                level is None or type(level) is int
+                or (isinstance(level, list) and all(type(k) is int for k in level)) for level in levels):
+            raise ValueError("curriculum_level must be a list of integers (or of lists of integers: a level "
+                             "per locomotion)")
     except (OSError, ValueError, KeyError, TypeError) as err:
         raise SystemExit(f"--resume: cannot read the curriculum state {path} ({err})") from None
     if len(levels) != venv.num_envs:
