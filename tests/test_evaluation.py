@@ -135,6 +135,9 @@ def test_parse_env_kwarg():
     assert parse_env_kwarg("step_height_set=(0.1, 0.2)") == ("step_height_set", (0.1, 0.2))
     assert parse_env_kwarg("pd_gains=stiff") == ("pd_gains", "stiff")
     assert parse_env_kwarg("progress_scaling=False") == ("progress_scaling", False)
+    assert parse_env_kwarg("matched_starts=true") == ("matched_starts", True)    # as TOML writes it
+    assert parse_env_kwarg("speed_levels_by_locomotion=FALSE") == ("speed_levels_by_locomotion", False)
+    assert parse_env_kwarg("min_root_height=none") == ("min_root_height", None)
     with pytest.raises(ValueError, match="key=value"):
         parse_env_kwarg("oops")
 

@@ -7,13 +7,17 @@ from typing import Any
 
 def parse_env_kwarg(text: str) -> tuple[str, Any]:
     """A command-line ``key=value`` -> ``(key, value)``, the value parsed by
-    ``ast.literal_eval`` (numbers, tuples, True/None...) or else kept as a string."""
+    ``ast.literal_eval`` (numbers, tuples, True/None...) or else kept as a string; ``true``, ``false``
+    and ``none`` as the recipes' TOML writes them (any case) are True, False and None."""
     import ast
 
     key, sep, raw = text.partition("=")
     key = key.strip()
     if not sep or not key.isidentifier():
         raise ValueError(f"env kwarg must look like key=value (e.g. pd_gains=stiff), got {text!r}")
+    spelled = {"true": True, "false": False, "none": None}.get(raw.strip().lower(), raw)
+    if spelled is not raw:
+        return key, spelled
     try:
         value = ast.literal_eval(raw.strip())
     except (ValueError, SyntaxError, MemoryError, RecursionError):
