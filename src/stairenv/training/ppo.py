@@ -574,8 +574,9 @@ class Trainer:
                     disc.noise_generator.set_state(generators[self.parallel.rank]["noise_rng"])
         saved_kwargs = (state.get("config") or {}).get("env_kwargs") or {}
         same_curriculum = [k for k in curriculum.LEVEL_KEYWORDS if self.config.env_kwargs.get(k)] == [
-            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]    # (a per-world level given to a
-        # per-locomotion world counts for every locomotion; the other way round it does not fit: not taken)
+            k for k in curriculum.LEVEL_KEYWORDS if saved_kwargs.get(k)]
+        # a world's saved level given to a per-locomotion world counts for every locomotion; saved
+        # per-locomotion levels do not fit a run with one level per world: not taken
         if any(np.ndim(level) for level in state.get("curriculum_level") or []) and not any(
                 self.config.env_kwargs.get(k) for k in curriculum.PER_KIND_KEYWORDS):
             same_curriculum = False
