@@ -5,6 +5,10 @@ from __future__ import annotations
 from typing import Any
 
 
+#: the recipes' TOML spellings of True, False and None
+TOML_WORDS = {"true": True, "false": False, "none": None}
+
+
 def parse_env_kwarg(text: str) -> tuple[str, Any]:
     """A command-line ``key=value`` -> ``(key, value)``, the value parsed by
     ``ast.literal_eval`` (numbers, tuples, True/None...) or else kept as a string; ``true``, ``false``
@@ -15,9 +19,8 @@ def parse_env_kwarg(text: str) -> tuple[str, Any]:
     key = key.strip()
     if not sep or not key.isidentifier():
         raise ValueError(f"env kwarg must look like key=value (e.g. pd_gains=stiff), got {text!r}")
-    spelled = {"true": True, "false": False, "none": None}.get(raw.strip().lower(), raw)
-    if spelled is not raw:
-        return key, spelled
+    if raw.strip().lower() in TOML_WORDS:
+        return key, TOML_WORDS[raw.strip().lower()]
     try:
         value = ast.literal_eval(raw.strip())
     except (ValueError, SyntaxError, MemoryError, RecursionError):

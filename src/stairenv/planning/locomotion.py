@@ -88,23 +88,16 @@ def nearest_locomotion(head_height: float, speed: float, names=None) -> str:
     whose speed range holds ``speed``, or is nearest to it. E.g. 0.5 m -> crawl, 0.9 m -> crouch-walk,
     1.3 m at 1 m/s -> walk, at 3 m/s -> run."""
     names = list(LOCOMOTIONS) if names is None else [get_locomotion(n).name for n in names]
-    if not names:
-        raise ValueError("nearest_locomotion needs at least one locomotion to choose from")
-
-    def cost(name: str) -> tuple[float, float]:
-        loc = LOCOMOTIONS[name]
-        return (round(abs(loc.head_height - head_height), 9),
-                max(loc.speed_min - speed, 0.0, speed - loc.speed_max))
-
-    return min(names, key=cost)
+    return names[int(locomotion_labels(head_height, speed, names))]
 
 
 def locomotion_labels(head_height: np.ndarray, speed: np.ndarray, names=None) -> np.ndarray:
     """``nearest_locomotion`` of every (head height, speed) pair at once: indices into ``names`` (default
-    all, in the table's order), the same choice and tie-breaks as the scalar form."""
+    all, in the table's order). Ties go to the earlier name; head costs are rounded to 1e-9 so that
+    locomotions sharing a nominal height tie exactly."""
     names = list(LOCOMOTIONS) if names is None else [get_locomotion(n).name for n in names]
     if not names:
-        raise ValueError("locomotion_labels needs at least one locomotion to choose from")
+        raise ValueError("nearest_locomotion needs at least one locomotion to choose from")
     head_height, speed = np.broadcast_arrays(np.asarray(head_height, dtype=np.float64),
                                              np.asarray(speed, dtype=np.float64))
     labels = np.zeros(head_height.shape, dtype=np.intp)
