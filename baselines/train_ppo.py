@@ -18,7 +18,8 @@ Two trainers run the same algorithm with the same flags. ``--trainer lean`` (the
 ``stairenv.training.ppo.Trainer.learn``; the run's whole resolved ``TrainConfig`` is saved in every
 checkpoint, one ``checkpoint_<n>.pt`` holding policy, optimiser, normalisers, discriminator, curriculum
 levels, step counter and generators, read without running code, ``replay_<n>.npy`` beside the latest;
-``--resume`` continues exactly; ``final_policy.npz`` is the numpy policy ``stairenv.pretrained`` loads).
+the last step is always a checkpoint; ``--resume`` continues exactly, from it or ``final_checkpoint.pt``;
+``final_policy.npz`` is the numpy policy ``stairenv.pretrained`` loads).
 ``--trainer sb3``: Stable-Baselines3 PPO with VecNormalize and the AMP wrapper (the files below).
 Under ``torchrun`` (``--nproc-per-node P``, ``--nnodes N --rdzv-backend c10d --rdzv-endpoint HOST:PORT``
 across machines) the lean trainer runs data-parallel (``stairenv.training.distributed``): each rank its

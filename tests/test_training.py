@@ -344,6 +344,32 @@ def test_resume_equals_an_uninterrupted_run(tmp_path):
     resumed.close()
 
 
+def test_the_last_step_is_a_checkpoint_and_a_final_checkpoint_finds_its_replay(tmp_path):
+    """A run whose length is not a multiple of ``checkpoint_every`` still ends with a checkpoint (and its
+    replay buffer), and ``final_checkpoint.pt`` beside ``checkpoints/`` resumes with that replay buffer."""
+    trainer = amp_trainer(SMALL_AMP.replace(total_steps=48))    # rounds of 16: checkpoints at 32 and 48
+    trainer.learn(checkpoint_dir=tmp_path / "checkpoints")
+    assert (tmp_path / "checkpoints" / "checkpoint_32.pt").exists()
+    assert (tmp_path / "checkpoints" / "checkpoint_48.pt").exists()
+    assert (tmp_path / "checkpoints" / "replay_48.npy").exists()
+    trainer.save(tmp_path / "final_checkpoint.pt")    # as train_ppo.py ends a run
+    saved = trainer.style.replay
+    last, final = (read_checkpoint(tmp_path / name) for name in ("checkpoints/checkpoint_48.pt", "final_checkpoint.pt"))
+    assert final["steps"] == last["steps"] == 48
+    for key in last["model"]:
+        assert torch.equal(last["model"][key], final["model"][key])
+    resumed = amp_trainer(SMALL_AMP.replace(total_steps=48))
+    resumed.load_state(final)
+    assert resumed.load_replay(tmp_path / "final_checkpoint.pt", final)
+    assert resumed.style.replay.size == saved.size and resumed.style.replay.next == saved.next
+    np.testing.assert_array_equal(resumed.style.replay.data[:saved.size], saved.data[:saved.size])
+    (tmp_path / "checkpoints" / "replay_48.npy").unlink()    # none anywhere: the buffer refills
+    fresh = amp_trainer(SMALL_AMP.replace(total_steps=48))
+    assert not fresh.load_replay(tmp_path / "final_checkpoint.pt", final)
+    for t in (trainer, resumed, fresh):
+        t.close()
+
+
 def test_a_checkpoint_cut_is_not_judged_by_the_curriculum():
     """The worlds' episodes cut at a checkpoint keep their curriculum levels (a task-ended one moves them)."""
     env = gym.make("InterLevel-v0", step_height_levels=4).unwrapped

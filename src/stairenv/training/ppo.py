@@ -420,10 +420,11 @@ class Trainer:
 
     # --- the loop ---------------------------------------------------------------------------------
     def learn(self, log: "RunLog | None" = None, checkpoint_dir: Path | None = None) -> None:
-        """Train until ``config.total_steps`` env steps; a checkpoint every ``checkpoint_every`` steps."""
+        """Train until ``config.total_steps`` env steps; a checkpoint every ``checkpoint_every`` steps and
+        at the last."""
         cfg = self.config
         next_checkpoint = (self.steps // cfg.checkpoint_every + 1) * cfg.checkpoint_every
-        start_steps, start = self.steps, time.perf_counter()
+        start_steps, start, saved_at = self.steps, time.perf_counter(), None
         while self.steps < cfg.total_steps:
             clock, cpu = time.perf_counter(), time.process_time()
             stats = self.collect()
@@ -451,6 +452,11 @@ class Trainer:
             if checkpoint_dir is not None and self.steps >= next_checkpoint:
                 self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
                 next_checkpoint += cfg.checkpoint_every
+                saved_at = self.steps
+        # the run's last step is a checkpoint too, so that it resumes exactly, replay buffer and all (decided
+        # from the step count, not the files, so that every data-parallel rank takes part)
+        if checkpoint_dir is not None and start_steps < self.steps != saved_at:
+            self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
 
     def checkpoint(self, path: Path) -> Path:
         """A checkpoint that resumes exactly: every world starts a new episode here (their episodes end
@@ -596,12 +602,16 @@ class Trainer:
 
 
     def load_replay(self, path: Path, state: dict[str, Any]) -> bool:
-        """Refill the style's replay buffer from ``replay_<steps>.npy`` beside checkpoint ``path`` (read
-        without pickles); False when there is none (the buffer then refills within a round)."""
+        """Refill the style's replay buffer from ``replay_<steps>.npy`` beside checkpoint ``path``, or in
+        ``checkpoints/`` beside it (a run's ``final_checkpoint.pt``), read without pickles; False when there
+        is none (the buffer then refills within a round)."""
         if self.style is None or state.get("style") is None:
             return False
         saved_ranks = int(state.get("world_size", 1))    # rank r takes saved rank r's (r mod their count)
         file = replay_beside(path, int(state["steps"]), self.parallel.rank % saved_ranks)
+        if not file.is_file():    # a run's final_checkpoint.pt: its last checkpoint's, same steps, in checkpoints/
+            file = replay_beside(Path(path).parent / "checkpoints" / Path(path).name, int(state["steps"]),
+                                 self.parallel.rank % saved_ranks)
         if not file.is_file():
             return False
         try:
