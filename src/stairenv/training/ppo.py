@@ -424,7 +424,7 @@ class Trainer:
         at the last."""
         cfg = self.config
         next_checkpoint = (self.steps // cfg.checkpoint_every + 1) * cfg.checkpoint_every
-        start_steps, start, saved_at = self.steps, time.perf_counter(), None
+        start_steps, start = self.steps, time.perf_counter()
         while self.steps < cfg.total_steps:
             clock, cpu = time.perf_counter(), time.process_time()
             stats = self.collect()
@@ -449,14 +449,11 @@ class Trainer:
             stats["time/steps_per_second"] = (self.steps - start_steps) / (time.perf_counter() - start)
             if log is not None:
                 log.write(self.steps, stats)
-            if checkpoint_dir is not None and self.steps >= next_checkpoint:
+            # the run's last step is a checkpoint too, so that it resumes exactly, replay buffer and all
+            last = self.steps >= cfg.total_steps
+            if checkpoint_dir is not None and (self.steps >= next_checkpoint or last):
                 self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
                 next_checkpoint += cfg.checkpoint_every
-                saved_at = self.steps
-        # the run's last step is a checkpoint too, so that it resumes exactly, replay buffer and all (decided
-        # from the step count, not the files, so that every data-parallel rank takes part)
-        if checkpoint_dir is not None and start_steps < self.steps != saved_at:
-            self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
 
     def checkpoint(self, path: Path) -> Path:
         """A checkpoint that resumes exactly: every world starts a new episode here (their episodes end
@@ -608,11 +605,11 @@ class Trainer:
         if self.style is None or state.get("style") is None:
             return False
         saved_ranks = int(state.get("world_size", 1))    # rank r takes saved rank r's (r mod their count)
-        file = replay_beside(path, int(state["steps"]), self.parallel.rank % saved_ranks)
-        if not file.is_file():    # a run's final_checkpoint.pt: its last checkpoint's, same steps, in checkpoints/
-            file = replay_beside(Path(path).parent / "checkpoints" / Path(path).name, int(state["steps"]),
-                                 self.parallel.rank % saved_ranks)
-        if not file.is_file():
+        path, steps, rank = Path(path), int(state["steps"]), self.parallel.rank % saved_ranks
+        # beside the checkpoint, or (a run's final_checkpoint.pt) beside its last checkpoint, same steps
+        candidates = [replay_beside(p, steps, rank) for p in (path, path.parent / "checkpoints" / path.name)]
+        file = next((f for f in candidates if f.is_file()), None)
+        if file is None:
             return False
         try:
             windows = np.load(file, allow_pickle=False, mmap_mode="r")
