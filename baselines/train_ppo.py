@@ -27,7 +27,8 @@ own ``--n-envs`` worlds (world j of rank r seeded as world ``r x n_envs + j`` of
 averaged, statistics merged, ``--timesteps`` counting every rank's steps, rank 0 printing, logging,
 checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count (exact with the same);
 ``--device cuda``: the lean trainer's networks, rollout, PPO and AMP updates on the GPU, the envs on the host;
-under torchrun each rank on ``cuda:LOCAL_RANK``, nccl beside gloo.
+under torchrun local rank r takes the node's GPU ``r mod GPUs`` for its networks (``--device cuda``) and its
+physics (``--physics warp``), so several ranks may share one GPU (nccl beside gloo where each has its own).
 ``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU

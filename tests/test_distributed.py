@@ -120,3 +120,47 @@ def test_train_ppo_under_torchrun_checkpoints_and_resumes_with_two_ranks_and_one
     assert "at 64 steps" in out and "written by 2 ranks, going on with 1" in out and "trained 32 env steps" in out
     final = torch.load(tmp_path / "InterLevel-v0" / "seed0" / "final_checkpoint.pt", weights_only=True)
     assert final["world_size"] == 1
+
+
+# --- which GPU and which backend a rank takes (no GPU needed: torch.cuda and the process group faked) -------
+@pytest.mark.parametrize("ranks_on_node, gpus, device, backend, rank_gpus", [
+    (2, 2, "cuda", "nccl", [0, 1]),          # a GPU each
+    (4, 1, "cuda", "gloo", [0, 0, 0, 0]),    # four ranks share one GPU: NCCL would refuse them
+    (3, 2, "cuda", "gloo", [0, 1, 0]),
+    (2, 2, "cpu", "gloo", [0, 1]),           # networks on the CPU, each rank's Warp physics on its own GPU
+    (2, 0, "cpu", "gloo", [None, None]),     # no GPU: gloo, Warp's own choice (its CPU device)
+])
+def test_each_rank_takes_a_gpu_in_turn_and_nccl_only_where_ranks_have_their_own(monkeypatch, ranks_on_node, gpus,
+                                                                                device, backend, rank_gpus):
+    from stairenv.training import distributed
+    chosen = {}
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: gpus > 0)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: gpus)
+    monkeypatch.setattr(torch.cuda, "set_device", lambda gpu: chosen.__setitem__("set_device", gpu))
+    monkeypatch.setattr(dist, "is_initialized", lambda: False)
+    monkeypatch.setattr(dist, "init_process_group", lambda backend: chosen.__setitem__("backend", backend))
+    monkeypatch.setattr(dist, "new_group", lambda backend: f"{backend} group")
+    monkeypatch.setattr(dist, "get_world_size", lambda: ranks_on_node)
+    for local_rank, gpu in enumerate(rank_gpus):
+        chosen.clear()
+        monkeypatch.setattr(dist, "get_rank", lambda: local_rank)
+        monkeypatch.setenv("WORLD_SIZE", str(ranks_on_node))
+        monkeypatch.setenv("LOCAL_WORLD_SIZE", str(ranks_on_node))
+        monkeypatch.setenv("LOCAL_RANK", str(local_rank))
+        rank = distributed.DataParallel.from_environment(device)
+        assert chosen["backend"] == backend
+        assert rank.physics_device == (None if gpu is None else f"cuda:{gpu}")
+        assert rank.for_thread().physics_device == rank.physics_device
+        if device == "cuda":
+            assert chosen["set_device"] == gpu and rank.device == torch.device("cuda", gpu)
+        else:
+            assert "set_device" not in chosen and rank.device == torch.device("cpu")
+
+
+def test_networks_on_cuda_without_a_gpu_are_refused(monkeypatch):
+    from stairenv.training import distributed
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    monkeypatch.setenv("LOCAL_RANK", "0")
+    with pytest.raises(RuntimeError, match="torch sees no GPU"):
+        distributed.DataParallel.from_environment("cuda")

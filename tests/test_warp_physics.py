@@ -54,6 +54,17 @@ def test_physics_threads_sizes_the_pool():
         batched(1, physics="gpu")
 
 
+def test_physics_device_is_for_warp_only():
+    """``physics_device`` places the Warp back-end; the C back-ends run on the host, so it is refused there
+    (before any world is built), as is a device that is not a name."""
+    with pytest.raises(ValueError, match="physics_device='cuda:0' is for physics='warp' only"):
+        batched(1, physics_device="cuda:0")
+    with pytest.raises(ValueError, match="physics_device"):
+        batched(1, physics=ThreadPoolPhysics(1), physics_device="cpu")
+    with pytest.raises(TypeError, match="physics_device must be None or a device name"):
+        batched(1, physics="warp", physics_device=0)
+
+
 def test_a_replicated_env_equals_a_freshly_built_one():
     """``replicate`` (how a device back-end's batched env makes its worlds): its own model and data, and
     the same episodes as an env built anew."""
@@ -258,3 +269,24 @@ def test_the_lean_trainer_runs_on_warp_physics():
     stats = trainer.update()
     assert all(np.isfinite(v) for v in stats.values())
     trainer.venv.close()
+
+
+@warp_only
+def test_a_ranks_physics_runs_on_its_own_device():
+    """A data-parallel rank hands the trainer its GPU (``physics_device``, ``cuda:r`` under torchrun), and
+    the Warp back-end is built there: here the CPU device, where Warp would otherwise take its first GPU."""
+    from stairenv.training import Trainer, TrainConfig
+    from stairenv.training.distributed import Local
+
+    class Rank(Local):
+        physics_device = "cpu"
+
+    config = TrainConfig(num_envs=2, physics="warp", rollout_steps=4, minibatch_size=8, epochs=1, style="none",
+                         total_steps=8)
+    trainer = Trainer(config, parallel=Rank())
+    assert trainer.venv.physics.device.alias == "cpu"
+    trainer.collect()
+    trainer.venv.close()
+    vec = batched(1, physics="warp", physics_device="cpu")
+    assert vec.physics.device.alias == "cpu"
+    vec.close()

@@ -150,10 +150,13 @@ class ThreadPoolPhysics:
 PHYSICS_BACKENDS = ("mujoco", "threads", "serial", "warp")
 
 
-def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = None) -> BatchPhysics:
+def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = None,
+                 device: str | None = None) -> BatchPhysics:
     """A back-end by name (``PHYSICS_BACKENDS``) or an object that already implements ``BatchPhysics``.
     ``nthread``: the threads of the "mujoco" pool (default ``os.cpu_count()``); the other back-ends
-    take none."""
+    take none. ``device``: the Warp device of "warp" ("cuda:1", "cpu"; default Warp's first GPU, else its
+    CPU device; a data-parallel rank passes its own GPU); the C back-ends run on the host only."""
+    check_physics_device(backend, device)
     if not isinstance(backend, str):
         return backend
     if backend not in PHYSICS_BACKENDS:
@@ -162,5 +165,17 @@ def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = N
         raise ValueError(f"physics_threads must be None or a positive integer, got {nthread!r}")
     if backend == "warp":
         from stairenv.environments.warp_physics import WarpPhysics
-        return WarpPhysics()
+        return WarpPhysics(device=device)
     return ThreadPoolPhysics(nthread) if backend in ("mujoco", "threads") else SerialPhysics()
+
+
+def check_physics_device(backend: str | BatchPhysics, device: str | None) -> None:
+    """``physics_device``: None, or a device name with ``physics="warp"`` (the C back-ends run on the host,
+    a ``BatchPhysics`` object has its device already)."""
+    if device is None:
+        return
+    if not isinstance(device, str) or not device:
+        raise TypeError(f"physics_device must be None or a device name such as 'cuda:0', got {device!r}")
+    if backend != "warp":
+        raise ValueError(f"physics_device={device!r} is for physics='warp' only; physics={backend!r} chooses "
+                         "its own device")

@@ -58,7 +58,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from stairenv.environments.base import NUMERIC_KINDS, HumanoidEnv
-from stairenv.environments.batch_physics import BatchPhysics, make_physics
+from stairenv.environments.batch_physics import BatchPhysics, check_physics_device, make_physics
 
 
 class HumanoidVectorEnv(gym.vector.VectorEnv):
@@ -68,7 +68,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     "serial" (one core), "warp" (MuJoCo Warp on a GPU: ``warp_physics``; InterLevel ids only, others
     refused with a ``ValueError`` saying why) or a ``BatchPhysics``; ``physics_threads``: the pool's
     threads (default ``os.cpu_count()``; ``nthread`` is its older name); ``max_episode_steps``: the
-    truncation limit (None: none);
+    truncation limit (None: none); ``physics_device``: where "warp" runs ("cuda:1", "cpu"; default Warp's
+    first GPU; a data-parallel rank of the trainer passes its own);
     ``batch_outcomes``: the task's step outcomes over the batch in one call (default: where the env class can;
     ``batch_evaluation`` is its older name, deprecated).
     """
@@ -77,7 +78,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
                  max_episode_steps: int | None = None, physics: str | BatchPhysics = "mujoco",
-                 physics_threads: int | None = None, nthread: int | None = None,
+                 physics_threads: int | None = None, nthread: int | None = None, physics_device: str | None = None,
                  batch_outcomes: bool | None = None, batch_evaluation: bool | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
@@ -105,6 +106,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                                  f"batch_evaluation={batch_evaluation!r} differ")
             batch_outcomes = batch_evaluation if batch_outcomes is None else batch_outcomes
         device = physics == "warp" or hasattr(physics, "bind")
+        check_physics_device(physics, physics_device)    # before any world is built
         if device:    # refused before any world is built
             from stairenv.environments.warp_physics import check_supported
             check_supported(env_class)
@@ -122,7 +124,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(first.action_space, self.num_envs)
         self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = first.render_mode
-        self.physics = make_physics(physics, physics_threads)
+        self.physics = make_physics(physics, physics_threads, physics_device)
         if hasattr(self.physics, "bind"):    # a device back-end: every world's model and data, once
             self.physics.bind([(env.model, env.data) for env in self.envs])
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)

@@ -33,6 +33,8 @@ class Local:
     """One process: rank 0 of 1; every collective returns its input."""
 
     rank, world_size = 0, 1
+    #: the device of a GPU physics back-end (``physics="warp"``): None, Warp's own choice (its first GPU)
+    physics_device: str | None = None
 
     def moments(self, mean, var, count):
         return mean, var, count
@@ -65,6 +67,18 @@ class Local:
 LOCAL = Local()
 
 
+def rank_gpu(local_rank: int, gpus: int) -> int | None:
+    """The GPU of local rank ``local_rank`` on a node with ``gpus`` GPUs (None without one): a GPU each
+    while there are enough, then shared in turn (8 ranks on 2 GPUs: 0, 1, 0, 1, ...)."""
+    return local_rank % gpus if gpus > 0 else None
+
+
+def process_group_backend(on_gpu: bool, ranks_on_node: int, gpus: int) -> str:
+    """nccl for networks on GPUs where each of the node's ranks has a GPU of its own, else gloo (NCCL
+    refuses two ranks on one GPU; the trainer's collectives use a gloo group in any case)."""
+    return "nccl" if on_gpu and 0 < ranks_on_node <= gpus else "gloo"
+
+
 def _in_place_on_host(tensor: torch.Tensor, collective) -> None:
     """``collective(t)`` writing into ``tensor``: the groups are gloo (host memory), so a tensor on
     another device goes through a host copy and back."""
@@ -82,36 +96,47 @@ class DataParallel(Local):
     and the gradients' all-reduce after each backward pass make large)."""
 
     def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None,
-                 owns_process_group: bool = False) -> None:
+                 owns_process_group: bool = False, physics_device: str | None = None) -> None:
         self.rank, self.world_size, self.local_rank, self.device = rank, world_size, local_rank, device
         self.group = group
         self.owns_process_group = owns_process_group
+        self.physics_device = physics_device
 
     @classmethod
     def from_environment(cls, device: str = "cpu") -> "DataParallel | None":
         """Join the run torchrun started this process in (None without torchrun's ``WORLD_SIZE``, or with
         one process: that is a plain run, computing exactly what ``python`` alone would).
-        Backend: nccl with ``device="cuda"`` (this rank takes ``cuda:LOCAL_RANK``), else gloo; the
-        collectives go through a gloo group either way (device tensors as host copies)."""
+        GPUs: local rank r takes the node's GPU ``r mod (GPUs)`` (``rank_gpu``) for its networks with
+        ``device="cuda"`` and for its physics with ``physics="warp"`` (``physics_device``), so several ranks
+        may share a GPU (each rank's task runs on a core of its own). Backend: nccl with ``device="cuda"``
+        where every rank of the node has a GPU of its own (NCCL refuses two ranks on one GPU), else gloo;
+        the collectives go through a gloo group either way (device tensors as host copies)."""
         if int(os.environ.get("WORLD_SIZE", "1")) < 2:
             return None
         local_rank = int(os.environ.get("LOCAL_RANK", 0))
+        ranks_on_node = int(os.environ.get("LOCAL_WORLD_SIZE", os.environ["WORLD_SIZE"]))
+        gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
         on_gpu = str(device).startswith("cuda")
+        if on_gpu and gpus == 0:
+            raise RuntimeError(f"device={device!r} but torch sees no GPU on this node")
+        gpu = rank_gpu(local_rank, gpus)
         if on_gpu:
-            torch.cuda.set_device(local_rank)
+            torch.cuda.set_device(gpu)
         owns = not dist.is_initialized()    # else the caller's process group, which close() leaves open
         if owns:
-            dist.init_process_group(backend="nccl" if on_gpu else "gloo")
+            dist.init_process_group(backend=process_group_backend(on_gpu, ranks_on_node, gpus))
         group = dist.new_group(backend="gloo") if on_gpu else None
         return cls(dist.get_rank(), dist.get_world_size(), local_rank,
-                   torch.device("cuda", local_rank) if on_gpu else torch.device("cpu"), group, owns)
+                   torch.device("cuda", gpu) if on_gpu else torch.device("cpu"), group, owns,
+                   physics_device=None if gpu is None else f"cuda:{gpu}")
 
     def for_thread(self) -> "DataParallel":
         """The same ranks over a group of their own, for collectives issued from another thread (the
         discriminator's background training): collectives of one group must come in the same order on
         every rank, which two threads sharing a group would not keep. Every rank must call this,
         in the same order."""
-        return DataParallel(self.rank, self.world_size, self.local_rank, self.device, dist.new_group(backend="gloo"))
+        return DataParallel(self.rank, self.world_size, self.local_rank, self.device, dist.new_group(backend="gloo"),
+                            physics_device=self.physics_device)
 
     def close(self) -> None:
         """Leave the run (when ``from_environment`` joined it)."""

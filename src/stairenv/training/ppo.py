@@ -275,7 +275,7 @@ class Trainer:
         if config.torch_threads is not None:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        self.venv = venv if venv is not None else make_env(config)
+        self.venv = venv if venv is not None else make_env(config, parallel.physics_device)
         obs_size = self.venv.single_observation_space.shape[0]
         action_size = self.venv.single_action_space.shape[0]
         self.action_low = self.venv.single_action_space.low.astype(np.float32)
@@ -677,11 +677,15 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
 
 
 # --- building a run --------------------------------------------------------------------------------
-def make_env(config: TrainConfig) -> HumanoidVectorEnv:
-    """The batched env of ``config`` (SAME_STEP autoreset; the registration's episode limit)."""
+def make_env(config: TrainConfig, physics_device: str | None = None) -> HumanoidVectorEnv:
+    """The batched env of ``config`` (SAME_STEP autoreset; the registration's episode limit).
+    ``physics_device``: where ``physics="warp"`` runs (a data-parallel rank's own GPU; None: Warp's first
+    GPU); ignored by the C back-ends, which run on the host."""
     kwargs = dict(config.env_kwargs)
     if config.style == "amp":
         kwargs.setdefault("amp_history", config.amp_history)
+    if config.physics == "warp" and physics_device is not None:
+        kwargs["physics_device"] = physics_device
     venv = gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
                         physics=config.physics, physics_threads=config.physics_threads, **kwargs)
     if not isinstance(venv, HumanoidVectorEnv):
