@@ -272,11 +272,22 @@ def test_the_lean_trainer_runs_on_warp_physics():
 
 
 @warp_only
-def test_a_ranks_physics_runs_on_its_own_device():
+def test_a_ranks_physics_runs_on_its_own_device(monkeypatch):
     """A data-parallel rank hands the trainer its GPU (``physics_device``, ``cuda:r`` under torchrun), and
-    the Warp back-end is built there: here the CPU device, where Warp would otherwise take its first GPU."""
+    the Warp back-end is built there (here the CPU device, named: the devices asked for are recorded, since
+    on a machine without a GPU Warp's own default is the CPU too); a plain process leaves Warp its default."""
+    from stairenv.environments import warp_physics
     from stairenv.training import Trainer, TrainConfig
-    from stairenv.training.distributed import Local
+    from stairenv.training.distributed import LOCAL, Local
+
+    asked = []
+    build = warp_physics.WarpPhysics.__init__
+
+    def recording(self, device=None, **kwargs):
+        asked.append(device)
+        build(self, device=device, **kwargs)
+
+    monkeypatch.setattr(warp_physics.WarpPhysics, "__init__", recording)
 
     class Rank(Local):
         physics_device = "cpu"
@@ -284,9 +295,10 @@ def test_a_ranks_physics_runs_on_its_own_device():
     config = TrainConfig(num_envs=2, physics="warp", rollout_steps=4, minibatch_size=8, epochs=1, style="none",
                          total_steps=8)
     trainer = Trainer(config, parallel=Rank())
-    assert trainer.venv.physics.device.alias == "cpu"
+    assert asked == ["cpu"] and trainer.venv.physics.device.alias == "cpu"
     trainer.collect()
     trainer.venv.close()
-    vec = batched(1, physics="warp", physics_device="cpu")
-    assert vec.physics.device.alias == "cpu"
-    vec.close()
+    Trainer(config, parallel=LOCAL).venv.close()
+    assert asked == ["cpu", None]
+    batched(1, physics="warp", physics_device="cpu").close()
+    assert asked == ["cpu", None, "cpu"]
