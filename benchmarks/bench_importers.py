@@ -10,7 +10,7 @@ leave their ranges (crawl, getting up, jump, roll, zombie walk: every frame fits
 range) concatenated and tiled to ``--fit-frames`` frames. Each tree (``--before``, the code
 before the first speed-up, 09d3380~1; ``--main``; this tree) is exported with ``git archive``
 and each import runs in a fresh process (``import_motion`` timed alone; its compile cache is
-filled beforehand), ``fresh``: the first import in that process (numba's load, ~0.5-1 s, included),
+filled beforehand; trees naming the same commit are exported and timed once), ``fresh``: the first import in that process (numba's load, ~0.5-1 s, included),
 ``warm``: after a short clip of the same kind (83_32.bvh, humanoid3d_roll.txt), as in a process that
 imports several clips or has loaded numba already (the envs do); the trees interleaved per repeat,
 so that the ratios come from one run on one machine. Reported: the median wall and CPU
@@ -124,9 +124,20 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        trees = {"before": export(args.before, tmp / "before"), "main": export(args.main, tmp / "main"),
-                 "this": export(args.this, tmp / "this") if args.this else REPO / "src"}
-        for src in trees.values():  # fill numba's compile caches: compiling is not importing
+        # one export and one timing per commit: trees naming the same commit share them (the suite's run
+        # names HEAD twice)
+        exported: dict[str, Path] = {}
+
+        def tree(rev: str, name: str) -> Path:
+            commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", f"{rev}^{{commit}}"],
+                                    check=True, capture_output=True, text=True).stdout.strip()
+            if commit not in exported:
+                exported[commit] = export(rev, tmp / name)
+            return exported[commit]
+
+        trees = {"before": tree(args.before, "before"), "main": tree(args.main, "main"),
+                 "this": tree(args.this, "this") if args.this else REPO / "src"}
+        for src in set(trees.values()):  # fill numba's compile caches: compiling is not importing
             python(src, _WARM)
         makers = {"cmu": lambda: long_bvh(args.motions, args.frames, tmp),
                   "fits": lambda: long_fits(args.motions, args.fit_frames, tmp)}
@@ -138,12 +149,15 @@ def main() -> None:
             wall: dict[str, list[float]] = {tree: [] for tree in trees}
             cpu: dict[str, list[float]] = {tree: [] for tree in trees}
             for _ in range(args.repeats):
+                timed: dict[Path, tuple[float, float]] = {}
                 for tree, src in trees.items():
-                    out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"), *warm)
-                    seconds, cpu_seconds = map(float, out.strip().splitlines()[-1].split())
-                    wall[tree].append(seconds)
-                    cpu[tree].append(cpu_seconds)
-            qpos = {tree: np.load(tmp / f"{name}_{tree}.npy") for tree in trees}
+                    if src not in timed:
+                        out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"), *warm)
+                        timed[src] = tuple(map(float, out.strip().splitlines()[-1].split()))
+                    wall[tree].append(timed[src][0])
+                    cpu[tree].append(timed[src][1])
+            first = {src: next(t for t, s in trees.items() if s == src) for src in trees.values()}
+            qpos = {tree: np.load(tmp / f"{name}_{first[src]}.npy") for tree, src in trees.items()}
             frames = args.frames if name == "cmu" else args.fit_frames
             r = results[f"{name}_{mode}"] = {
                 "source_frames": frames,
