@@ -1,23 +1,26 @@
-"""Training on one GPU with several data-parallel ranks: K processes share the GPU's physics, so the task's
-per-world Python (the host ceiling of ``physics="warp"``, ``docs/gpu.md``) runs on K cores instead of one.
+"""Training with several data-parallel ranks on one machine: the same worlds split over K processes, so the
+task's per-world Python (the host's ceiling, ``docs/gpu.md``) runs on K cores instead of one.
 
-    python benchmarks/bench_warp_ranks.py [--ranks 1,4,8] [--worlds 4096] [--iterations 8]
-                                          [--device cuda] [--timeout 240] [--out ranks.json] [--quick]
+    python benchmarks/bench_ranks.py [--physics warp|mujoco] [--ranks 1,4,8] [--worlds 4096] [--iterations 8]
+                                     [--device cuda] [--timeout 240] [--out ranks.json] [--quick]
 
-For each K of ``--ranks``: ``torchrun --standalone --nproc-per-node K baselines/train_ppo.py --physics warp
+For each K of ``--ranks``: ``torchrun --standalone --nproc-per-node K baselines/train_ppo.py --physics P
 --device DEVICE --n-envs WORLDS/K`` (the lean trainer, PPO + AMP with the default recipe, InterLevel-v0),
-for ``--iterations`` iterations, every rank its own batched env of WORLDS/K worlds on the node's GPU
-``LOCAL_RANK mod GPUs`` (``stairenv.training.distributed.rank_gpu``), gradients averaged through gloo.
-The same total of worlds for every K, so the rates compare the same batch split over K processes.
+for ``--iterations`` iterations, gradients averaged through gloo. With ``--physics warp`` every rank's
+physics runs on the node's GPU ``LOCAL_RANK mod GPUs`` (``stairenv.training.distributed.rank_gpu``), so
+the ranks share it; with ``--physics mujoco`` (MuJoCo's C library) every rank has ``cores / K`` physics
+threads (``--physics-threads``), so the ranks share the cores. The same total of worlds for every K, so
+the rates compare the same batch split over K processes.
 
 Measured from rank 0's ``log.jsonl`` (the ranks wait for each other at every gradient all-reduce, so rank
 0's iteration is the run's), after the first two iterations (CUDA graph capture, the first update):
 end to end, env steps/s of all ranks = K x 1e6 / (collect_us + update_us) per iteration; the collect
-alone = K x 1e6 / collect_us. Printed: a table with each K's median and its ratio to K=1 in this run.
+alone = K x 1e6 / collect_us. Printed: a table with each K's median and its ratio to the first K in
+this run.
 
 Without MPS (``nvidia-cuda-mps-control -d``) the GPU time-slices the ranks' kernels, so the device's share
-does not shrink with K; the host's does. ``--quick``: 4 worlds, ranks 1 and 2, Warp's CPU device, 4
-iterations: checks that the plumbing runs (the rates are not speed figures there).
+does not shrink with K; the host's does. ``--quick``: 4 worlds, ranks 1 and 2, networks on the CPU, Warp
+on its CPU device, 4 iterations: checks that the plumbing runs (the rates are not speed figures there).
 """
 
 from __future__ import annotations
@@ -36,10 +39,12 @@ ROOT = Path(__file__).resolve().parents[1]
 ROLLOUT_STEPS = 16    # train_ppo.py's default --n-steps
 
 
-def run_ranks(ranks: int, worlds: int, iterations: int, device: str, timeout: float, logdir: Path) -> dict:
+def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: str, timeout: float,
+              logdir: Path) -> dict:
     per_rank = worlds // ranks
+    threads = ["--physics-threads", str(max(1, len(os.sched_getaffinity(0)) // ranks))] if physics == "mujoco" else []
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}",
-               str(ROOT / "baselines" / "train_ppo.py"), "--env", "InterLevel-v0", "--physics", "warp",
+               str(ROOT / "baselines" / "train_ppo.py"), "--env", "InterLevel-v0", "--physics", physics, *threads,
                "--device", device, "--n-envs", str(per_rank), "--n-steps", str(ROLLOUT_STEPS),
                "--timesteps", str(iterations * ranks * per_rank * ROLLOUT_STEPS), "--eval-episodes", "0",
                "--no-progress-bar", "--checkpoint-every", str(10**12), "--logdir", str(logdir)]
@@ -50,7 +55,7 @@ def run_ranks(ranks: int, worlds: int, iterations: int, device: str, timeout: fl
         returncode, tail = done.returncode, (done.stdout + done.stderr)[-1500:]
     except subprocess.TimeoutExpired as expired:
         returncode, tail = "timeout", str(expired.stdout or "")[-1500:]
-    result = {"ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
+    result = {"physics": physics, "ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
               "wall_s": round(time.perf_counter() - start, 1)}
     log = logdir / "InterLevel-v0" / "seed0" / "log.jsonl"
     lines = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
@@ -67,23 +72,27 @@ def run_ranks(ranks: int, worlds: int, iterations: int, device: str, timeout: fl
 
 def main(argv: list[str] | None = None) -> list[dict]:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--ranks", default="1,4,8", help="processes sharing the GPU, comma-separated")
+    p.add_argument("--physics", choices=("warp", "mujoco"), default="warp",
+                   help="warp: the ranks share the GPU; mujoco: the ranks share the cores")
+    p.add_argument("--ranks", default="1,4,8", help="processes on this machine, comma-separated")
     p.add_argument("--worlds", type=int, default=4096, help="worlds in all, split over the ranks")
     p.add_argument("--iterations", type=int, default=8, help="PPO iterations per run (the first two untimed)")
     p.add_argument("--device", default="cuda", help="torch device of the networks and updates (cuda or cpu)")
     p.add_argument("--timeout", type=float, default=240.0, help="seconds a run may take at most")
-    p.add_argument("--quick", action="store_true", help="4 worlds, ranks 1,2, CPU: checks that it runs")
+    p.add_argument("--quick", action="store_true", help="4 worlds, ranks 1,2, networks on the CPU: checks that it runs")
     p.add_argument("--out", help="write the figures as JSON here")
     args = p.parse_args(argv)
     if args.quick:
         args.ranks, args.worlds, args.iterations, args.device = "1,2", 4, 4, "cpu"
     results = []
-    print(f"{args.worlds} worlds in all, {args.iterations} iterations, networks on {args.device}", flush=True)
+    print(f"physics {args.physics}, {args.worlds} worlds in all, {args.iterations} iterations, networks on "
+          f"{args.device}", flush=True)
     print(f"{'ranks':>5} {'worlds/rank':>11} {'env steps/s':>12} {'collect/s':>10} {'x 1 rank':>8} {'wall s':>7}",
           flush=True)
     for ranks in (int(k) for k in args.ranks.split(",")):
         with tempfile.TemporaryDirectory() as folder:
-            result = run_ranks(ranks, args.worlds, args.iterations, args.device, args.timeout, Path(folder))
+            result = run_ranks(ranks, args.worlds, args.iterations, args.physics, args.device, args.timeout,
+                               Path(folder))
         results.append(result)
         base = results[0].get("env_steps_per_s")
         rate = result.get("env_steps_per_s")
