@@ -50,11 +50,21 @@ def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: st
                "--no-progress-bar", "--checkpoint-every", str(10**12), "--logdir", str(logdir)]
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT / "src")}
     start = time.perf_counter()
+    launch = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=timeout)
-        returncode, tail = done.returncode, (done.stdout + done.stderr)[-1500:]
-    except subprocess.TimeoutExpired as expired:
-        returncode, tail = "timeout", str(expired.stdout or "")[-1500:]
+        output, _ = launch.communicate(timeout=timeout)
+        returncode = launch.returncode
+    except subprocess.TimeoutExpired:
+        # SIGTERM: torchrun stops its ranks (each in a session of its own, out of reach of a group kill; a rank
+        # whose torchrun was killed outright waits for its rendezvous forever, holding the GPU)
+        launch.terminate()
+        try:
+            output, _ = launch.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            launch.kill()
+            output = ""
+        returncode = "timeout"
+    tail = output[-1500:]
     result = {"physics": physics, "ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
               "wall_s": round(time.perf_counter() - start, 1)}
     log = logdir / "InterLevel-v0" / "seed0" / "log.jsonl"
@@ -108,4 +118,5 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
 
 if __name__ == "__main__":
-    main()
+    # a run that failed or logged no timed iteration fails the benchmark (after every K has been tried)
+    sys.exit(0 if all(r["returncode"] == 0 and "env_steps_per_s" in r for r in main()) else 1)
