@@ -9,7 +9,7 @@ For each K of ``--ranks``: ``torchrun --standalone --nproc-per-node K baselines/
 for ``--iterations`` iterations, gradients averaged through gloo. With ``--physics warp`` every rank's
 physics runs on the node's GPU ``LOCAL_RANK mod GPUs`` (``stairenv.training.distributed.rank_gpu``), so
 the ranks share it; with ``--physics mujoco`` (MuJoCo's C library) every rank has ``cores / K`` physics
-threads (``--physics-threads``), so the ranks share the cores. The same total of worlds for every K, so
+threads (the trainer's default under torchrun), so the ranks share the cores. The same total of worlds for every K, so
 the rates compare the same batch split over K processes.
 
 Measured from rank 0's ``log.jsonl`` (the ranks wait for each other at every gradient all-reduce, so rank
@@ -42,9 +42,8 @@ ROLLOUT_STEPS = 16    # train_ppo.py's default --n-steps
 def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: str, timeout: float,
               logdir: Path) -> dict:
     per_rank = worlds // ranks
-    threads = ["--physics-threads", str(max(1, len(os.sched_getaffinity(0)) // ranks))] if physics == "mujoco" else []
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}",
-               str(ROOT / "baselines" / "train_ppo.py"), "--env", "InterLevel-v0", "--physics", physics, *threads,
+               str(ROOT / "baselines" / "train_ppo.py"), "--env", "InterLevel-v0", "--physics", physics,
                "--device", device, "--n-envs", str(per_rank), "--n-steps", str(ROLLOUT_STEPS),
                "--timesteps", str(iterations * ranks * per_rank * ROLLOUT_STEPS), "--eval-episodes", "0",
                "--no-progress-bar", "--checkpoint-every", str(10**12), "--logdir", str(logdir)]

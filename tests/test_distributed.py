@@ -151,6 +151,7 @@ def test_each_rank_takes_a_gpu_in_turn_and_nccl_only_where_ranks_have_their_own(
         assert chosen["backend"] == backend
         assert rank.physics_device == (None if gpu is None else f"cuda:{gpu}")
         assert rank.for_thread().physics_device == rank.physics_device
+        assert rank.ranks_on_node == rank.for_thread().ranks_on_node == ranks_on_node
         if device == "cuda":
             assert chosen["set_device"] == gpu and rank.device == torch.device("cuda", gpu)
         else:
@@ -164,3 +165,20 @@ def test_networks_on_cuda_without_a_gpu_are_refused(monkeypatch):
     monkeypatch.setenv("LOCAL_RANK", "0")
     with pytest.raises(RuntimeError, match="torch sees no GPU"):
         distributed.DataParallel.from_environment("cuda")
+
+
+def test_ranks_on_one_machine_share_its_cores_in_their_physics_pools():
+    """Each rank's C physics pool gets the node's cores divided by its ranks (not every core each: K ranks x
+    all cores of threads would contend), unless the run sets physics_threads; one process keeps every core."""
+    from stairenv.training import TrainConfig, make_env
+    from stairenv.training.distributed import Local
+
+    class TwoOnThisNode(Local):
+        ranks_on_node = 2
+
+    cores = os.cpu_count()
+    for parallel, physics_threads, want in ((TwoOnThisNode(), None, max(1, cores // 2)), (TwoOnThisNode(), 3, 3),
+                                            (Local(), None, cores)):
+        venv = make_env(TrainConfig(num_envs=2, physics_threads=physics_threads), parallel)
+        assert venv.physics.nthread == want, (parallel, physics_threads)
+        venv.close()

@@ -35,6 +35,8 @@ class Local:
     rank, world_size = 0, 1
     #: the device of a GPU physics back-end (``physics="warp"``): None, Warp's own choice (its first GPU)
     physics_device: str | None = None
+    #: the processes of this run on this machine, sharing its cores (``LOCAL_WORLD_SIZE``)
+    ranks_on_node = 1
 
     def moments(self, mean, var, count):
         return mean, var, count
@@ -96,11 +98,13 @@ class DataParallel(Local):
     and the gradients' all-reduce after each backward pass make large)."""
 
     def __init__(self, rank: int, world_size: int, local_rank: int, device: torch.device, group=None,
-                 owns_process_group: bool = False, physics_device: str | None = None) -> None:
+                 owns_process_group: bool = False, physics_device: str | None = None,
+                 ranks_on_node: int | None = None) -> None:
         self.rank, self.world_size, self.local_rank, self.device = rank, world_size, local_rank, device
         self.group = group
         self.owns_process_group = owns_process_group
         self.physics_device = physics_device
+        self.ranks_on_node = world_size if ranks_on_node is None else ranks_on_node
 
     @classmethod
     def from_environment(cls, device: str = "cpu") -> "DataParallel | None":
@@ -128,7 +132,7 @@ class DataParallel(Local):
         group = dist.new_group(backend="gloo") if on_gpu else None
         return cls(dist.get_rank(), dist.get_world_size(), local_rank,
                    torch.device("cuda", gpu) if on_gpu else torch.device("cpu"), group, owns,
-                   physics_device=None if gpu is None else f"cuda:{gpu}")
+                   physics_device=None if gpu is None else f"cuda:{gpu}", ranks_on_node=ranks_on_node)
 
     def for_thread(self) -> "DataParallel":
         """The same ranks over a group of their own, for collectives issued from another thread (the
@@ -136,7 +140,7 @@ class DataParallel(Local):
         every rank, which two threads sharing a group would not keep. Every rank must call this,
         in the same order."""
         return DataParallel(self.rank, self.world_size, self.local_rank, self.device, dist.new_group(backend="gloo"),
-                            physics_device=self.physics_device)
+                            physics_device=self.physics_device, ranks_on_node=self.ranks_on_node)
 
     def close(self) -> None:
         """Leave the run (when ``from_environment`` joined it)."""

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -275,7 +276,7 @@ class Trainer:
         if config.torch_threads is not None:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        self.venv = venv if venv is not None else make_env(config, parallel.physics_device)
+        self.venv = venv if venv is not None else make_env(config, parallel)
         obs_size = self.venv.single_observation_space.shape[0]
         action_size = self.venv.single_action_space.shape[0]
         self.action_low = self.venv.single_action_space.low.astype(np.float32)
@@ -677,17 +678,21 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
 
 
 # --- building a run --------------------------------------------------------------------------------
-def make_env(config: TrainConfig, physics_device: str | None = None) -> HumanoidVectorEnv:
-    """The batched env of ``config`` (SAME_STEP autoreset; the registration's episode limit).
-    ``physics_device``: where ``physics="warp"`` runs (a data-parallel rank's own GPU; None: Warp's first
-    GPU); ignored by the C back-ends, which run on the host."""
+def make_env(config: TrainConfig, parallel: Local = LOCAL) -> HumanoidVectorEnv:
+    """The batched env of ``config`` (SAME_STEP autoreset; the registration's episode limit) for this rank
+    of ``parallel``: with ``physics="warp"`` on the rank's GPU (``parallel.physics_device``; one process:
+    Warp's first GPU), with the C back-end's thread pool sized to the node's cores shared by its ranks
+    unless ``config.physics_threads`` says (one process: every core)."""
     kwargs = dict(config.env_kwargs)
     if config.style == "amp":
         kwargs.setdefault("amp_history", config.amp_history)
-    if config.physics == "warp" and physics_device is not None:
-        kwargs["physics_device"] = physics_device
+    threads = config.physics_threads
+    if config.physics == "warp" and parallel.physics_device is not None:
+        kwargs["physics_device"] = parallel.physics_device
+    elif config.physics != "warp" and threads is None and parallel.ranks_on_node > 1:
+        threads = max(1, (os.cpu_count() or 1) // parallel.ranks_on_node)    # the pool's default: cpu_count
     venv = gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
-                        physics=config.physics, physics_threads=config.physics_threads, **kwargs)
+                        physics=config.physics, physics_threads=threads, **kwargs)
     if not isinstance(venv, HumanoidVectorEnv):
         raise TypeError(f"{config.env_id} has no natively batched env; the lean trainer needs one")
     return venv
