@@ -488,17 +488,28 @@ def train_lean(args: argparse.Namespace) -> Path:
             parallel.close()
 
 
-def fill_climb_cache(config: TrainConfig, workers: int, say) -> None:
+def fill_climb_cache(config: TrainConfig, workers: int, say, parallel=LOCAL) -> None:
     """Every climb the run's stair starts can draw, synthesised on ``workers`` processes into this process's
-    cache (``stair_starts.fill_cache``), so the first minutes of training do not wait for them."""
+    cache (``stair_starts.fill_cache``), so the first minutes of training do not wait for them. Data-parallel
+    ranks each synthesise a share and then take the others' (the same arrays: the synthesis is deterministic)."""
     env = gym.make(config.env_id, **config.env_kwargs).unwrapped
     keys = env.climb_keys() if hasattr(env, "climb_keys") else []
     env.close()
     if keys:
         start = time.perf_counter()
-        count = stair_starts.fill_cache(keys, workers)
-        say(f"climb cache: {count} staircases synthesised on {workers} processes in "
-            f"{time.perf_counter() - start:.0f} s")
+        keys = list(dict.fromkeys(keys))[:stair_starts.CACHE_SIZE]
+        mine = keys[parallel.rank::parallel.world_size]
+        count = stair_starts.fill_cache(mine, workers)
+        if parallel.world_size == 1:
+            say(f"climb cache: {count} staircases synthesised on {workers} processes in "
+                f"{time.perf_counter() - start:.0f} s")
+            return
+        counts = []
+        for rank_count, climbs in parallel.gather((count, stair_starts.cached(mine))):
+            counts.append(rank_count)
+            stair_starts.remember(climbs)
+        say(f"climb cache: {sum(counts)} staircases synthesised by {parallel.world_size} ranks ({counts}) on "
+            f"{workers} processes each in {time.perf_counter() - start:.0f} s, every rank holding them all")
 
 
 def _train_lean(args: argparse.Namespace, parallel) -> Path:
@@ -535,7 +546,7 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         config = config.replace(env_kwargs=env_kwargs)
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
     if args.climb_cache_workers > 0:
-        fill_climb_cache(config, args.climb_cache_workers, say)
+        fill_climb_cache(config, args.climb_cache_workers, say, parallel)
     trainer = Trainer(config, build_style(config, reference, parallel.rank), parallel=parallel)
     if parallel.world_size > 1:
         say(f"data-parallel: {parallel.world_size} ranks x {config.num_envs} worlds "

@@ -3,7 +3,8 @@
 ``python -m torch.distributed.run --standalone --nproc-per-node 2 tests/distributed_worker.py OUT [FLAGS]``
 writes ``OUT/rank<r>.pt`` per rank: the weights and statistics after the first update of ``FIRST_UPDATE``,
 a discriminator after two updates on its half of ``disc_batches``, whether a run resumed from a
-checkpoint equals the run that was never stopped, and with train_ppo.py FLAGS what the script printed
+checkpoint equals the run that was never stopped, the climbs it holds after train_ppo.py's shared climb
+cache fill, and with train_ppo.py FLAGS what the script printed
 training 64 steps (to ``OUT/a``) and going on from its last checkpoint (to ``OUT/b``). One launch:
 every process start costs seconds of imports.
 """
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from stairenv.motion import stair_starts
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
 from stairenv.style.wrappers import default_reference
 from stairenv.training import TrainConfig, Trainer, build_style, make_env, read_checkpoint
@@ -95,22 +97,39 @@ def resume_is_exact(parallel, folder: Path) -> bool:
     return same
 
 
-def train_ppo(argv: list[str]) -> str:
-    """What ``baselines/train_ppo.py`` prints, run in this rank (as torchrun would start it)."""
+def train_ppo_module():
     spec = importlib.util.spec_from_file_location("train_ppo", Path(__file__).parents[1] / "baselines" / "train_ppo.py")
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
+    return script
+
+
+def train_ppo(argv: list[str]) -> str:
+    """What ``baselines/train_ppo.py`` prints, run in this rank (as torchrun would start it)."""
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
-        script.main(argv)
+        train_ppo_module().main(argv)
     return printed.getvalue()
+
+
+#: stair starts on 2 heights x 1 depth x 1 count x 2 lead feet: 4 grid climbs
+CLIMB_KWARGS = dict(stairs_start_fraction=1.0, step_height=(0.10, 0.11), step_depth=(0.30, 0.30), num_steps=(3, 3))
+
+
+def climb_cache(parallel) -> dict:
+    """``train_ppo.fill_climb_cache`` in this rank: what it printed, and the climbs this rank then holds."""
+    printed = []
+    config = TrainConfig(env_kwargs=CLIMB_KWARGS)
+    train_ppo_module().fill_climb_cache(config, 1, lambda *words: printed.append(" ".join(map(str, words))), parallel)
+    return {"printed": printed, "climbs": stair_starts.cached(stair_starts.grid_keys((0.10, 0.11), (0.30, 0.30),
+                                                                                     (3, 3)))}
 
 
 def main(out: Path, script_args: list[str]) -> None:
     parallel = DataParallel.from_environment()
     assert parallel is not None and parallel.world_size == 2, "run me with torchrun --nproc-per-node 2"
     result = {"first_update": first_update(2, parallel), "disc": disc_updates(2, parallel),
-              "resume_exact": resume_is_exact(parallel, out)}
+              "resume_exact": resume_is_exact(parallel, out), "climb_cache": climb_cache(parallel)}
     if script_args:    # train_ppo.py: 64 steps, then on from its last checkpoint
         result["script"] = train_ppo(["--timesteps", "64", "--logdir", str(out / "a"), *script_args])
         checkpoint = out / "a" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_64.pt"

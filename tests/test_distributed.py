@@ -99,6 +99,25 @@ def test_resume_with_the_same_ranks_is_exact(ranks):
     assert ranks[0]["resume_exact"] and ranks[1]["resume_exact"]
 
 
+def test_ranks_share_the_climb_cache_fill_and_each_holds_every_climb(ranks):
+    """--climb-cache-workers under torchrun: each rank synthesises half of the 4 climbs, then takes the other
+    rank's; both hold all 4, equal to what one process synthesises (the same deterministic arrays)."""
+    from stairenv.motion import stair_starts
+    for rank in ranks:    # said by each rank here (train_ppo.py's own say prints on rank 0 only)
+        printed = rank["climb_cache"]["printed"]
+        assert len(printed) == 1 and "4 staircases synthesised by 2 ranks ([2, 2])" in printed[0], printed
+    keys = stair_starts.grid_keys((0.10, 0.11), (0.30, 0.30), (3, 3))
+    stair_starts.fill_cache(keys, 1)
+    here = stair_starts.cached(keys)
+    assert len(here) == 4
+    for rank in ranks:
+        held = rank["climb_cache"]["climbs"]
+        assert set(held) == set(here)
+        for key, (qpos, qvel) in here.items():
+            np.testing.assert_array_equal(held[key][0], qpos)
+            np.testing.assert_array_equal(held[key][1], qvel)
+
+
 def test_train_ppo_under_torchrun_checkpoints_and_resumes_with_two_ranks_and_one(ranks, baseline_script, capsys,
                                                                                 tmp_path):
     out, run = ranks[0]["script"], ranks[0]["out"] / "a" / "InterLevel-v0" / "seed0"

@@ -131,6 +131,18 @@ def _synthesise_key(key: tuple[int, int, int, str]) -> tuple[np.ndarray, np.ndar
     return _synthesise(*key)
 
 
+def cached(keys: Iterable[tuple[int, int, int, str]]) -> dict[tuple[int, int, int, str], tuple[np.ndarray, ...]]:
+    """The climbs of ``keys`` that this process has cached (for another process's ``remember``)."""
+    return {key: _CLIMBS[key] for key in keys if key in _CLIMBS}
+
+
+def remember(climbs: dict[tuple[int, int, int, str], tuple[np.ndarray, ...]]) -> None:
+    """Climbs another process synthesised (``cached`` there: a data-parallel run's ranks each fill a share of
+    the cache, then take the others'), into this process's cache, as a miss here would have."""
+    for key, climb in climbs.items():
+        _remember(key, climb)
+
+
 def fill_cache(keys: Iterable[tuple[int, int, int, str]], workers: int) -> int:
     """Synthesise the climbs of ``keys`` (``grid_keys``) not yet cached, on ``workers`` processes, into this
     process's cache (at most :data:`CACHE_SIZE`); the arrays are those a miss would compute (the synthesis
