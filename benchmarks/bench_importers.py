@@ -10,13 +10,13 @@ leave their ranges (crawl, getting up, jump, roll, zombie walk: every frame fits
 range) concatenated and tiled to ``--fit-frames`` frames. Each tree (``--before``, the code
 before the first speed-up, 09d3380~1; ``--main``; this tree) is exported with ``git archive``
 and each import runs in a fresh process (``import_motion`` timed alone; its compile cache is
-filled beforehand; trees naming the same commit are exported and timed once), ``fresh``: the first import in that process (numba's load, ~0.5-1 s, included),
-``warm``: after a short clip of the same kind (83_32.bvh, humanoid3d_roll.txt), as in a process that
-imports several clips or has loaded numba already (the envs do); the trees interleaved per repeat,
-so that the ratios come from one run on one machine. Reported: the median wall and CPU
-(``time.process_time``: steadier than wall time on a busy machine) seconds per tree, the ratios
-before/this and main/this, and the largest difference of the imported qpos (this tree against
-each other tree).
+filled beforehand; trees naming the same commit are exported and timed once), ``fresh``: the first
+import in that process (numba's load, ~0.5-1 s, included), ``warm``: after a short clip of the same
+kind (83_32.bvh, humanoid3d_roll.txt), as in a process that imports several clips or has loaded numba
+already (the envs do); the trees interleaved per repeat, so that the ratios come from one run on one
+machine. Reported: the median wall and CPU (``time.process_time``: steadier than wall time on a busy
+machine) seconds per tree, the ratios before/this and main/this, and the largest difference of the
+imported qpos (this tree against each other tree).
 """
 
 from __future__ import annotations

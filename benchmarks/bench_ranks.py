@@ -9,8 +9,8 @@ For each K of ``--ranks``: ``torchrun --standalone --nproc-per-node K baselines/
 for ``--iterations`` iterations, gradients averaged through gloo. With ``--physics warp`` every rank's
 physics runs on the node's GPU ``LOCAL_RANK mod GPUs`` (``stairenv.training.distributed.rank_gpu``), so
 the ranks share it; with ``--physics mujoco`` (MuJoCo's C library) every rank has ``cores / K`` physics
-threads (the trainer's default under torchrun), so the ranks share the cores. The same total of worlds for every K, so
-the rates compare the same batch split over K processes.
+threads (the trainer's default under torchrun), so the ranks share the cores. The same total of worlds
+for every K, so the rates compare the same batch split over K processes.
 
 Measured from rank 0's ``log.jsonl`` (the ranks wait for each other at every gradient all-reduce, so rank
 0's iteration is the run's), after the first two iterations (CUDA graph capture, the first update):
@@ -106,9 +106,10 @@ def main(argv: list[str] | None = None) -> list[dict]:
         base = results[0].get("env_steps_per_s")
         rate = result.get("env_steps_per_s")
         ratio = f"{rate / base:.2f}" if rate and base else "-"
-        print(f"{ranks:>5} {result['worlds_per_rank']:>11} {rate or 0:>12,.0f} {result.get('collect_steps_per_s', 0):>10,.0f}"
-              f" {ratio:>8} {result['wall_s']:>7}" + ("" if result["returncode"] == 0 else
-                                                     f"  failed ({result['returncode']})"), flush=True)
+        collect = result.get("collect_steps_per_s", 0)
+        failed = "" if result["returncode"] == 0 else f"  failed ({result['returncode']})"
+        print(f"{ranks:>5} {result['worlds_per_rank']:>11} {rate or 0:>12,.0f} {collect:>10,.0f} {ratio:>8} "
+              f"{result['wall_s']:>7}{failed}", flush=True)
         if result["returncode"] != 0:
             print(result.get("output_tail", ""), flush=True)
         if args.out:
