@@ -497,8 +497,7 @@ def fill_climb_cache(config: TrainConfig, workers: int, say, parallel=LOCAL) -> 
     env.close()
     if keys:
         start = time.perf_counter()
-        keys = list(dict.fromkeys(keys))[:stair_starts.CACHE_SIZE]
-        mine = keys[parallel.rank::parallel.world_size]
+        mine = keys[parallel.rank::parallel.world_size]    # grid keys: each once
         count = stair_starts.fill_cache(mine, workers)
         if parallel.world_size == 1:
             say(f"climb cache: {count} staircases synthesised on {workers} processes in "

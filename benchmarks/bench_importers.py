@@ -137,7 +137,7 @@ def main() -> None:
 
         trees = {"before": tree(args.before, "before"), "main": tree(args.main, "main"),
                  "this": tree(args.this, "this") if args.this else REPO / "src"}
-        for src in set(trees.values()):  # fill numba's compile caches: compiling is not importing
+        for src in dict.fromkeys(trees.values()):  # fill numba's compile caches: compiling is not importing
             python(src, _WARM)
         makers = {"cmu": lambda: long_bvh(args.motions, args.frames, tmp),
                   "fits": lambda: long_fits(args.motions, args.fit_frames, tmp)}
@@ -148,16 +148,16 @@ def main() -> None:
             warm = [str(shorts[name])] if mode == "warm" else []
             wall: dict[str, list[float]] = {tree: [] for tree in trees}
             cpu: dict[str, list[float]] = {tree: [] for tree in trees}
+            # one import per distinct tree; trees sharing a commit share its timing and its qpos
+            qpos_files = {src: tmp / f"{name}_{k}.npy" for k, src in enumerate(dict.fromkeys(trees.values()))}
             for _ in range(args.repeats):
-                timed: dict[Path, tuple[float, float]] = {}
+                timed = {src: tuple(map(float, python(src, _RUN, str(clip), str(file), *warm).strip()
+                                                .splitlines()[-1].split()))
+                         for src, file in qpos_files.items()}
                 for tree, src in trees.items():
-                    if src not in timed:
-                        out = python(src, _RUN, str(clip), str(tmp / f"{name}_{tree}.npy"), *warm)
-                        timed[src] = tuple(map(float, out.strip().splitlines()[-1].split()))
                     wall[tree].append(timed[src][0])
                     cpu[tree].append(timed[src][1])
-            first = {src: next(t for t, s in trees.items() if s == src) for src in trees.values()}
-            qpos = {tree: np.load(tmp / f"{name}_{first[src]}.npy") for tree, src in trees.items()}
+            qpos = {tree: np.load(qpos_files[src]) for tree, src in trees.items()}
             frames = args.frames if name == "cmu" else args.fit_frames
             r = results[f"{name}_{mode}"] = {
                 "source_frames": frames,

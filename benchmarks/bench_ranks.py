@@ -74,6 +74,7 @@ def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: st
         result["env_steps_per_s"] = statistics.median(
             ranks * 1e6 / (line["time/collect_us"] + line["time/update_us"]) for line in timed)
         result["collect_steps_per_s"] = statistics.median(ranks * 1e6 / line["time/collect_us"] for line in timed)
+    result["ok"] = returncode == 0 and bool(timed)    # completed, with a timed iteration
     if returncode != 0:
         result["output_tail"] = tail
     return result
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
         rate = result.get("env_steps_per_s")
         ratio = f"{rate / base:.2f}" if rate and base else "-"
         collect = result.get("collect_steps_per_s", 0)
-        failed = "" if result["returncode"] == 0 else f"  failed ({result['returncode']})"
+        failed = "" if result["ok"] else f"  failed ({result['returncode']})"
         print(f"{ranks:>5} {result['worlds_per_rank']:>11} {rate or 0:>12,.0f} {collect:>10,.0f} {ratio:>8} "
               f"{result['wall_s']:>7}{failed}", flush=True)
         if result["returncode"] != 0:
@@ -119,4 +120,4 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
 if __name__ == "__main__":
     # a run that failed or logged no timed iteration fails the benchmark (after every K has been tried)
-    sys.exit(0 if all(r["returncode"] == 0 and "env_steps_per_s" in r for r in main()) else 1)
+    sys.exit(0 if all(result["ok"] for result in main()) else 1)

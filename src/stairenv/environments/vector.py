@@ -106,8 +106,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                                  f"batch_evaluation={batch_evaluation!r} differ")
             batch_outcomes = batch_evaluation if batch_outcomes is None else batch_outcomes
         device = physics == "warp" or hasattr(physics, "bind")
-        check_physics_device(physics, physics_device)    # before any world is built
-        if device:    # refused before any world is built
+        # refused before any world is built: a device for a host back-end, an id the device cannot hold
+        check_physics_device(physics, physics_device)
+        if device:
             from stairenv.environments.warp_physics import check_supported
             check_supported(env_class)
         self.num_envs = int(num_envs)
