@@ -102,6 +102,7 @@ import sys
 import time
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -511,13 +512,9 @@ def fill_climb_cache(config: TrainConfig, workers: int, say, parallel=LOCAL) -> 
             f"{workers} processes each in {time.perf_counter() - start:.0f} s, every rank holding them all")
 
 
-def _train_lean(args: argparse.Namespace, parallel) -> Path:
-    first = parallel.rank == 0    # rank 0 prints, logs, writes and evaluates
-
-    def say(*words, **kwargs) -> None:
-        if first:
-            print(*words, **kwargs)
-
+def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None, TrainConfig, dict, Any]:
+    """``(resume_state, init_state, config, env_kwargs, reference windows)``: what the run reads from this
+    machine's files before its worlds are built (``--resume`` / ``--init-from``, the reference motions)."""
     resume, init = _lean_start(args)
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
@@ -543,6 +540,39 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         config = lean_config(args, env_kwargs)
     elif reference is not None:
         config = config.replace(env_kwargs=env_kwargs)
+    return resume, init, config, env_kwargs, reference
+
+
+def _take_resume(trainer: Trainer, args: argparse.Namespace, resume: dict) -> bool:
+    """The checkpoint's state into ``trainer``, its replay buffer beside it; whether there was one."""
+    try:
+        trainer.load_state(resume)
+        return trainer.load_replay(args.resume, resume)
+    except (CheckpointError, RuntimeError, ValueError, KeyError) as err:
+        raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
+                         "text-conditioned run written before checkpoints recorded amp_text_condition needs "
+                         "--amp-text-condition again") from None
+
+
+def _take_init(trainer: Trainer, args: argparse.Namespace, init: dict) -> None:
+    try:
+        trainer.load_state(init, weights_only=True)
+    except (RuntimeError, ValueError, KeyError) as err:
+        raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
+                         "--policy-hidden and --env it was trained with, or --fresh-discriminator where "
+                         "only the style's inputs differ") from None
+
+
+def _train_lean(args: argparse.Namespace, parallel) -> Path:
+    first = parallel.rank == 0    # rank 0 prints, logs, writes and evaluates
+
+    def say(*words, **kwargs) -> None:
+        if first:
+            print(*words, **kwargs)
+
+    # each rank reads its machine's files; one that cannot stops them all with its reason (parallel.agree)
+    resume, init, config, env_kwargs, reference = parallel.agree(
+        lambda: _lean_setup(args, say), "Reading the run's files (--resume, --init-from, the reference motions)")
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
     if args.climb_cache_workers > 0:
         fill_climb_cache(config, args.climb_cache_workers, say, parallel)
@@ -551,13 +581,7 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         say(f"data-parallel: {parallel.world_size} ranks x {config.num_envs} worlds "
             f"({parallel.world_size * config.num_envs} in all); --timesteps counts them all")
     if resume is not None:
-        try:
-            trainer.load_state(resume)
-            replay = trainer.load_replay(args.resume, resume)
-        except (CheckpointError, RuntimeError, ValueError, KeyError) as err:
-            raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
-                             "text-conditioned run written before checkpoints recorded amp_text_condition needs "
-                             "--amp-text-condition again") from None
+        replay = parallel.agree(lambda: _take_resume(trainer, args, resume), "Resuming")
         note = "" if replay or trainer.style is None else " (no replay buffer beside it: it refills within a round)"
         if args.fresh_discriminator:
             note += "; a fresh discriminator (--fresh-discriminator)"
@@ -566,12 +590,7 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
             note += f" (written by {saved_ranks} ranks, going on with {parallel.world_size}: not exact)"
         say(f"resumed from {args.resume} at {trainer.steps} steps{note}")
     elif init is not None:
-        try:
-            trainer.load_state(init, weights_only=True)
-        except (RuntimeError, ValueError, KeyError) as err:
-            raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
-                             "--policy-hidden and --env it was trained with, or --fresh-discriminator where "
-                             "only the style's inputs differ") from None
+        parallel.agree(lambda: _take_init(trainer, args, init), "Starting from --init-from")
         taken = ", discriminator" if init.get("style") else ""
         if args.fresh_discriminator:
             taken = "; a fresh discriminator (--fresh-discriminator)"

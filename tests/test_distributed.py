@@ -10,8 +10,10 @@ torchrun checkpoints and resumes with 2 ranks and with 1.
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -160,6 +162,8 @@ def test_each_rank_takes_a_gpu_in_turn_and_nccl_only_where_ranks_have_their_own(
     monkeypatch.setattr(dist, "init_process_group", lambda backend: chosen.__setitem__("backend", backend))
     monkeypatch.setattr(dist, "new_group", lambda backend: f"{backend} group")
     monkeypatch.setattr(dist, "get_world_size", lambda: ranks_on_node)
+    # every rank's start went well (the exchange in which they agree on it)
+    monkeypatch.setattr(distributed.DataParallel, "gather", lambda self, value: [value] * self.world_size)
     for local_rank, gpu in enumerate(rank_gpus):
         chosen.clear()
         monkeypatch.setattr(dist, "get_rank", lambda: local_rank)
@@ -177,13 +181,113 @@ def test_each_rank_takes_a_gpu_in_turn_and_nccl_only_where_ranks_have_their_own(
             assert "set_device" not in chosen and rank.device == torch.device("cpu")
 
 
-def test_networks_on_cuda_without_a_gpu_are_refused(monkeypatch):
+def test_networks_on_cuda_on_a_machine_without_a_gpu_stop_every_rank(monkeypatch):
+    """Rank 1's machine has no GPU: it joins the run anyway (gloo), so that rank 0, whose machine has one,
+    hears why and stops too instead of waiting for rank 1 until the process group's timeout."""
     from stairenv.training import distributed
-    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    left = []
+    monkeypatch.setattr(dist, "is_initialized", lambda: False)
+    monkeypatch.setattr(dist, "init_process_group", lambda backend: None)
+    monkeypatch.setattr(dist, "new_group", lambda backend: "gloo group")
+    monkeypatch.setattr(dist, "get_world_size", lambda: 2)
+    monkeypatch.setattr(distributed.DataParallel, "close", lambda self: left.append(self.rank))
+    monkeypatch.setattr(torch.cuda, "set_device", lambda gpu: None)
     monkeypatch.setenv("WORLD_SIZE", "2")
+    monkeypatch.setenv("LOCAL_WORLD_SIZE", "1")    # one rank on each of two machines
     monkeypatch.setenv("LOCAL_RANK", "0")
-    with pytest.raises(RuntimeError, match="torch sees no GPU"):
-        distributed.DataParallel.from_environment("cuda")
+    reasons = {}
+    for rank, gpus in ((1, 0), (0, 1)):    # rank 1 reports first, then rank 0 hears it
+        monkeypatch.setattr(dist, "get_rank", lambda rank=rank: rank)
+        monkeypatch.setattr(torch.cuda, "is_available", lambda gpus=gpus: gpus > 0)
+        monkeypatch.setattr(torch.cuda, "device_count", lambda gpus=gpus: gpus)
+
+        def gather(self, value, rank=rank):    # every rank's report, as all_gather_object would give it
+            reasons[rank] = value
+            return [reasons.get(0, ("gpu-host", None)), reasons[1]]
+        monkeypatch.setattr(distributed.DataParallel, "gather", gather)
+        with pytest.raises(SystemExit, match="failed on 1 of 2 ranks") as stop:
+            distributed.DataParallel.from_environment("cuda")
+        assert "rank 1 on" in str(stop.value.code) and "torch sees no GPU" in str(stop.value.code)
+    assert left == [1, 0]    # each left the process group it had joined
+
+
+def test_agree_returns_the_step_or_stops_every_rank_naming_the_ranks_that_failed(monkeypatch):
+    from stairenv.training.distributed import LOCAL, DataParallel
+    reports = {}
+    rank0 = DataParallel(0, 3, 0, torch.device("cpu"))
+    monkeypatch.setattr(DataParallel, "gather", lambda self, value: [value, *reports.values()])
+    reports.update({1: ("b", None), 2: ("c", None)})
+    assert rank0.agree(lambda: 7, "Counting") == 7 and LOCAL.agree(lambda: 7, "Counting") == 7
+    reports.update({1: ("b", "--resume x: no checkpoint file"), 2: ("c", "ImportError: no module named warp")})
+    with pytest.raises(SystemExit) as stop:    # this rank's step went well: it stops all the same
+        rank0.agree(lambda: 7, "Counting")
+    assert stop.value.code == ("Counting failed on 2 of 3 ranks, so every rank stops. rank 1 on b: --resume x: no "
+                               "checkpoint file; rank 2 on c: ImportError: no module named warp")
+    reports.update({1: ("b", None), 2: ("c", None)})
+
+    def fails():
+        raise SystemExit("--init-from y: cannot take it")
+    with pytest.raises(SystemExit, match=r"failed on 1 of 3 ranks.*rank 0 on .*: --init-from y: cannot take it"):
+        rank0.agree(fails, "Counting")
+    with pytest.raises(SystemExit, match="--init-from y: cannot take it"):    # one process: its own error
+        LOCAL.agree(fails, "Counting")
+
+
+# --- two machines (two torchrun agents here, one rank each, meeting through a c10d rendezvous) -----------
+def two_machines(args: list[list[str]], cwd: Path, timeout: float) -> list[str]:
+    """``torchrun --nnodes 2 --nproc-per-node 1 --rdzv-backend c10d`` started twice on this machine, as on
+    two machines, machine m running ``train_ppo.py args[m]``; each machine's output (stdout and stderr) and
+    exit status, after both end. Fails when they have not ended within ``timeout`` s (both killed)."""
+    with socket.socket() as free:
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    env = {**os.environ, "MUJOCO_GL": "egl", "OMP_NUM_THREADS": "1"}
+    machines = [subprocess.Popen([sys.executable, "-m", "torch.distributed.run", "--nnodes=2", "--nproc-per-node=1",
+                                  "--rdzv-backend=c10d", f"--rdzv-endpoint=127.0.0.1:{port}", f"--rdzv-id=run{port}",
+                                  str(SCRIPT), *machine_args], cwd=cwd, env=env, stdout=subprocess.PIPE,
+                                 stderr=subprocess.STDOUT, text=True) for machine_args in args]
+    deadline = time.monotonic() + timeout
+    try:
+        outputs = [machine.communicate(timeout=max(1.0, deadline - time.monotonic()))[0] for machine in machines]
+    except subprocess.TimeoutExpired:
+        for machine in machines:
+            machine.kill()
+        pytest.fail(f"the two machines had not ended after {timeout:.0f} s: " + " | ".join(
+            machine.communicate()[0][-1500:] for machine in machines))
+    return [(machine.returncode, output) for machine, output in zip(machines, outputs)]
+
+
+def test_two_machines_go_on_from_a_checkpoint_exactly_as_two_ranks_of_one_machine(ranks, tmp_path):
+    """``--nnodes 2``: the 2-rank checkpoint resumed by one rank on each of two machines, 32 steps on: the
+    same weights as the 2 ranks of one machine resuming it (``ranks``' run; the rank count decides the run,
+    not where the ranks are)."""
+    checkpoint = ranks[0]["out"] / "a" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_64.pt"
+    flags = ["--resume", str(checkpoint), "--timesteps", "32", "--logdir", str(tmp_path), *SCRIPT_FLAGS]
+    ended = two_machines([flags, flags], tmp_path, timeout=300)
+    assert [code for code, _ in ended] == [0, 0], ended
+    printed = "".join(output for _, output in ended)    # rank 0 is on whichever machine the rendezvous chose
+    assert "2 ranks x 2 worlds" in printed and "at 64 steps" in printed and "trained 32 env steps" in printed
+    assert "not exact" not in printed
+    here = torch.load(tmp_path / "InterLevel-v0" / "seed0" / "final_checkpoint.pt", weights_only=True)
+    one_machine = torch.load(ranks[0]["out"] / "b" / "InterLevel-v0" / "seed0" / "final_checkpoint.pt",
+                             weights_only=True)
+    assert here["world_size"] == 2 and here["steps"] == one_machine["steps"] == 96
+    for name, weights in one_machine["model"].items():
+        assert torch.equal(here["model"][name], weights), name
+
+
+def test_a_machine_that_cannot_read_the_checkpoint_stops_both_with_its_reason(ranks, tmp_path):
+    """Without a shared folder, the second machine has no ``--resume`` file: both stop within seconds, each
+    saying which rank failed and why (before, the first waited in its first collective for 30 minutes)."""
+    checkpoint = ranks[0]["out"] / "a" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_64.pt"
+    absent = tmp_path / "elsewhere" / "checkpoint_64.pt"
+    flags = ["--timesteps", "32", "--logdir", str(tmp_path), *SCRIPT_FLAGS]
+    ended = two_machines([["--resume", str(checkpoint), *flags], ["--resume", str(absent), *flags]], tmp_path,
+                         timeout=150)
+    for code, output in ended:
+        assert code != 0
+        assert "failed on 1 of 2 ranks, so every rank stops" in output, output[-3000:]
+        assert f"no checkpoint file '{absent}'" in output
 
 
 def test_ranks_on_one_machine_share_its_cores_in_their_physics_pools():

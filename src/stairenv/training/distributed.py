@@ -22,11 +22,16 @@ has one code path and a plain run computes exactly what it did before data-paral
 from __future__ import annotations
 
 import os
-from typing import Any, Iterable
+import socket
+import traceback
+from collections.abc import Callable
+from typing import Any, Iterable, TypeVar
 
 import numpy as np
 import torch
 import torch.distributed as dist
+
+T = TypeVar("T")
 
 
 class Local:
@@ -61,6 +66,9 @@ class Local:
 
     def broadcast(self, module: torch.nn.Module) -> None:
         pass
+
+    def agree(self, step: Callable[[], T], what: str) -> T:
+        return step()
 
     def for_thread(self) -> "Local":
         return self
@@ -114,25 +122,34 @@ class DataParallel(Local):
         ``device="cuda"`` and for its physics with ``physics="warp"`` (``physics_device``), so several ranks
         may share a GPU (each rank's task runs on a core of its own). Backend: nccl with ``device="cuda"``
         where every rank of the node has a GPU of its own (NCCL refuses two ranks on one GPU), else gloo;
-        the collectives go through a gloo group either way (device tensors as host copies)."""
+        the collectives go through a gloo group either way (device tensors as host copies). With
+        ``device="cuda"`` a machine where torch sees no GPU stops every rank with the reason (``agree``)."""
         if int(os.environ.get("WORLD_SIZE", "1")) < 2:
             return None
         local_rank = int(os.environ.get("LOCAL_RANK", 0))
         ranks_on_node = int(os.environ.get("LOCAL_WORLD_SIZE", os.environ["WORLD_SIZE"]))
         gpus = torch.cuda.device_count() if torch.cuda.is_available() else 0
         on_gpu = str(device).startswith("cuda")
-        if on_gpu and gpus == 0:
-            raise RuntimeError(f"device={device!r} but torch sees no GPU on this node")
         gpu = rank_gpu(local_rank, gpus)
-        if on_gpu:
+        if on_gpu and gpu is not None:
             torch.cuda.set_device(gpu)
         owns = not dist.is_initialized()    # else the caller's process group, which close() leaves open
         if owns:
             dist.init_process_group(backend=process_group_backend(on_gpu, ranks_on_node, gpus))
         group = dist.new_group(backend="gloo") if on_gpu else None
-        return cls(dist.get_rank(), dist.get_world_size(), local_rank,
-                   torch.device("cuda", gpu) if on_gpu else torch.device("cpu"), group, owns,
-                   physics_device=None if gpu is None else f"cuda:{gpu}", ranks_on_node=ranks_on_node)
+        parallel = cls(dist.get_rank(), dist.get_world_size(), local_rank,
+                       torch.device("cuda", gpu) if on_gpu and gpu is not None else torch.device("cpu"), group,
+                       owns, physics_device=None if gpu is None else f"cuda:{gpu}", ranks_on_node=ranks_on_node)
+
+        def gpu_here() -> None:    # refused on every rank when one machine has none (joined first, so all hear)
+            if on_gpu and gpu is None:
+                raise RuntimeError(f"device={device!r} but torch sees no GPU on this machine")
+        try:
+            parallel.agree(gpu_here, "Joining the run with its networks on GPUs")
+        except SystemExit:
+            parallel.close()
+            raise
+        return parallel
 
     def for_thread(self) -> "DataParallel":
         """The same ranks over a group of their own, for collectives issued from another thread (the
@@ -215,6 +232,28 @@ class DataParallel(Local):
         values: list[Any] = [None] * self.world_size
         dist.all_gather_object(values, value, group=self.group)
         return values
+
+    def agree(self, step: Callable[[], T], what: str) -> T:
+        """``step()`` on every rank, then one exchange of how it went: if it failed on any rank (an
+        exception, or ``SystemExit`` with its message), every rank stops with ``SystemExit`` naming each
+        failed rank, its machine and its reason; else ``step``'s result. For the per-rank parts of a start
+        that touch only this machine (reading a checkpoint, building the worlds), which a rank on another
+        machine may fail alone: without it the others may wait at their next collective until the
+        process group's timeout (30 minutes by default), and never hear the reason. ``step`` must not call a
+        collective (a failed rank would not reach it)."""
+        try:
+            result, failure = step(), None
+        except SystemExit as stop:
+            result, failure = None, str(stop.code)
+        except Exception as error:    # noqa: BLE001  (reported to every rank, then raised as SystemExit)
+            traceback.print_exc()    # this rank's output keeps where it failed
+            result, failure = None, f"{type(error).__name__}: {error}"
+        reports = self.gather((socket.gethostname(), failure))
+        failed = [f"rank {rank} on {host}: {why}" for rank, (host, why) in enumerate(reports) if why is not None]
+        if failed:
+            raise SystemExit(f"{what} failed on {len(failed)} of {self.world_size} ranks, so every rank "
+                             "stops. " + "; ".join(failed))
+        return result
 
     def gather_to_first(self, value: Any) -> list[Any] | None:
         """Every rank's ``value`` in rank order on rank 0 (None on the others): large things, such as

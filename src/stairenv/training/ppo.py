@@ -276,7 +276,10 @@ class Trainer:
         if config.torch_threads is not None:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        self.venv = venv if venv is not None else make_env(config, parallel)
+        # built on every rank before the first collective: a rank that cannot (no MuJoCo Warp on its machine,
+        # its GPU busy) stops every rank with its reason instead of leaving them waiting
+        self.venv = venv if venv is not None else parallel.agree(lambda: make_env(config, parallel),
+                                                                 "Building the worlds")
         obs_size = self.venv.single_observation_space.shape[0]
         action_size = self.venv.single_action_space.shape[0]
         self.action_low = self.venv.single_action_space.low.astype(np.float32)
