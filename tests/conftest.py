@@ -35,3 +35,39 @@ def baseline_script():
         return module
 
     return load
+
+
+class InProcessScript:
+    """A script of ``baselines/`` run in the test's process: ``run(args, cwd)`` returns what it printed,
+    ``fails(args, cwd)`` what a run that must stop said (its ``SystemExit`` message and standard error).
+    The script's start-up (~5 s of imports, ~2 s of torch's first optimiser, the reference motions read)
+    is paid once per test session instead of once a run; each script keeps one test that runs it as a
+    script, in its own process."""
+
+    def __init__(self, module, monkeypatch, capsys) -> None:
+        self.module, self.monkeypatch, self.capsys = module, monkeypatch, capsys
+
+    def _main(self, args: list[str], cwd) -> None:
+        import torch
+        threads = torch.get_num_threads()
+        self.monkeypatch.chdir(cwd)
+        try:
+            self.module.main(args)
+        finally:
+            torch.set_num_threads(threads)    # a trainer's torch_threads: not for the tests after it
+
+    def run(self, args: list[str], cwd) -> str:
+        self._main(args, cwd)
+        return self.capsys.readouterr().out
+
+    def fails(self, args: list[str], cwd) -> str:
+        with pytest.raises(SystemExit) as stop:
+            self._main(args, cwd)
+        assert stop.value.code not in (None, 0), "the run was to stop with an error"
+        return f"{stop.value.code}\n{self.capsys.readouterr().err}"
+
+
+@pytest.fixture
+def train_ppo(baseline_script, monkeypatch, capsys) -> InProcessScript:
+    """``baselines/train_ppo.py`` in this process (``InProcessScript``)."""
+    return InProcessScript(baseline_script("train_ppo"), monkeypatch, capsys)

@@ -1,4 +1,5 @@
-"""The PPO + AMP training script runs end to end, checkpoints, resumes and evaluates."""
+"""The PPO + AMP training script runs end to end, checkpoints, resumes and evaluates (in the test's process,
+``conftest.InProcessScript``; ``test_bad_flags_are_rejected`` runs it as a script)."""
 
 from __future__ import annotations
 
@@ -16,18 +17,10 @@ TINY = ["--trainer", "sb3", "--n-envs", "2", "--vec-env", "dummy", "--n-steps", 
         "--no-progress-bar", "--checkpoint-every", "512"]
 
 
-def run(args: list[str], cwd: Path) -> str:
-    env = {**os.environ, "MUJOCO_GL": "egl"}
-    done = subprocess.run([sys.executable, str(SCRIPT), *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=600)
-    assert done.returncode == 0, done.stderr[-3000:]
-    return done.stdout
-
-
 @pytest.mark.slow
-def test_train_checkpoint_resume_evaluate(tmp_path):
-    out = run(["--timesteps", "1024", "--logdir", str(tmp_path), "--eval-episodes", "2",
-               "--eval-max-episode-steps", "20", *TINY], tmp_path)
+def test_train_checkpoint_resume_evaluate(tmp_path, train_ppo):
+    out = train_ppo.run(["--timesteps", "1024", "--logdir", str(tmp_path), "--eval-episodes", "2",
+                         "--eval-max-episode-steps", "20", *TINY], tmp_path)
     run_dir = tmp_path / "InterLevel-v0" / "seed0"
     for name in ("final_model.zip", "vecnormalize.pkl", "amp.pt", "evaluation.csv", "evaluation.json",
                  "checkpoints/ppo_512_steps.zip", "checkpoints/ppo_vecnormalize_512_steps.pkl",
@@ -36,8 +29,8 @@ def test_train_checkpoint_resume_evaluate(tmp_path):
     assert "Progress (%)" in out
     assert any((run_dir / "tb").rglob("events.out.tfevents*"))
 
-    out = run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0",
-               "--resume", str(run_dir / "checkpoints" / "ppo_512_steps.zip"), *TINY], tmp_path)
+    out = train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0",
+                         "--resume", str(run_dir / "checkpoints" / "ppo_512_steps.zip"), *TINY], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
 
     # Without its AMP state a checkpoint resumes only with an explicit fresh discriminator.
@@ -45,32 +38,27 @@ def test_train_checkpoint_resume_evaluate(tmp_path):
     (run_dir / "checkpoints" / "amp_512_steps.pt").unlink()
     resume = ["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
               *TINY]
-    env = {**os.environ, "MUJOCO_GL": "egl"}
-    done = subprocess.run([sys.executable, str(SCRIPT), *resume], check=False, cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=600)
-    assert done.returncode != 0 and "amp_512_steps.pt" in done.stderr and "--fresh-discriminator" in done.stderr
-    assert "a fresh discriminator" in run([*resume, "--fresh-discriminator"], tmp_path)
+    said = train_ppo.fails(resume, tmp_path)
+    assert "amp_512_steps.pt" in said and "--fresh-discriminator" in said
+    assert "a fresh discriminator" in train_ppo.run([*resume, "--fresh-discriminator"], tmp_path)
 
 
-def test_train_sims_with_a_text_conditioned_discriminator(tmp_path):
+def test_train_sims_with_a_text_conditioned_discriminator(tmp_path, train_ppo):
     """SIMS: the discriminator judges [window, caption embedding]; the final evaluation is Table 1's."""
     import json
 
     import torch
 
-    run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
-         "--env-kwarg", "text_dim=8", "--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "2",
-         "--eval-max-episode-steps", "20", *TINY], tmp_path)
+    train_ppo.run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
+                   "--env-kwarg", "text_dim=8", "--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes",
+                   "2", "--eval-max-episode-steps", "20", *TINY], tmp_path)
     run_dir = tmp_path / "SIMS-Sit-v0" / "seed0"
     amp = torch.load(run_dir / "amp.pt", weights_only=True)
     assert amp["reference_condition_dim"] == 8
     report = json.loads((run_dir / "evaluation.json").read_text())[0]
     assert report["table"] == "skills" and report["rows"][0]["group"] == "sit" and report["rows"][0]["n"] == 2
     assert report["settings"]["env_kwargs"]["captions"] == [["neutral", "sit down"]]
-    env = {**os.environ, "MUJOCO_GL": "egl"}
-    done = subprocess.run([sys.executable, str(SCRIPT), "--amp-text-condition", "--timesteps", "10"],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode != 0 and "needs a SIMS env" in done.stderr
+    assert "needs a SIMS env" in train_ppo.fails(["--amp-text-condition", "--timesteps", "10"], tmp_path)
 
 
 def test_defaults_are_the_cpu_settings_and_the_paper_preset_restores_the_paper(baseline_script):
@@ -128,20 +116,20 @@ def test_bad_flags_are_rejected(tmp_path):
 
 
 @pytest.mark.slow
-def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path):
+def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path, train_ppo):
     batched = [arg if arg != "dummy" else "batched" for arg in TINY]
-    run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "1", "--eval-max-episode-steps", "10",
-         *batched], tmp_path)
+    train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "1", "--eval-max-episode-steps",
+                   "10", *batched], tmp_path)
     checkpoint = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints" / "ppo_512_steps.zip"
     assert checkpoint.exists() and checkpoint.with_name("amp_512_steps.pt").exists()
-    out = run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
-               *batched], tmp_path)
+    out = train_ppo.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
+                         str(checkpoint), *batched], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
 
     # A new run from the checkpoint: its weights, statistics and discriminator, this run's settings.
-    out = run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
-               "--init-from", str(checkpoint), "--learning-rate", "3e-4", "--target-kl", "0.01",
-               "--env-kwarg", "stairs_start_fraction=0.5", "--disc-input-noise", "0.3", *batched], tmp_path)
+    out = train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
+                         "--init-from", str(checkpoint), "--learning-rate", "3e-4", "--target-kl", "0.01",
+                         "--env-kwarg", "stairs_start_fraction=0.5", "--disc-input-noise", "0.3", *batched], tmp_path)
     assert "initialised from" in out and "discriminator" in out
     warm = tmp_path / "warm" / "InterLevel-v0" / "seed0"
     assert (warm / "checkpoints" / "ppo_512_steps.zip").exists()  # counted from 0
@@ -170,12 +158,12 @@ def test_plot_training_averages_step_windows(baseline_script, tmp_path):
 
 
 @pytest.mark.slow
-def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_path):
+def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_path, train_ppo):
     """The curriculum's levels are saved beside each checkpoint and given back world by world on
     --resume; a file that does not fit the run stops it, naming the file; the final evaluation draws
     the env's own step heights, without the curriculum."""
-    run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0", "--env-kwarg",
-         "step_height_levels=9", "--env-kwarg", "step_height=(0.02, 0.2)", *TINY], tmp_path)
+    train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0", "--env-kwarg",
+                   "step_height_levels=9", "--env-kwarg", "step_height=(0.02, 0.2)", *TINY], tmp_path)
     folder = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints"
     saved = folder / "curriculum_512_steps.json"
     import json
@@ -183,9 +171,9 @@ def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_p
     levels = json.loads(saved.read_text())["curriculum_level"]
     assert len(levels) == 2 and all(0 <= level < 9 for level in levels)
     saved.write_text(json.dumps({"curriculum_level": [7, 1]}))
-    out = run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
-               str(folder / "ppo_512_steps.zip"), "--env-kwarg", "step_height_levels=9", "--env-kwarg",
-               "step_height=(0.02, 0.2)", *TINY], tmp_path)
+    out = train_ppo.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
+                         str(folder / "ppo_512_steps.zip"), "--env-kwarg", "step_height_levels=9", "--env-kwarg",
+                         "step_height=(0.02, 0.2)", *TINY], tmp_path)
     assert f"curriculum levels from {saved} (mean 4.00)" in out
 
 

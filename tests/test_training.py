@@ -225,10 +225,11 @@ def run_script(args: list[str], cwd: Path) -> str:
     return done.stdout
 
 
-def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
+def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path, train_ppo):
     tiny = ["--n-envs", "4", "--n-steps", "32", "--batch-size", "64", "--checkpoint-every", "128",
             "--no-progress-bar", "--logdir", str(tmp_path)]
-    out = run_script(["--timesteps", "256", "--eval-episodes", "2", "--eval-max-episode-steps", "20", *tiny], tmp_path)
+    out = train_ppo.run(["--timesteps", "256", "--eval-episodes", "2", "--eval-max-episode-steps", "20", *tiny],
+                        tmp_path)
     run_dir = tmp_path / "InterLevel-v0" / "seed0"
     for name in ("checkpoints/checkpoint_128.pt", "checkpoints/checkpoint_256.pt", "final_checkpoint.pt",
                  "final_policy.npz", "evaluation.json", "log.jsonl"):
@@ -238,23 +239,23 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path):
     assert state["steps"] == 128 and state["config"]["num_envs"] == 4 and state["style"] is not None
     state["config"]["device"] = "cuda"    # as a GPU run writes it: --resume takes this machine's --device (cpu)
     torch.save(state, run_dir / "checkpoints" / "checkpoint_128.pt")
-    out = run_script(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
+    out = train_ppo.run(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
                       "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
     # --reset-std: a new run from the trained weights whose action noise starts at --log-std-init again
     # (a new task from a trained policy); a resume refuses the flag (it stays exact).
     start = read_checkpoint(run_dir / "checkpoints" / "checkpoint_256.pt")
-    out = run_script(["--init-from", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std",
+    out = train_ppo.run(["--init-from", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std",
                       "--log-std-init", "-1.0", "--timesteps", "128", "--eval-episodes", "0", *tiny[:-2],
                       "--logdir", str(tmp_path / "reset")], tmp_path)
     assert "action noise reset to log std -1 (--reset-std)" in out
     after = read_checkpoint(tmp_path / "reset" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_128.pt")
     assert torch.allclose(after["model"]["log_std"], torch.full_like(after["model"]["log_std"], -1.0), atol=0.02)
     assert not torch.allclose(start["model"]["log_std"], after["model"]["log_std"], atol=0.5)
-    done = subprocess.run([sys.executable, str(SCRIPT), "--resume", str(run_dir / "checkpoints" / "checkpoint_256.pt"),
-                           "--reset-std", *tiny], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert done.returncode != 0 and "--reset-std only applies to --init-from" in done.stderr
+    said = train_ppo.fails(["--resume", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std", *tiny],
+                           tmp_path)
+    assert "--reset-std only applies to --init-from" in said
 
 
 def test_climb_cache_workers_synthesise_the_runs_staircases_first(tmp_path):
@@ -269,44 +270,42 @@ def test_climb_cache_workers_synthesise_the_runs_staircases_first(tmp_path):
     assert "trained 32 env steps" in out
 
 
-def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path):
+def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path, train_ppo):
     """The checkpoint records amp_text_condition: --resume needs no --amp-text-condition again."""
     tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
             "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
-    run_script(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
+    train_ppo.run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
                 "--timesteps", "32", *tiny], tmp_path)
     checkpoint = tmp_path / "SIMS-Sit-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
     assert read_checkpoint(checkpoint)["config"]["amp_text_condition"] is True
-    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
+    out = train_ppo.run(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
     assert "at 32 steps" in out and "trained 32 env steps" in out
-    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", "--fresh-discriminator", *tiny], tmp_path)
+    out = train_ppo.run(["--resume", str(checkpoint), "--timesteps", "32", "--fresh-discriminator", *tiny], tmp_path)
     assert "at 32 steps" in out and "a fresh discriminator" in out
 
     # A sit run's weights into reach, which SIMS does not condition on text: the discriminator's inputs
     # differ, so it is refused unless the run asks for a fresh discriminator.
     into_reach = ["--init-from", str(checkpoint), "--env", "SIMS-Reach-v0", "--timesteps", "32", *tiny]
-    done = subprocess.run([sys.executable, str(SCRIPT), *into_reach], cwd=tmp_path,
-                          env={**os.environ, "MUJOCO_GL": "egl"}, capture_output=True, text=True, timeout=600)
-    assert done.returncode != 0 and "--fresh-discriminator" in done.stderr
-    out = run_script([*into_reach, "--fresh-discriminator"], tmp_path)
+    assert "--fresh-discriminator" in train_ppo.fails(into_reach, tmp_path)
+    out = train_ppo.run([*into_reach, "--fresh-discriminator"], tmp_path)
     assert "a fresh discriminator" in out and "trained 32 env steps" in out
     reach = read_checkpoint(tmp_path / "SIMS-Reach-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt")
     assert reach["config"]["amp_text_condition"] is False and reach["style"] is not None
 
 
-def test_amp_text_captions_all_trains_on_every_caption_against_the_styles_texts(tmp_path):
+def test_amp_text_captions_all_trains_on_every_caption_against_the_styles_texts(tmp_path, train_ppo):
     """--amp-text-captions all: the env keeps its own captions (the evaluation's) and conditions the
     discriminator on each style's reference text (condition_captions, recorded); --resume keeps it so."""
     tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
             "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
-    run_script(["--env", "SIMS-Walk-v0", "--amp-text-condition", "--amp-text-captions", "all", "--env-kwarg",
+    train_ppo.run(["--env", "SIMS-Walk-v0", "--amp-text-condition", "--amp-text-captions", "all", "--env-kwarg",
                 "text_encoder=hashing", "--timesteps", "32", *tiny], tmp_path)
     checkpoint = tmp_path / "SIMS-Walk-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
     kwargs = read_checkpoint(checkpoint)["config"]["env_kwargs"]
     library = load_reference_library("builtin:sims")
     assert "captions" not in kwargs
     assert {tuple(pair) for pair in kwargs["condition_captions"]} >= set(reference_captions(library, "walk"))
-    out = run_script(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
+    out = train_ppo.run(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
     assert "at 32 steps" in out
     resumed = read_checkpoint(tmp_path / "SIMS-Walk-v0" / "seed0" / "checkpoints" / "checkpoint_64.pt")
     assert "captions" not in resumed["config"]["env_kwargs"]
