@@ -28,8 +28,9 @@ averaged, statistics merged, ``--timesteps`` counting every rank's steps, rank 0
 checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count (exact with the same);
 ``--device cuda``: the lean trainer's networks, rollout, PPO and AMP updates on the GPU, the envs on the host;
 under torchrun local rank r takes the node's GPU ``r mod GPUs`` for its networks (``--device cuda``) and its
-physics (``--physics warp``), so several ranks may share one GPU (nccl beside gloo where each has its own).
-``docs/training.md`` compares them.
+physics (``--physics warp``), so several ranks may share one GPU (nccl beside gloo where each has its own);
+a rank that cannot start (its machine lacks the checkpoint, the motions, MuJoCo Warp or a GPU) stops every
+rank with its reason. ``docs/training.md`` compares them.
 
 Defaults (``--preset cpu``): the fastest settings measured to still learn on a 2-core CPU
 (``docs/reproducing.md``): the natively batched env (``--vec-env batched``, 128 worlds, physics on
