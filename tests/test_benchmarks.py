@@ -65,3 +65,18 @@ def test_bench_importers_runs(tmp_path):
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.count("faster than before") == 8, done.stdout  # 2 clips x 2 modes x wall, CPU
+
+
+def test_gpu_session_script_runs_each_step_and_records_its_status(tmp_path):
+    """benchmarks/gpu_session.sh, with an interpreter that only echoes its arguments: every step runs under
+    its own limit, its output in its log, its exit status in status.txt (the GPU machine is not needed to
+    check the script's wiring; what it measures is bench_ranks', smoke-tested above)."""
+    out = tmp_path / "out"
+    env = {**os.environ, "OUT": str(out), "PYTHON": "echo"}
+    done = subprocess.run(["bash", str(BENCHMARKS / "gpu_session.sh")], env=env, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert (out / "status.txt").read_text().split() == ["ranks_warp", "0", "ranks_mujoco", "0", "tests_cuda", "0"]
+    assert "--ranks 1,4,8,16" in (out / "ranks_warp.log").read_text()
+    assert "--physics mujoco" in (out / "ranks_mujoco.log").read_text()
+    assert (out / "gpu.csv").exists()

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Issue #27's measurements for one short GPU session, in order of value, each under its own time limit
+# (at most 9.5 minutes in all: the device tool's 10-minute call), so that a session with little device time gets the most from one call:
+#
+#   OUT=results bash benchmarks/gpu_session.sh        # PYTHON=... picks the interpreter (default python)
+#
+# Needs the package with its train and gpu extras installed (README, "Train on a GPU"). Writes into $OUT:
+# gpu.csv (the card), one log per step, the benchmarks' JSON, and status.txt (each step's exit status:
+# 124 when it ran out of its time). docs/gpu.md ("Next GPU session") says what each step is for.
+set -u
+cd "$(dirname "$0")/.."
+OUT=${OUT:-gpu_results}
+PY=${PYTHON:-python}
+mkdir -p "$OUT"
+export MUJOCO_GL=${MUJOCO_GL:-egl}
+
+step() {    # step NAME SECONDS COMMAND...: run it, its output in $OUT/NAME.log, its status in status.txt
+    local name=$1 limit=$2
+    shift 2
+    echo "== $name (at most $limit s): $*"
+    timeout --signal=TERM --kill-after=20 "$limit" "$@" > "$OUT/$name.log" 2>&1
+    echo "$name $?" | tee -a "$OUT/status.txt"
+}
+
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu.csv" 2>&1 || true
+# K ranks sharing the GPU over 4,096 worlds of Warp physics: the host's per-world task on K cores
+# (the first run compiles Warp's CUDA kernels, cached for the others)
+step ranks_warp 360 "$PY" benchmarks/bench_ranks.py --ranks 1,4,8,16 --timeout 110 --out "$OUT/ranks_warp.json"
+# the same split on the C back-end: a many-core machine's cores shared by K ranks
+step ranks_mujoco 150 "$PY" benchmarks/bench_ranks.py --physics mujoco --worlds 256 --ranks 1,4,8 --timeout 45 \
+    --out "$OUT/ranks_mujoco.json"
+# the lean trainer on CUDA against the CPU (skipped where torch sees no GPU)
+step tests_cuda 60 "$PY" -m pytest -q -p no:cacheprovider tests/test_training.py -k cuda
+echo "results in $OUT"
