@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Issue #27's measurements for one short GPU session, in order of value, each under its own time limit
-# (at most 9.5 minutes in all: the device tool's 10-minute call), so that a session with little device time gets the most from one call:
+# (at most 9.5 minutes in all, within the device tool's 10-minute call), so that a session with little
+# device time gets the most from one call:
 #
 #   OUT=results bash benchmarks/gpu_session.sh        # PYTHON=... picks the interpreter (default python)
 #

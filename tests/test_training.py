@@ -240,15 +240,15 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path, train
     state["config"]["device"] = "cuda"    # as a GPU run writes it: --resume takes this machine's --device (cpu)
     torch.save(state, run_dir / "checkpoints" / "checkpoint_128.pt")
     out = train_ppo.run(["--resume", str(run_dir / "checkpoints" / "checkpoint_128.pt"), "--timesteps", "128",
-                      "--eval-episodes", "0", *tiny], tmp_path)
+                         "--eval-episodes", "0", *tiny], tmp_path)
     assert "at 128 steps" in out and "trained 128 env steps" in out
 
     # --reset-std: a new run from the trained weights whose action noise starts at --log-std-init again
     # (a new task from a trained policy); a resume refuses the flag (it stays exact).
     start = read_checkpoint(run_dir / "checkpoints" / "checkpoint_256.pt")
     out = train_ppo.run(["--init-from", str(run_dir / "checkpoints" / "checkpoint_256.pt"), "--reset-std",
-                      "--log-std-init", "-1.0", "--timesteps", "128", "--eval-episodes", "0", *tiny[:-2],
-                      "--logdir", str(tmp_path / "reset")], tmp_path)
+                         "--log-std-init", "-1.0", "--timesteps", "128", "--eval-episodes", "0", *tiny[:-2],
+                         "--logdir", str(tmp_path / "reset")], tmp_path)
     assert "action noise reset to log std -1 (--reset-std)" in out
     after = read_checkpoint(tmp_path / "reset" / "InterLevel-v0" / "seed0" / "checkpoints" / "checkpoint_128.pt")
     assert torch.allclose(after["model"]["log_std"], torch.full_like(after["model"]["log_std"], -1.0), atol=0.02)
@@ -275,7 +275,7 @@ def test_a_text_conditioned_run_resumes_without_the_flag(tmp_path, train_ppo):
     tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
             "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
     train_ppo.run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
-                "--timesteps", "32", *tiny], tmp_path)
+                   "--timesteps", "32", *tiny], tmp_path)
     checkpoint = tmp_path / "SIMS-Sit-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
     assert read_checkpoint(checkpoint)["config"]["amp_text_condition"] is True
     out = train_ppo.run(["--resume", str(checkpoint), "--timesteps", "32", *tiny], tmp_path)
@@ -299,7 +299,7 @@ def test_amp_text_captions_all_trains_on_every_caption_against_the_styles_texts(
     tiny = ["--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every", "32",
             "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0"]
     train_ppo.run(["--env", "SIMS-Walk-v0", "--amp-text-condition", "--amp-text-captions", "all", "--env-kwarg",
-                "text_encoder=hashing", "--timesteps", "32", *tiny], tmp_path)
+                   "text_encoder=hashing", "--timesteps", "32", *tiny], tmp_path)
     checkpoint = tmp_path / "SIMS-Walk-v0" / "seed0" / "checkpoints" / "checkpoint_32.pt"
     kwargs = read_checkpoint(checkpoint)["config"]["env_kwargs"]
     library = load_reference_library("builtin:sims")
