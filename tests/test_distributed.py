@@ -4,7 +4,9 @@ The first update of 2 ranks x N worlds equals that of one process with 2N worlds
 whole rollout one minibatch: equal in exact arithmetic, here within float32 rounding), so does a
 discriminator trained on each rank's half of the batch; every rank keeps the same weights; a run
 resumed from a 2-rank checkpoint with 2 ranks equals the run never stopped; ``train_ppo.py`` under
-torchrun checkpoints and resumes with 2 ranks and with 1.
+torchrun checkpoints and resumes with 2 ranks and with 1. Two torchrun agents standing in for two machines
+(``--nnodes 2``) resume as the 2 ranks of one machine do, bit for bit, and stop together, saying why, when
+one machine cannot start.
 """
 
 from __future__ import annotations
