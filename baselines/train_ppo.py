@@ -227,6 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="env steps between checkpoints (default: 1,000,000 with the lean trainer, whose checkpoints "
                         "start every world's episode anew so that a resume is exact; 100,000 with sb3)")
     p.add_argument("--resume", type=Path, help="checkpoint .zip to continue from (its settings, its step count)")
+    p.add_argument("--auto-resume", action="store_true",
+                   help="lean trainer: go on from the newest checkpoint_<steps>.pt of this run (--logdir, --env, "
+                        "--seed) to the run's own end, or start the run if it has none; the same command then "
+                        "restarts a stopped run (torchrun --max-restarts: the ranks restart from it)")
     p.add_argument("--init-from", type=Path,
                    help="checkpoint .zip to start a new run from: its policy and value weights, optimiser, "
                         "observation statistics and (with AMP) discriminator, with this run's settings "
@@ -340,6 +344,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         raise SystemExit("--fresh-discriminator only applies to --resume or --init-from with --style amp")
     if args.resume is not None and args.init_from is not None:
         raise SystemExit("--resume continues a run, --init-from starts a new one from a checkpoint: give one")
+    if args.auto_resume and (args.resume is not None or args.init_from is not None or args.trainer != "lean"):
+        raise SystemExit("--auto-resume finds the run's own checkpoint (lean trainer): not with --resume, "
+                         "--init-from or --trainer sb3")
     if args.reset_std and (args.init_from is None or args.trainer != "lean"):
         raise SystemExit("--reset-std only applies to --init-from with the lean trainer (a resume stays exact)")
     return args
@@ -456,9 +463,23 @@ def _read_lean(path: Path, flag: str, fresh_discriminator: bool) -> dict:
     return state
 
 
+def newest_checkpoint(folder: Path) -> Path | None:
+    """The ``checkpoint_<steps>.pt`` of most steps in ``folder`` (None if it holds none): a checkpoint is
+    written whole or not at all, so the newest one is complete."""
+    steps = {}
+    for path in folder.glob("checkpoint_*.pt"):
+        number = path.stem.removeprefix("checkpoint_")
+        if number.isdigit():
+            steps[int(number)] = path
+    return steps[max(steps)] if steps else None
+
+
 def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
     """``(resume_state, init_state)`` read from ``--resume`` / ``--init-from`` (a lean ``.pt``; for
-    ``--init-from`` also an SB3 ``.zip`` with its statistics and AMP state beside it)."""
+    ``--init-from`` also an SB3 ``.zip`` with its statistics and AMP state beside it); ``--auto-resume``
+    sets ``--resume`` to the run's newest checkpoint, if it has one."""
+    if args.auto_resume:
+        args.resume = newest_checkpoint(args.logdir / args.env / f"seed{args.seed}" / "checkpoints")
     if args.resume is not None:
         if args.resume.suffix == ".zip":
             raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
@@ -519,7 +540,8 @@ def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None
     resume, init = _lean_start(args)
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
-        config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
+        if not args.auto_resume:    # --auto-resume: on to the run's own end
+            config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
         # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's
         for name in ("physics", "physics_threads"):
             if getattr(args, name) is not None:
@@ -574,6 +596,14 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
     # each rank reads its machine's files; one that cannot stops them all with its reason (parallel.agree)
     resume, init, config, env_kwargs, reference = parallel.agree(
         lambda: _lean_setup(args, say), "Reading the run's files (--resume, --init-from, the reference motions)")
+    if args.auto_resume:
+        chosen = parallel.gather(None if args.resume is None else str(args.resume))
+        if len(set(chosen)) > 1:    # a folder the machines see differently: they would go on from different states
+            raise SystemExit(f"--auto-resume: the ranks found different newest checkpoints ({chosen}); give "
+                             "--logdir a folder every machine sees alike")
+        if resume is None:
+            say(f"--auto-resume: no checkpoint of this run in {args.logdir / args.env / f'seed{args.seed}'}: "
+                "starting it")
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
     if args.climb_cache_workers > 0:
         fill_climb_cache(config, args.climb_cache_workers, say, parallel)

@@ -501,3 +501,26 @@ def test_training_on_cuda_checkpoints_load_on_the_cpu(tmp_path):
     assert again.steps == 96
     for trainer in (gpu, cpu, again):
         trainer.close()
+
+
+def test_auto_resume_goes_on_from_the_runs_newest_checkpoint_as_if_never_stopped(tmp_path, train_ppo):
+    """--auto-resume: the same command starts the run, and after a stop goes on from its newest checkpoint
+    to the run's own end, with the weights of the run never stopped (no style: no replay buffer, which is
+    kept beside the latest checkpoint only)."""
+    command = ["--style", "none", "--n-envs", "2", "--n-steps", "16", "--batch-size", "32", "--checkpoint-every",
+               "32", "--timesteps", "96", "--no-progress-bar", "--logdir", str(tmp_path), "--eval-episodes", "0",
+               "--policy-hidden", "32,32", "--auto-resume"]
+    assert "no checkpoint of this run" in train_ppo.run(command, tmp_path)
+    run = tmp_path / "InterLevel-v0" / "seed0"
+    never_stopped = read_checkpoint(run / "final_checkpoint.pt")
+    for later in ("checkpoints/checkpoint_64.pt", "checkpoints/checkpoint_96.pt", "final_checkpoint.pt"):
+        (run / later).unlink()    # as if stopped after its checkpoint at 32 steps
+    out = train_ppo.run(command, tmp_path)
+    assert f"resumed from {run / 'checkpoints' / 'checkpoint_32.pt'} at 32 steps" in out
+    assert "trained 64 env steps" in out    # on to the run's 96, not 96 more
+    restarted = read_checkpoint(run / "final_checkpoint.pt")
+    assert restarted["steps"] == never_stopped["steps"] == 96
+    for name, weights in never_stopped["model"].items():
+        assert torch.equal(restarted["model"][name], weights), name
+    said = train_ppo.fails([*command, "--resume", str(run / "final_checkpoint.pt")], tmp_path)
+    assert "--auto-resume finds the run's own checkpoint" in said
