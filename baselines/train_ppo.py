@@ -230,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--auto-resume", action="store_true",
                    help="lean trainer: go on from the newest checkpoint_<steps>.pt of this run (--logdir, --env, "
                         "--seed) to the run's own end, or start the run if it has none; the same command then "
-                        "restarts a stopped run (torchrun --max-restarts: the ranks restart from it)")
+                        "restarts a stopped run (a session's end, a lost rank or machine)")
     p.add_argument("--init-from", type=Path,
                    help="checkpoint .zip to start a new run from: its policy and value weights, optimiser, "
                         "observation statistics and (with AMP) discriminator, with this run's settings "
