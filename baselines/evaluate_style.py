@@ -60,14 +60,13 @@ def build_parser() -> argparse.ArgumentParser:
 def checkpoints(run: Path) -> list[tuple[int | None, Path]]:
     """(steps, model) of every checkpoint by steps, then the final policy (steps None): an SB3 run's
     ``ppo_<n>_steps.zip`` and ``final_model.zip``, a lean run's ``checkpoint_<n>.pt`` and ``final_policy.npz``."""
+    from stairenv.training import checkpoints_in
     found = []
     for path in (run / "checkpoints").glob("*_steps.zip"):
         match = re.fullmatch(r".*_(\d+)_steps", path.stem)
         if match and "vecnormalize" not in path.stem:
             found.append((int(match[1]), path))
-    for path in (run / "checkpoints").glob("checkpoint_*.pt"):
-        if match := re.fullmatch(r"checkpoint_(\d+)", path.stem):
-            found.append((int(match[1]), path))
+    found += checkpoints_in(run / "checkpoints")
     found.sort()
     for final in ("final_model.zip", "final_policy.npz"):
         if (run / final).is_file():
@@ -78,11 +77,12 @@ def checkpoints(run: Path) -> list[tuple[int | None, Path]]:
 def newest_discriminator(run: Path) -> Path | None:
     """An SB3 run's ``amp.pt`` or newest ``amp_<n>_steps.pt``; a lean run's ``final_checkpoint.pt`` or
     newest ``checkpoint_<n>.pt`` (the discriminator is inside)."""
+    from stairenv.training import checkpoints_in
     for final in ("amp.pt", "final_checkpoint.pt"):
         if (run / final).is_file():
             return run / final
-    states = [(int(m[1] or m[2]), p) for p in (run / "checkpoints").glob("*.pt")
-              if (m := re.fullmatch(r"amp_(\d+)_steps|checkpoint_(\d+)", p.stem))]
+    states = [(int(m[1]), p) for p in (run / "checkpoints").glob("amp_*_steps.pt")
+              if (m := re.fullmatch(r"amp_(\d+)_steps", p.stem))] + checkpoints_in(run / "checkpoints")
     return max(states)[1] if states else None
 
 

@@ -127,7 +127,8 @@ from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 from stairenv.tasks import curriculum
-from stairenv.training import CheckpointError, RunLog, Trainer, TrainConfig, build_style, read_checkpoint
+from stairenv.training import (CheckpointError, RunLog, Trainer, TrainConfig, build_style, checkpoints_in,
+                               read_checkpoint)
 from stairenv.training.distributed import LOCAL, DataParallel
 from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
@@ -463,23 +464,13 @@ def _read_lean(path: Path, flag: str, fresh_discriminator: bool) -> dict:
     return state
 
 
-def newest_checkpoint(folder: Path) -> Path | None:
-    """The ``checkpoint_<steps>.pt`` of most steps in ``folder`` (None if it holds none): a checkpoint is
-    written whole or not at all, so the newest one is complete."""
-    steps = {}
-    for path in folder.glob("checkpoint_*.pt"):
-        number = path.stem.removeprefix("checkpoint_")
-        if number.isdigit():
-            steps[int(number)] = path
-    return steps[max(steps)] if steps else None
-
-
 def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
     """``(resume_state, init_state)`` read from ``--resume`` / ``--init-from`` (a lean ``.pt``; for
     ``--init-from`` also an SB3 ``.zip`` with its statistics and AMP state beside it); ``--auto-resume``
     sets ``--resume`` to the run's newest checkpoint, if it has one."""
-    if args.auto_resume:
-        args.resume = newest_checkpoint(args.logdir / args.env / f"seed{args.seed}" / "checkpoints")
+    if args.auto_resume:    # the newest of the run's checkpoints, if it has one
+        found = checkpoints_in(args.logdir / args.env / f"seed{args.seed}" / "checkpoints")
+        args.resume = found[-1][1] if found else None
     if args.resume is not None:
         if args.resume.suffix == ".zip":
             raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
@@ -601,10 +592,9 @@ def _train_lean(args: argparse.Namespace, parallel) -> Path:
         if len(set(chosen)) > 1:    # a folder the machines see differently: they would go on from different states
             raise SystemExit(f"--auto-resume: the ranks found different newest checkpoints ({chosen}); give "
                              "--logdir a folder every machine sees alike")
-        if resume is None:
-            say(f"--auto-resume: no checkpoint of this run in {args.logdir / args.env / f'seed{args.seed}'}: "
-                "starting it")
     run_dir = args.logdir / config.env_id / f"seed{config.seed}"
+    if args.auto_resume and resume is None:
+        say(f"--auto-resume: no checkpoint of this run in {run_dir}: starting it")
     if args.climb_cache_workers > 0:
         fill_climb_cache(config, args.climb_cache_workers, say, parallel)
     trainer = Trainer(config, build_style(config, reference, parallel.rank), parallel=parallel)

@@ -33,6 +33,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -456,7 +457,7 @@ class Trainer:
             # the run's last step is a checkpoint too, so that it resumes exactly, replay buffer and all
             last = self.steps >= cfg.total_steps
             if checkpoint_dir is not None and (self.steps >= next_checkpoint or last):
-                self.checkpoint(checkpoint_dir / f"checkpoint_{self.steps}.pt")
+                self.checkpoint(checkpoint_dir / checkpoint_name(self.steps))
                 next_checkpoint += cfg.checkpoint_every
 
     def checkpoint(self, path: Path) -> Path:
@@ -658,6 +659,19 @@ def _atomic(path: Path, write) -> None:
     with open(tmp, "wb") as f:
         write(f)
     tmp.replace(path)
+
+
+def checkpoint_name(steps: int) -> str:
+    """The file name of a run's checkpoint at ``steps`` (``Trainer.learn`` writes them into ``checkpoints/``)."""
+    return f"checkpoint_{steps}.pt"
+
+
+def checkpoints_in(folder: str | Path) -> list[tuple[int, Path]]:
+    """``(steps, path)`` of every ``checkpoint_<steps>.pt`` in ``folder``, fewest steps first (each written whole
+    or not at all, so the last is the newest complete one)."""
+    found = [(int(match[1]), path) for path in Path(folder).glob("checkpoint_*.pt")
+             if (match := re.fullmatch(r"checkpoint_(\d+)", path.stem))]
+    return sorted(found)
 
 
 def read_checkpoint(path: str | Path) -> dict[str, Any]:
