@@ -1,0 +1,148 @@
+"""The host's share of a batched step, against the same task kernels called once over arrays.
+
+    python benchmarks/bench_host_share.py [--worlds 256] [--steps 100] [--rounds 3] [--array-worlds 4096]
+
+Issue #27's GPU target (300k env steps/s for physics and task at 4,096 worlds) leaves the host ~3.3 us
+per world-step. This script measures how far today's step is from that, and how far a step made only of
+array operations would be. Per round:
+
+- ``host``: ``InterLevel-v0``'s batched env, ``--worlds`` worlds, the shipped policy acting (the policy
+  itself is not timed; its episodes rarely end, so resets are mostly outside both figures). The figure
+  is the step's time minus its physics, in us per world-step. The physics is timed world by world inside
+  the step: ``physics=`` gets a ``SerialPhysics`` that times its own ``mj_step`` calls, so nothing else
+  of the step is changed;
+- ``arrays``: the kernels the env calls, once each over ``--array-worlds`` worlds' state arrays (the
+  env's worlds' states tiled). These are the task's compiled step (observation, reward terms, fall,
+  success, progress), then the reward and flags as arrays, then the style features with their history
+  shifted and flattened. That is the host's cost if the step handled its worlds only as arrays, with
+  the same formulas. Not in it: the state's copy from the device and the device's own step.
+
+Printed per round: both figures, their ratio and the 3.3 us budget; at the end the medians. Results on
+our machine are in ``docs/gpu.md`` ("Where the targets stand").
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import stairenv  # noqa: F401  (registers the ids)
+from stairenv import pretrained
+from stairenv.environments.batch_physics import SerialPhysics
+from stairenv.humanoid.state import HumanoidState
+from stairenv.style.features import amp_features
+from stairenv.tasks import interlevel as task
+
+#: host time per world-step that 300k env steps/s allows when the host works serially with the device
+BUDGET_US = 1e6 / 300_000
+
+
+class TimedSerialPhysics(SerialPhysics):
+    """``SerialPhysics`` that adds up the time of its ``mj_step`` calls (and nothing else of the step)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def step(self, worlds, nstep, then=None, meanwhile=None, collect=None) -> None:
+        if meanwhile is not None:
+            meanwhile()
+        for k, (model, data) in enumerate(worlds):
+            start = time.perf_counter()
+            mujoco.mj_step(model, data, nstep)
+            self.seconds += time.perf_counter() - start
+            if then is not None:
+                then(k)
+        if collect is not None and worlds:
+            collect(list(range(len(worlds))))
+
+
+def host_us(venv, physics: TimedSerialPhysics, policy, obs: np.ndarray, steps: int) -> tuple[float, float, np.ndarray]:
+    """The step's time minus its physics and the physics, us per world-step, over ``steps`` steps; the last
+    observation."""
+    physics.seconds, total = 0.0, 0.0
+    for _ in range(steps):
+        actions = policy(obs)
+        start = time.perf_counter()
+        obs, *_ = venv.step(actions)
+        total += time.perf_counter() - start
+    scale = 1e6 / (steps * venv.num_envs)
+    return (total - physics.seconds) * scale, physics.seconds * scale, obs
+
+
+def array_step(envs, worlds: int):
+    """A function running the env's kernels once over ``worlds`` worlds' arrays (``envs``' states tiled)."""
+    first = envs[0]
+    state = type(first)._read_worlds(envs)
+    reps = -(-worlds // len(envs))
+
+    def tiled(array: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(np.tile(array, (reps,) + (1,) * (array.ndim - 1))[:worlds])
+
+    state = HumanoidState(*(tiled(field) for field in state))
+    prev_root = tiled(np.concatenate([env._prev_root for env in envs]))
+    packed = tiled(np.concatenate([env._packed_goal for env in envs]))
+    rotation = task.StairsGoal.unpack(packed).rotation
+    history = np.zeros((worlds, *first._amp.frames.shape))
+    started = np.ones(worlds, dtype=bool)
+    num_terms = task.NUM_REWARD_TERMS
+    fell_column, success_column = task.STEP_RESULTS.index("fell"), task.STEP_RESULTS.index("success")
+
+    def step() -> None:
+        obs, results = task.interlevel_outcome_columns(state, prev_root, packed, rotation, first._reward_array,
+                                                       first.dt, first.termination_height, first.success_radius)
+        fell = started & (results[:, fell_column] != 0.0)
+        success = started & (results[:, success_column] != 0.0)
+        reward = np.where(fell[:, None], 0.0, results[:, :num_terms]).sum(axis=1)
+        reward += np.where(success, first.success_reward, 0.0) + np.where(fell, first.failure_reward, 0.0)
+        history[:, :-1] = history[:, 1:]
+        history[:, -1] = amp_features(state)
+        history.reshape(worlds, -1).copy()
+    return step
+
+
+def arrays_us(step, worlds: int, calls: int) -> float:
+    start = time.perf_counter()
+    for _ in range(calls):
+        step()
+    return (time.perf_counter() - start) / (calls * worlds) * 1e6
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--worlds", type=int, default=256, help="worlds of the batched env")
+    parser.add_argument("--steps", type=int, default=100, help="timed steps per round")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--array-worlds", type=int, default=4096, help="worlds of the array-only step")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    policy = pretrained.load("InterLevel-v0")
+    physics = TimedSerialPhysics()
+    venv = gym.make_vec("InterLevel-v0", num_envs=args.worlds, vectorization_mode="vector_entry_point",
+                        physics=physics)
+    obs, _ = venv.reset(seed=args.seed)
+    *_, obs = host_us(venv, physics, policy, obs, 5)    # warm-up: compiled kernels loaded
+    step = array_step(venv.envs, args.array_worlds)
+    step()
+    hosts, arrays = [], []
+    for r in range(args.rounds):
+        host, physics_us, obs = host_us(venv, physics, policy, obs, args.steps)
+        array = arrays_us(step, args.array_worlds, max(1, args.steps // 10))
+        hosts.append(host)
+        arrays.append(array)
+        print(f"round {r}: host {host:.1f} us per world-step ({args.worlds} worlds; physics {physics_us:.0f} "
+              f"on one thread), arrays {array:.2f} "
+              f"({args.array_worlds} worlds), host / arrays {host / array:.0f}x; budget at 300k env steps/s "
+              f"{BUDGET_US:.1f}")
+    host, array = float(np.median(hosts)), float(np.median(arrays))
+    print(f"median: host {host:.1f} us per world-step, arrays {array:.2f}, host / arrays {host / array:.0f}x, "
+          f"arrays / budget {array / BUDGET_US:.2f}")
+    venv.close()
+
+
+if __name__ == "__main__":
+    main()
