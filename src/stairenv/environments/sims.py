@@ -36,7 +36,7 @@ from stairenv.environments.sims_config import (  # noqa: F401
 from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
 from stairenv.humanoid.kinematics import humanoid_lowest_z
 from stairenv.humanoid.placement import place_state_in_frame
-from stairenv.humanoid.state import HEAD, PELVIS, stack_states
+from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
@@ -792,12 +792,6 @@ class SIMSEnv(HumanoidEnv):
         return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
 
     BATCH_OUTCOMES = True
-
-    @classmethod
-    def _read_worlds(cls, envs: list[SIMSEnv]):
-        """Each world's state stacked: a world's scene is its own model (its bodies differ in number), so
-        ``read_states`` cannot read them in one."""
-        return stack_states([env._read_state() for env in envs])
 
     def _step_outcome(self, state) -> StepOutcome:
         """``_step_outcomes`` of this world alone."""

@@ -17,9 +17,10 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
    For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
    the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
-   speeds as arrays; ``mj_kinematics`` per stable world), the stable worlds' state
-   read as one batch (``_read_worlds``: ``read_states``; SIMS, whose worlds' models differ, stacks each
-   world's read), the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
+   speeds as arrays; each world's body poses were brought up to its ``qpos`` by ``mj_kinematics`` in the
+   physics thread right after its physics, ``bring_up_poses``), the stable worlds' state
+   read as one batch (``_read_worlds``: each world's state views, made once per ``MjData``, stacked),
+   the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
    ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
    ``SIMSEnv._step_outcomes``: arrays over the batch, then each world's own scene heights and goal; the
    single env calls them with one world) and the style features in one; the other envs run ``_finish_step``
@@ -28,7 +29,7 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 
 Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
 ``_before_physics``, ``reset``; for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel
-``mj_kinematics``, the reward terms' dicts and ``info``; for PlaMo also its
+``mj_kinematics`` (in the physics threads), the reward terms' dicts and ``info``; for PlaMo also its
 heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
 also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
 scalars and the ends. Batched: the action checks, the action map, the physics, the divergence and speed
@@ -225,29 +226,42 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         limit = self.max_episode_steps
 
         def collect(ks: list[int]) -> None:    # in the calling thread, while other worlds' physics runs
+            if not ks:
+                return
+            group = [stepping[k] for k in ks]
             if self.batch_outcomes:    # the task over this group of worlds in one call
-                for k, result in zip(ks, type(envs[0])._finish_worlds([envs[stepping[k]] for k in ks])):
-                    results[k] = result
-            for k in ks:
-                i = stepping[k]
-                obs[i], rewards[i], terminated[i], truncated[i], infos[i] = results[k]
-                results[k] = None
-                self._elapsed[i] += 1
-                if limit is not None and self._elapsed[i] >= limit:
-                    truncated[i] = True
-                if terminated[i] or truncated[i]:
-                    if reset_ended:
-                        final_obs = obs[i].copy()
-                        obs[i], reset_info = self.reset_world(i)
-                        finals[i] = (final_obs, reset_info)
-                    else:
-                        self._autoreset[i] = True
+                finished = type(envs[0])._finish_worlds([envs[i] for i in group], poses_current=True)
+            else:
+                finished = [results[k] for k in ks]
+                for k in ks:
+                    results[k] = None
+            # the group's results as array assignments; then the ended worlds one by one, in order (a reset
+            # touches only its own world's rows)
+            rows, group_rewards, group_terminated, group_truncated, group_infos = zip(*finished)
+            obs[group], rewards[group] = rows, group_rewards
+            terminated[group], truncated[group] = group_terminated, group_truncated
+            for i, info in zip(group, group_infos):
+                infos[i] = info
+            self._elapsed[group] += 1
+            if limit is not None:
+                truncated[group] |= self._elapsed[group] >= limit
+            for i in np.asarray(group)[terminated[group] | truncated[group]].tolist():
+                if reset_ended:
+                    final_obs = obs[i].copy()
+                    obs[i], reset_info = self.reset_world(i)
+                    finals[i] = (final_obs, reset_info)
+                else:
+                    self._autoreset[i] = True
+
+        worlds = [(envs[i].model, envs[i].data) for i in stepping]
 
         def finish(k: int) -> None:    # per world, in the physics thread, right after its physics
             results[k] = envs[stepping[k]]._finish_step()
 
-        worlds = [(envs[i].model, envs[i].data) for i in stepping]
-        self.physics.step(worlds, envs[0].frame_skip, None if self.batch_outcomes else finish,
+        def bring_up_poses(k: int) -> None:    # also in the physics thread: collect then finds them current
+            envs[0].bring_up_poses(*worlds[k])
+
+        self.physics.step(worlds, envs[0].frame_skip, bring_up_poses if self.batch_outcomes else finish,
                           reset_ended_before, collect)
         return obs.copy(), rewards, terminated, truncated, infos, finals
 
