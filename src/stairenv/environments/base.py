@@ -403,9 +403,8 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _read_worlds(cls, envs: list[HumanoidEnv]):
         """The state of ``envs`` as one batch (row k: world k) for ``_finish_worlds``: each world's
-        ``_read_state`` stacked. Those are views made once per ``MjData``, so the step reads no ``MjData``
-        attribute here: ~0.6x the time of ``read_states`` inside a step. Worlds whose models differ in
-        structure (SIMS) stack alike."""
+        ``_read_state`` stacked. Those are views made once per ``MjData``, so no ``MjData`` attribute is
+        read per world and step; worlds whose models differ in structure (SIMS) stack alike."""
         return stack_states([env._read_state() for env in envs])
 
     @classmethod
