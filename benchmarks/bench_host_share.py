@@ -8,9 +8,9 @@ array operations would be. Per round:
 
 - ``host``: ``InterLevel-v0``'s batched env, ``--worlds`` worlds, the shipped policy acting (the policy
   itself is not timed; its episodes rarely end, so resets are mostly outside both figures). The figure
-  is the step's time minus its physics, in us per world-step. The physics is timed world by world inside
-  the step: ``physics=`` gets a ``SerialPhysics`` that times its own ``mj_step`` calls, so nothing else
-  of the step is changed;
+  is the step's time minus its physics, in us per world-step. The physics is timed inside
+  the step: ``physics=`` gets a ``SerialPhysics`` that times its step less the env's callbacks, so
+  nothing else of the step is changed;
 - ``arrays``: the kernels the env calls, once each over ``--array-worlds`` worlds' state arrays (the
   env's worlds' states tiled). These are the task's compiled step (observation, reward terms, fall,
   success, progress), then the reward and flags as arrays, then the style features with their history
@@ -27,7 +27,6 @@ import argparse
 import time
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the ids)
@@ -42,22 +41,28 @@ BUDGET_US = 1e6 / 300_000
 
 
 class TimedSerialPhysics(SerialPhysics):
-    """``SerialPhysics`` that adds up the time of its ``mj_step`` calls (and nothing else of the step)."""
+    """``SerialPhysics`` that adds up the time of its physics: its step less the env's callbacks."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
 
     def step(self, worlds, nstep, then=None, meanwhile=None, collect=None) -> None:
-        if meanwhile is not None:
-            meanwhile()
-        for k, (model, data) in enumerate(worlds):
-            start = time.perf_counter()
-            mujoco.mj_step(model, data, nstep)
-            self.seconds += time.perf_counter() - start
-            if then is not None:
-                then(k)
-        if collect is not None and worlds:
-            collect(list(range(len(worlds))))
+        in_callbacks = 0.0
+
+        def timed(callback):
+            if callback is None:
+                return None
+
+            def call(*args) -> None:
+                nonlocal in_callbacks
+                start = time.perf_counter()
+                callback(*args)
+                in_callbacks += time.perf_counter() - start
+            return call
+
+        start = time.perf_counter()
+        super().step(worlds, nstep, timed(then), timed(meanwhile), timed(collect))
+        self.seconds += time.perf_counter() - start - in_callbacks
 
 
 def host_us(venv, physics: TimedSerialPhysics, policy, obs: np.ndarray, steps: int) -> tuple[float, float, np.ndarray]:

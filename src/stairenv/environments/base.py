@@ -380,7 +380,7 @@ class HumanoidEnv(gym.Env):
         """``_finish_step`` of many worlds of this class, batch-first: each world's result equals its
         ``_finish_step``. The divergence and speed check over the batch (``_sound_worlds``), the state of
         the stable worlds read as one batch, ``_step_outcomes`` and the style features in one call each.
-        ``poses_current``: every world's ``mj_kinematics`` already ran after its physics (``bring_up_poses``)."""
+        ``poses_current``: every world's ``mj_kinematics`` already ran after its physics (``_bring_up_poses``)."""
         results: list[tuple | None] = [None] * len(envs)
         stable = []
         for k, (env, sound) in enumerate(zip(envs, cls._sound_worlds(envs, poses_current))):
@@ -501,14 +501,14 @@ class HumanoidEnv(gym.Env):
             self._mark_unstable()
             return False
         # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
-        self.bring_up_poses(self.model, data)
+        self._bring_up_poses(self.model, data)
         return True
 
     @classmethod
     def _sound_worlds(cls, envs: list[HumanoidEnv], poses_current: bool = False) -> list[bool]:
         """``_physics_sound(env._expected_time)`` of each of ``envs`` (worlds of one configuration), with the
         same effects: its checks as arrays over the batch where the class keeps them (else world by world).
-        ``poses_current``: the worlds' ``mj_kinematics`` already ran (``bring_up_poses``), so it is not run
+        ``poses_current``: the worlds' ``mj_kinematics`` already ran (``_bring_up_poses``), so it is not run
         again for the stable worlds."""
         if cls._physics_sound is not HumanoidEnv._physics_sound or \
                 cls._speeds_plausible is not HumanoidEnv._speeds_plausible:
@@ -524,11 +524,11 @@ class HumanoidEnv(gym.Env):
             if not world_sound:
                 env._mark_unstable()
             elif not poses_current:
-                env.bring_up_poses(env.model, env.data)
+                env._bring_up_poses(env.model, env.data)
         return sound
 
     @staticmethod
-    def bring_up_poses(model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    def _bring_up_poses(model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """What ``_physics_sound`` does for a stable world: body poses brought up to ``qpos``. A batched
         env runs it in the physics thread right after each world's physics (MuJoCo releases the GIL, so
         on several cores it leaves the calling thread), then finishes with ``poses_current``. It also runs

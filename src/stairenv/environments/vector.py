@@ -18,7 +18,7 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
    the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
    speeds as arrays; each world's body poses were brought up to its ``qpos`` by ``mj_kinematics`` in the
-   physics thread right after its physics, ``bring_up_poses``), the stable worlds' state
+   physics thread right after its physics, ``_bring_up_poses``), the stable worlds' state
    read as one batch (``_read_worlds``: each world's state views, made once per ``MjData``, stacked),
    the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
    ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
@@ -259,7 +259,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             results[k] = envs[stepping[k]]._finish_step()
 
         def bring_up_poses(k: int) -> None:    # also in the physics thread: collect then finds them current
-            envs[0].bring_up_poses(*worlds[k])
+            envs[0]._bring_up_poses(*worlds[k])
 
         self.physics.step(worlds, envs[0].frame_skip, bring_up_poses if self.batch_outcomes else finish,
                           reset_ended_before, collect)
