@@ -601,3 +601,20 @@ def test_env_step_reward_matches_hand_formula():
         # micrometres up in the first step): 3-D location reward ~0, 2-D clearly positive
         assert (got[0] > 1e-3) == (not progress_scaling)
         env.close()
+
+
+def test_step_reward_composes_terms_bonus_and_failure_by_hand():
+    """``interlevel_step_reward``: the terms summed, plus the success bonus; a fall replaces the terms by the
+    failure reward; neither counts before the first step (``started`` False)."""
+    terms = np.array([[0.3, 0.1, 0.4]] * 4)
+    results = np.zeros((4, len(il.STEP_RESULTS)))
+    fell, success = il.STEP_RESULTS.index("fell"), il.STEP_RESULTS.index("success")
+    results[1, success] = 1.0
+    results[2, fell] = 1.0
+    results[3, fell] = results[3, success] = 1.0
+    started = np.array([True, True, True, False])
+    reward, all_terms, got_fell, got_success = il.interlevel_step_reward(terms, results, started, 10.0, -2.0)
+    assert reward.tolist() == [0.3 + 0.1 + 0.4, 0.3 + 0.1 + 0.4 + 10.0, -2.0, 0.3 + 0.1 + 0.4]
+    assert all_terms.tolist() == [[0.3, 0.1, 0.4, 0.0, 0.0], [0.3, 0.1, 0.4, 10.0, 0.0], [0.0, 0.0, 0.0, 0.0, -2.0],
+                                  [0.3, 0.1, 0.4, 0.0, 0.0]]
+    assert got_fell.tolist() == [False, False, True, False] and got_success.tolist() == [False, True, False, False]

@@ -136,6 +136,22 @@ def test_stall_clock_restarts_on_each_approach():
     env.close()
 
 
+def test_stall_clocks_as_arrays_follow_each_watch():
+    """``stalled_worlds`` over a batch of clocks gives, step by step, what each world's ``StallWatch`` gives."""
+    from stairenv.tasks.stall import StallWatch, stalled_worlds
+
+    dt, rng = 1.0 / 30.0, np.random.default_rng(0)
+    watches = [StallWatch(0.5, 0.2, dt) for _ in range(5)]
+    approach, approach_at = np.full(5, np.inf), np.zeros(5, dtype=np.int64)
+    distance = np.full(5, 6.0)
+    for step in range(120):
+        distance -= rng.uniform(-0.02, 0.05, 5)
+        stalled = stalled_worlds(distance, np.full(5, step), approach, approach_at, 0.2, 0.5, dt)
+        assert stalled.tolist() == [watch.stalled(d, step) for watch, d in zip(watches, distance.tolist())]
+        assert approach.tolist() == [watch.approach_distance for watch in watches]
+    assert not stalled_worlds(distance, np.full(5, 10_000), approach, approach_at, 0.2, None, dt).any()
+
+
 def test_a_stalled_episode_terminates_without_a_reward_of_its_own():
     env = gym.make("InterLevel-v0", stall_seconds=0.2).unwrapped
     env.reset(seed=1)

@@ -383,7 +383,7 @@ def test_thread_pool_raises_a_failure_without_hanging():
 def test_stacked_infos_equal_gymnasium_add_info_world_by_world():
     """``_stack_infos`` (key by key, worlds grouped by their keys) gives ``VectorEnv._add_info``'s arrays,
     dtypes, masks and key order where worlds report different keys (a NEXT_STEP reset's fewer keys)."""
-    from stairenv.environments.vector import _stack_infos
+    from stairenv.environments.infos import stack_infos as _stack_infos
 
     infos = [{"a": 1.5, "b": np.arange(3.0), "c": "x", "d": {"e": True}},
              {"c": "y", "a": 2, "f": np.float32(4.0)},
@@ -400,3 +400,86 @@ def test_stacked_infos_equal_gymnasium_add_info_world_by_world():
     for key, array in expected.items():
         if isinstance(array, np.ndarray):
             assert stacked[key].dtype == array.dtype, key
+
+
+def test_world_infos_read_as_the_per_world_dicts():
+    """``WorldInfos``: columns for some worlds, whole dicts for others (fewer keys, an extra key, a nested
+    dict); ``stacked()`` equals ``stack_infos`` of its per-world dicts (arrays, dtypes, masks, cleared rows),
+    ``infos[i]`` gives Python numbers as a single env's dict does, ``column`` equals ``np.stack``."""
+    from stairenv.environments.infos import WorldInfos, column, stack_infos
+
+    infos = WorldInfos(4)
+    infos.put(np.array([0, 2]), {"x": np.array([1.5, 2.5]), "ok": np.array([True, False]),
+                                 "n": np.array([3, 4]), "v": np.arange(6.0).reshape(2, 3),
+                                 "nest": {"h": np.array([0.1, 0.2])}})
+    infos.put(np.array([3]), {"x": np.array([9.0]), "ok": np.array([True]), "n": np.array([5]),
+                              "v": np.ones((1, 3)), "nest": {"h": np.array([0.3])}})
+    infos[1] = {"x": 7.0, "extra": "reset", "nest": {"h": 0.5, "k": 1}}
+    world = infos[0]
+    assert world == {"x": 1.5, "ok": True, "n": 3, "v": world["v"], "nest": {"h": 0.1}}
+    assert [type(world[key]) for key in ("x", "ok", "n")] == [float, bool, int]
+    assert np.array_equal(world["v"], [0.0, 1.0, 2.0]) and infos[0] is world    # made once
+    assert_same(infos.stacked(), stack_infos(list(infos)))
+    assert np.array_equal(column(infos, "x"), [1.5, 7.0, 2.5, 9.0])
+    infos[0] = {"x": 2}    # the first world's int decides the dtype: the per-world route
+    assert infos.stacked()["x"].dtype == np.int64
+    assert_same(infos.stacked(), stack_infos(list(infos)))
+    everyone = WorldInfos(2)
+    everyone.put(np.arange(2), {"x": np.array([1.0, 2.0])})
+    assert_same(everyone.stacked(), stack_infos(list(everyone)))
+    assert list(everyone) == [{"x": 1.0}, {"x": 2.0}] and everyone[:1] == [{"x": 1.0}]
+
+
+@pytest.mark.parametrize("env_id", ["InterLevel-v0", "SIMS-Sit-v0"])
+def test_step_worlds_infos_are_the_single_envs(env_id):
+    """``step_worlds``' per-world infos (InterLevel: made from the step's columns) equal each single env's
+    info key by key with the same Python types, ended and unstable steps included; ``column`` of a key
+    equals the stack of the worlds' values."""
+    from stairenv.environments.infos import column
+
+    n = 3
+    vec = batched(env_id, n, max_episode_steps=12)
+    singles = [gym.make(env_id, max_episode_steps=12) for _ in range(n)]
+    vec.reset(seed=5)
+    for i, env in enumerate(singles):
+        env.reset(seed=5 + i)
+    rng = np.random.default_rng(0)
+    for t in range(30):
+        if t == 7:    # world 1 moves faster than a body can: an unstable step, truncated alone
+            for env in (vec.envs[1], singles[1].unwrapped):
+                env.data.qvel[0] = 100.0
+        actions = rng.uniform(-1, 1, (n, 28))
+        _, _, terminated, truncated, infos, finals = vec.step_worlds(actions, reset_ended=True)
+        for i, env in enumerate(singles):
+            _, _, term, trunc, info = env.step(actions[i])
+            assert infos[i].keys() == info.keys(), (t, i)
+            for key, value in info.items():
+                assert type(infos[i][key]) is type(value), (t, i, key)
+                assert_same(infos[i][key], value, f"step {t} world {i} {key}")
+            if term or trunc:
+                env.reset()
+        assert np.array_equal(column(infos, "amp_obs"), np.stack([info["amp_obs"] for info in infos]))
+    vec.close()
+
+
+def test_shared_rows_are_the_worlds_own_carry():
+    """A batched InterLevel env holds its worlds' carry (last root, goal, stall clock, style history) as rows
+    of one array each: a world's own reset writes its rows; a copy of a world holds its own."""
+    import copy
+
+    vec = batched("InterLevel-v0", 3)
+    vec.reset(seed=0)
+    rows = vec.envs[0]._rows
+    for i, env in enumerate(vec.envs):
+        assert env._rows is rows and np.shares_memory(env._prev_root, rows["_prev_root"][i])
+        assert np.shares_memory(env._amp.frames, rows["amp"][i])
+        assert np.array_equal(rows["_packed_goal"][i:i + 1], env._goal.pack())
+    vec.step(np.zeros((3, 28)))
+    assert np.array_equal(rows["_prev_root"][1], vec.envs[1].data.xpos[vec.envs[1]._idx.pelvis_id])
+    vec.reset_world(2, seed=11)
+    assert np.array_equal(rows["_packed_goal"][2:3], vec.envs[2]._goal.pack())
+    clone = copy.deepcopy(vec.envs[1])
+    assert not hasattr(clone, "_rows") and not np.shares_memory(clone._prev_root, rows["_prev_root"])
+    clone.step(np.zeros(28))
+    assert np.array_equal(rows["_prev_root"][1], vec.envs[1].data.xpos[vec.envs[1]._idx.pelvis_id])
+    vec.close()

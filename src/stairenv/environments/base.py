@@ -14,6 +14,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from stairenv.environments.infos import columns_of_rows, flatten
 from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.placement import place_reference_state
@@ -100,6 +101,41 @@ class StepOutcome(NamedTuple):
     terminated: bool
     results: dict[str, Any]
 
+    def world(self, k: int) -> StepOutcome:
+        """World ``k``'s outcome of a batched one, its numbers as Python numbers (as a single env's)."""
+        return StepOutcome(self.obs[k], self.reward[k].item(), {key: value[k].item() for key, value in self.terms.items()},
+                           self.terminated[k].item(), {key: value[k].item() for key, value in self.results.items()})
+
+    def worlds(self) -> list[StepOutcome]:
+        """``world(k)`` of every world of a batched outcome (each array converted once, not per world)."""
+        rewards, terminated = self.reward.tolist(), self.terminated.tolist()
+        terms = {key: value.tolist() for key, value in self.terms.items()}
+        results = {key: value.tolist() for key, value in self.results.items()}
+        return [StepOutcome(self.obs[k], rewards[k], {key: value[k] for key, value in terms.items()}, terminated[k],
+                            {key: value[k] for key, value in results.items()}) for k in range(len(rewards))]
+
+
+class BatchStep(NamedTuple):
+    """What ``HumanoidEnv._finish_batch`` makes of a batch of B worlds after their physics: the step's
+    ``obs`` (B, ...), ``reward``, ``terminated`` and ``truncated`` (B,), and its info as ``columns``
+    (``stairenv.environments.infos``) for the worlds ``column_rows`` (indices into the batch; None: all),
+    and as whole dicts, ``dicts`` {k: info}, for the others (an unstable step, a world-by-world finish)."""
+
+    obs: np.ndarray
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    columns: dict[str, Any]
+    column_rows: np.ndarray | None
+    dicts: dict[int, dict[str, Any]]
+
+    @classmethod
+    def of_worlds(cls, results: list[tuple]) -> BatchStep:
+        """The per-world ``step`` results ``(obs, reward, terminated, truncated, info)`` of a batch."""
+        obs, rewards, terminated, truncated, infos = zip(*results)
+        return cls(np.array(obs), np.array(rewards, dtype=np.float64), np.array(terminated, dtype=bool),
+                   np.array(truncated, dtype=bool), {}, None, dict(enumerate(infos)))
+
 
 def __getattr__(name: str):
     if name == "Evaluation":  # the old name of ``StepOutcome``; deprecated, for one release
@@ -146,6 +182,20 @@ class HumanoidEnv(gym.Env):
         """Frames of style features in ``info["amp_obs"]`` (the ``amp_history`` keyword): the
         ``num_frames`` of the reference windows a discriminator compares them with."""
         return len(self._amp.frames)
+
+    @property
+    def _outcome(self) -> StepOutcome:
+        """The last step outcome. A batched finish leaves its batch's outcome and this world's row
+        (``_finish_batch``); the world's own ``StepOutcome`` is made the first time it is read."""
+        last = self._last_outcome
+        if type(last) is tuple:
+            batch, k = last
+            last = self._last_outcome = batch.world(k)
+        return last
+
+    @_outcome.setter
+    def _outcome(self, outcome: StepOutcome) -> None:
+        self._last_outcome = outcome
 
     # Isaac Lab's AMP convention (``amp_observation_space``, ``collect_reference_motions``, ``amp_obs`` in
     # the step's info), so that skrl's AMP agent and Isaac Lab-style trainers run against these envs.
@@ -229,6 +279,7 @@ class HumanoidEnv(gym.Env):
         state = self.__dict__.copy()
         for name in self._DATA_VIEWS:
             state.pop(name, None)
+        state.pop("_rows", None)    # a copy holds its own carry, not its batch's rows
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -299,6 +350,7 @@ class HumanoidEnv(gym.Env):
         Returns ``reset``'s ``(obs, info)``."""
         self._needs_reset = False
         self._steps = 0
+        self._episode_paths, self._episode_values = flatten(self._episode_info())
         state = self._read_state()
         self._amp.fill(state)
         self._start_tracking(state)
@@ -335,7 +387,7 @@ class HumanoidEnv(gym.Env):
     def _after_action(self) -> None:
         """``_prepare_step`` once the action is applied: ``_before_physics``, the time the physics must reach."""
         self._before_physics()
-        self._expected_time = self.data.time + self.frame_skip * self.model.opt.timestep
+        self._expected_time = self.data.time + self.dt    # dt: frame_skip timesteps
 
     @classmethod
     def _prepare_worlds(cls, envs: list[HumanoidEnv], actions: np.ndarray) -> None:
@@ -372,7 +424,7 @@ class HumanoidEnv(gym.Env):
         return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
 
     #: True where ``_step_outcomes`` computes a batch's outcomes in one call: a batched env then finishes all its
-    #: worlds with ``_finish_worlds`` after the physics instead of ``_finish_step`` world by world.
+    #: worlds with ``_finish_batch`` after the physics instead of ``_finish_step`` world by world.
     BATCH_OUTCOMES = False
 
     @classmethod
@@ -399,6 +451,108 @@ class HumanoidEnv(gym.Env):
                 results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
                               env._full_info(outcome, unstable=False, terms=True, amp_obs=world_amp_obs))
         return results
+
+    @classmethod
+    def _finish_batch(cls, envs: list[HumanoidEnv], poses_current: bool = False,
+                      rows: np.ndarray | None = None) -> BatchStep:
+        """``_finish_step`` of many worlds of this class as a ``BatchStep``: where the class computes its
+        outcomes as arrays (``_step_outcome_batch``), the info too, as columns, with no dict per world;
+        otherwise ``_finish_worlds``' per-world results. Each world's info equals its ``_finish_step``'s:
+        the task's results and its ``_episode_info`` (``_info`` is those two for such a class), then what
+        every env reports, then the reward terms. ``rows``: the worlds' rows of the arrays ``_share_rows``
+        made (None: each world's own carry)."""
+        if cls._step_outcome_batch is HumanoidEnv._step_outcome_batch:
+            return BatchStep.of_worlds(cls._finish_worlds(envs, poses_current))
+        n = len(envs)
+        sound = cls._sound_worlds(envs, poses_current)
+        dicts: dict[int, dict[str, Any]] = {}
+        obs = reward = terminated = truncated = None
+        for k, (env, world_sound) in enumerate(zip(envs, sound)):
+            env._steps += 1
+            if not world_sound:
+                dicts[k] = env._unstable_step()
+        stable = None if not dicts else np.array([k for k in range(n) if k not in dicts], dtype=np.int64)
+        worlds = envs if stable is None else [envs[k] for k in stable]
+        columns: dict[str, Any] = {}
+        if worlds:
+            world_rows = rows if rows is None or stable is None else rows[stable]
+            state = cls._read_worlds(worlds)
+            outcome = cls._step_outcome_batch(worlds, state, world_rows)
+            if world_rows is None:
+                amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
+            else:
+                amp_obs = FeatureHistory.push_rows(worlds[0]._rows["amp"], world_rows, amp_features(state))
+            for j, env in enumerate(worlds):
+                env._outcome = (outcome, j)    # made a StepOutcome only when read (see _outcome)
+            first = worlds[0]
+            episode_columns = columns_of_rows(first._episode_paths, [env._episode_values for env in worlds])
+            steps = np.fromiter((env._steps for env in worlds), dtype=np.int64, count=len(worlds))
+            columns = {**outcome.results, **episode_columns, "time": steps * first.dt,
+                       "physics_unstable": np.zeros(len(worlds), dtype=bool), "amp_obs": amp_obs,
+                       "reference_start": np.fromiter((env._reference_start for env in worlds), dtype=bool,
+                                                      count=len(worlds)),
+                       **outcome.terms}
+            obs, reward, terminated = outcome.obs, outcome.reward, outcome.terminated
+            truncated = np.zeros(len(worlds), dtype=bool)
+        if dicts:    # the unstable worlds' rows, from their whole results
+            unstable = np.array(list(dicts), dtype=np.int64)
+            results = [dicts[k] for k in unstable.tolist()]
+            obs = _rows_into(n, stable, obs, unstable, np.array([result[0] for result in results]))
+            reward = _rows_into(n, stable, reward, unstable, np.array([result[1] for result in results], dtype=np.float64))
+            terminated = _rows_into(n, stable, terminated, unstable,
+                                    np.array([result[2] for result in results], dtype=bool))
+            truncated = _rows_into(n, stable, truncated, unstable, np.array([result[3] for result in results], dtype=bool))
+            dicts = {k: result[4] for k, result in dicts.items()}
+        return BatchStep(obs, reward, terminated, truncated, columns, stable, dicts)
+
+    #: the task's step outcomes of a batch as one ``StepOutcome`` of arrays: a classmethod
+    #: ``(envs, state, rows=None) -> StepOutcome`` where a class has it (InterLevel), which ``_finish_batch``
+    #: then uses (``rows``: see ``_share_rows``)
+    _step_outcome_batch = None
+
+    #: what the task carries from step to step (InterLevel: the last root position, the packed goal, the stall
+    #: clock), as attribute paths of arrays of shape (1, ...) (a batch of one) that are written in place,
+    #: never rebound, so that ``_share_rows`` can make them rows of one array per path
+    ROW_ARRAYS: tuple[str, ...] = ()
+
+    @classmethod
+    def _share_rows(cls, envs: list[HumanoidEnv]) -> None:
+        """Make each world's ``ROW_ARRAYS`` and style history rows (views) of one array over ``envs`` (row i:
+        ``envs[i]``), held in ``env._rows`` by path (the history as "amp"). A batched env does so once;
+        ``_finish_batch(envs, rows=...)`` then reads and writes the carry of a group of worlds by their rows
+        (``_take_rows``, ``_put_rows``) instead of world by world. A world's own code keeps working on its
+        views."""
+        shared: dict[str, np.ndarray] = {}
+        for path in cls.ROW_ARRAYS:
+            array = shared[path] = np.concatenate([_attribute(env, path) for env in envs])
+            for i, env in enumerate(envs):
+                _set_attribute(env, path, array[i:i + 1])
+        amp = shared["amp"] = np.array([env._amp.frames for env in envs])
+        for i, env in enumerate(envs):
+            env._amp.frames = amp[i]
+            env._rows = shared
+
+    @classmethod
+    def _take_rows(cls, envs: list[HumanoidEnv], rows: np.ndarray | None, path: str) -> np.ndarray:
+        """The carry ``path`` of ``envs`` as one array (row k: world k): their rows of the shared array, or
+        (``rows`` None) each world's own, concatenated."""
+        if rows is not None:
+            return envs[0]._rows[path][rows]
+        return np.concatenate([_attribute(env, path) for env in envs])
+
+    @classmethod
+    def _put_rows(cls, envs: list[HumanoidEnv], rows: np.ndarray | None, path: str, values: np.ndarray) -> None:
+        """Write ``values`` (row k: world k) into the carry ``path`` of ``envs`` (``_take_rows``' inverse)."""
+        if rows is not None:
+            envs[0]._rows[path][rows] = values
+            return
+        for k, env in enumerate(envs):
+            _attribute(env, path)[...] = values[k:k + 1]
+
+    def _episode_info(self) -> dict[str, Any]:
+        """What ``info`` reports of the episode that does not change from step to step (InterLevel: its
+        staircase): ``_begin_episode`` keeps it flattened, which ``_finish_batch`` stacks as columns."""
+        return {}
 
     @classmethod
     def _read_worlds(cls, envs: list[HumanoidEnv]):
@@ -578,3 +732,24 @@ class HumanoidEnv(gym.Env):
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
+
+
+def _rows_into(n: int, rows_a, values_a, rows_b, values_b) -> np.ndarray:
+    """An array of ``n`` rows from two row sets (``rows_a`` None with ``values_a`` None: none)."""
+    out = np.empty((n, *values_b.shape[1:]), dtype=values_b.dtype)
+    if values_a is not None:
+        out[rows_a] = values_a
+    out[rows_b] = values_b
+    return out
+
+
+def _attribute(env: HumanoidEnv, path: str):
+    """``env.a.b`` for the path "a.b"."""
+    for name in path.split("."):
+        env = getattr(env, name)
+    return env
+
+
+def _set_attribute(env: HumanoidEnv, path: str, value) -> None:
+    *owner, name = path.split(".")
+    setattr(_attribute(env, ".".join(owner)) if owner else env, name, value)

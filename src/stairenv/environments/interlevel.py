@@ -19,15 +19,15 @@ from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import curriculum
-from stairenv.tasks.stall import StallWatch
+from stairenv.tasks.stall import StallWatch, stalled_worlds
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.validation import field_check
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
-# Columns of the step kernel's results (``task.STEP_RESULTS``), read row by row in ``_step_outcomes``.
-_FELL, _SUCCESS, _PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
-    "fell", "success", "progress", "height_progress", "distance_to_target"))
+# Columns of the step kernel's results (``task.STEP_RESULTS``) that ``_step_outcome_batch`` reports.
+_PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
+    "progress", "height_progress", "distance_to_target"))
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
@@ -160,6 +160,10 @@ class InterLevelEnv(HumanoidEnv):
         self.observation_space = spaces.Box(-np.inf, np.inf, shape=(task.OBSERVATION_SIZE,), dtype=np.float64)
         self.observation_structure = dict(task.OBSERVATION_STRUCTURE)
         self.stairs: Staircase | None = None
+        # what a step carries to the next (ROW_ARRAYS), written in place from here on
+        self._prev_root = np.zeros((1, 3))
+        self._packed_goal = np.zeros((1, task.GOAL_SIZE))
+        self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
 
     # the keywords: InterLevelConfig's fields, defaults included (``config=`` stays out of the signature, which
     # lists the keywords)
@@ -233,72 +237,77 @@ class InterLevelEnv(HumanoidEnv):
         return False
 
     def _start_tracking(self, state) -> None:
-        self._prev_root = state.body_pos[:, PELVIS].copy()
-        self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
+        self._prev_root[...] = state.body_pos[:, PELVIS]
+        stall = self._stall    # the env's settings as they are now, the clock from zero
+        stall.seconds, stall.distance, stall.dt = self.stall_seconds, self.stall_distance, self.dt
+        stall.restart()
 
     BATCH_OUTCOMES = True
+    ROW_ARRAYS = ("_prev_root", "_packed_goal", "_stall.approach", "_stall.approach_at")
 
     def _step_outcome(self, state) -> StepOutcome:
-        """``_step_outcomes`` of this world alone."""
-        return self._step_outcomes([self], state)[0]
+        """``_step_outcome_batch`` of this world alone."""
+        return self._step_outcome_batch([self], state).world(0)
 
     @classmethod
     def _step_outcomes(cls, envs: list[InterLevelEnv], state) -> list[StepOutcome]:
-        """One compiled call (``task.interlevel_outcome``) for the batch ``state`` of ``envs`` (worlds of
-        one configuration; row k is world k), then the reward: the task terms (zero on a fall), the success
-        bonus and the failure reward. Nothing has happened yet at an episode's start."""
+        """``_step_outcome_batch`` world by world."""
+        return cls._step_outcome_batch(envs, state).worlds()
+
+    @classmethod
+    def _step_outcome_batch(cls, envs: list[InterLevelEnv], state, rows: np.ndarray | None = None) -> StepOutcome:
+        """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
+        k) as one ``StepOutcome`` of arrays: one compiled call for the observation and the task's results
+        (``task.interlevel_outcome_columns``), one for the reward (``task.interlevel_step_reward``: the task
+        terms, zero on a fall, the success bonus and the failure reward; nothing has happened yet at an
+        episode's start) and one for the stall clocks; then the episode's end. The carry (``ROW_ARRAYS``) is
+        read and written by ``rows`` where a batched env shares it (``HumanoidEnv._share_rows``)."""
         first = envs[0]
-        if len(envs) == 1:
+        n = len(envs)
+        if n == 1 and rows is None:
             prev_root, goal, packed = first._prev_root, first._goal, first._packed_goal
         else:
-            prev_root = np.concatenate([env._prev_root for env in envs])
-            packed = np.concatenate([env._packed_goal for env in envs])
+            prev_root = cls._take_rows(envs, rows, "_prev_root")
+            packed = cls._take_rows(envs, rows, "_packed_goal")
             goal = task.StairsGoal.unpack(packed)
         obs, results = task.interlevel_outcome_columns(
             state, prev_root, packed, goal.rotation, first._reward_array, first.dt, first.termination_height,
             first.success_radius,
         )
-        # Python floats from here on: one tolist() per array instead of numpy calls per value.
-        rows = results.tolist()
         if first.reward_name == "interlevel":
-            num_terms = task.NUM_REWARD_TERMS
-            terms_rows = [row[:num_terms] for row in rows]
+            terms = results[:, :task.NUM_REWARD_TERMS]
         else:
-            terms_rows = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt).tolist()
-        no_terms = [0.0] * len(first._term_names)
-        success_reward, failure_reward = first.success_reward, first.failure_reward
-        body_pos = state.body_pos
-        outcomes = []
-        for k, env in enumerate(envs):
-            row = rows[k]
-            started = env._steps > 0    # nothing has happened yet at an episode's start
-            fell_k = started and row[_FELL] != 0.0
-            success_k = started and row[_SUCCESS] != 0.0
-            distance = row[_DISTANCE_TO_TARGET]
-            stalled = env._stall.stalled(distance, env._steps)
-            terms, reward = {}, 0.0
-            # A fall replaces the task terms by the failure reward.
-            for key, value in zip(env._term_names, no_terms if fell_k else terms_rows[k]):
-                terms[key] = value
-                reward += value
-            terms["reward_success"] = success_reward if success_k else 0.0
-            terms["reward_failure"] = failure_reward if fell_k else 0.0
-            reward += terms["reward_success"] + terms["reward_failure"]
-            env._prev_root = body_pos[k:k + 1, PELVIS].copy()
-            stalled = stalled and not (fell_k or success_k)
-            ended = fell_k or (success_k and env.terminate_on_success) or stalled
-            outcomes.append(StepOutcome(obs[k], reward, terms, ended, {
-                "progress": row[_PROGRESS],
-                "height_progress": row[_HEIGHT_PROGRESS],
-                "success": success_k,
-                "fell": fell_k,
-                "stalled": stalled,
-                "distance_to_target": distance,
-            }))
-        return outcomes
+            terms = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt)
+        steps = np.fromiter((env._steps for env in envs), dtype=np.int64, count=n)
+        reward, terms, fell, success = task.interlevel_step_reward(terms, results, steps > 0, first.success_reward,
+                                                                   first.failure_reward)
+        distance = results[:, _DISTANCE_TO_TARGET]
+        approach = cls._take_rows(envs, rows, "_stall.approach")
+        approach_at = cls._take_rows(envs, rows, "_stall.approach_at")
+        stall = first._stall
+        stalled = stalled_worlds(distance, steps, approach, approach_at, stall.distance, stall.seconds, stall.dt)
+        cls._put_rows(envs, rows, "_stall.approach", approach)
+        cls._put_rows(envs, rows, "_stall.approach_at", approach_at)
+        cls._put_rows(envs, rows, "_prev_root", state.body_pos[:, PELVIS])
+        stalled &= ~(fell | success)
+        ended = fell | stalled
+        if first.terminate_on_success:
+            ended |= success
+        names = (*first._term_names, "reward_success", "reward_failure")
+        return StepOutcome(obs, reward, {name: terms[:, i] for i, name in enumerate(names)}, ended, {
+            "progress": results[:, _PROGRESS],
+            "height_progress": results[:, _HEIGHT_PROGRESS],
+            "success": success,
+            "fell": fell,
+            "stalled": stalled,
+            "distance_to_target": distance,
+        })
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
-        return {**results, "stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
+        return {**results, **self._episode_info()}
+
+    def _episode_info(self) -> dict[str, Any]:
+        return {"stairs": dict(self._stairs_info), "stairs_start": self._stairs_start}
 
     def _unstable_results(self, last: StepOutcome) -> dict[str, Any]:
         return {"progress": last.results["progress"], "height_progress": 0.0, "success": False, "fell": False,
@@ -328,7 +337,7 @@ class InterLevelEnv(HumanoidEnv):
         self.stairs = stairs
         self._slots.place(self.model, stairs)
         self._goal = task.StairsGoal.from_stairs([stairs])
-        self._packed_goal = self._goal.pack()
+        self._packed_goal[...] = self._goal.pack()
         self._stairs_info = stairs.as_dict()
         self._camera_azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
 

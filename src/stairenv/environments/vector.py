@@ -15,12 +15,14 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
    steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
    ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
-   For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_worlds``:
+   For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_batch``:
    the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
    speeds as arrays; each world's body poses were brought up to its ``qpos`` by ``mj_kinematics`` in the
    physics thread right after its physics, ``_bring_up_poses``), the stable worlds' state
    read as one batch (``_read_worlds``: each world's state views, made once per ``MjData``, stacked),
-   the task in one call (``InterLevelEnv._step_outcomes``: one compiled call;
+   the task in one call (``InterLevelEnv._step_outcome_batch``: compiled calls over arrays in and out, what
+   each world carries from step to step held as rows of arrays over the batch, ``HumanoidEnv._share_rows``,
+   and its ``info`` as columns, ``infos.WorldInfos``, with no dict per world;
    ``PlaMoEnv._step_outcomes``: arrays over the batch, then each world's own terrain and path;
    ``SIMSEnv._step_outcomes``: arrays over the batch, then each world's own scene heights and goal; the
    single env calls them with one world) and the style features in one; the other envs run ``_finish_step``
@@ -28,8 +30,9 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
 Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
-``_before_physics``, ``reset``; for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel
-``mj_kinematics`` (in the physics threads), the reward terms' dicts and ``info``; for PlaMo also its
+``_before_physics``, ``reset``, the reads of each world's ``MjData`` (its time, warnings, speeds and state
+views); for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel ``mj_kinematics`` (in
+the physics threads) and a few attribute reads (step count, start flags); for PlaMo also its
 heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
 also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
 scalars and the ends. Batched: the action checks, the action map, the physics, the divergence and speed
@@ -42,13 +45,13 @@ the step that ends it (the reset observation returned, the ended step's in ``inf
 info in ``info["final_info"]``, as ``SyncVectorEnv`` gives; the SB3 adapter uses this). The episode
 limit (``max_episode_steps``, the registration's TimeLimit) truncates in the vector env. A world whose
 physics blows up is truncated alone, with ``info["physics_unstable"]`` set for it. ``info`` is a dict
-of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives. ``reset(seed=s)`` seeds world i with
+of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives (``step_worlds`` gives the per-world dicts, as a
+``WorldInfos`` that makes a world's dict only when it is read). ``reset(seed=s)`` seeds world i with
 ``s + i`` (as ``SyncVectorEnv``).
 """
 
 from __future__ import annotations
 
-import itertools
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -58,8 +61,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from stairenv.environments.base import NUMERIC_KINDS, HumanoidEnv
+from stairenv.environments.base import NUMERIC_KINDS, BatchStep, HumanoidEnv
 from stairenv.environments.batch_physics import BatchPhysics, check_physics_device, make_physics
+from stairenv.environments.infos import WorldInfos, stack_infos
 
 
 class HumanoidVectorEnv(gym.vector.VectorEnv):
@@ -134,6 +138,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
         #: (``BATCH_OUTCOMES``: InterLevel, PlaMo, SIMS), else world by world
         self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
+        #: the worlds' carry shared as rows of arrays over the batch, where the class computes its outcomes as
+        #: arrays (``HumanoidEnv._share_rows``): a group's carry is then read and written by its rows
+        self._shared_rows = self.batch_outcomes and env_class._step_outcome_batch is not None
+        if self._shared_rows:
+            env_class._share_rows(self.envs)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._was_reset = False
@@ -194,7 +203,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
 
     # --- the batch step ----------------------------------------------------------
     def step_worlds(self, actions, reset_ended: bool = False):
-        """``step`` with ``info`` as a list of per-world dicts, and a sixth result ``finals``.
+        """``step`` with ``info`` as the per-world dicts (a ``WorldInfos``: a sequence of dicts, each made when
+        first read; ``infos.column(infos, key)`` reads one key of every world as an array), and a sixth
+        result ``finals``.
 
         ``reset_ended=False`` (``NEXT_STEP``): a world whose episode ended at the last step is reset now
         (its action ignored, reward 0, flags False), while the other worlds' physics runs; ``finals`` is
@@ -210,7 +221,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         rewards = np.zeros(n, dtype=np.float64)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
-        infos: list[dict[str, Any]] = [{}] * n
+        infos = WorldInfos(n)
         finals: dict[int, tuple[np.ndarray, dict[str, Any]]] = {}
         self._last_obs = obs
         resetting = np.flatnonzero(self._autoreset)
@@ -228,24 +239,26 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         def collect(ks: list[int]) -> None:    # in the calling thread, while other worlds' physics runs
             if not ks:
                 return
-            group = [stepping[k] for k in ks]
+            group = np.array([stepping[k] for k in ks], dtype=np.int64)
             if self.batch_outcomes:    # the task over this group of worlds in one call
-                finished = type(envs[0])._finish_worlds([envs[i] for i in group], poses_current=True)
+                finished = type(envs[0])._finish_batch([envs[i] for i in group.tolist()], poses_current=True,
+                                                       rows=group if self._shared_rows else None)
             else:
-                finished = [results[k] for k in ks]
+                finished = BatchStep.of_worlds([results[k] for k in ks])
                 for k in ks:
                     results[k] = None
-            # the group's results as array assignments; then the ended worlds one by one, in order (a reset
-            # touches only its own world's rows)
-            rows, group_rewards, group_terminated, group_truncated, group_infos = zip(*finished)
-            obs[group], rewards[group] = rows, group_rewards
-            terminated[group], truncated[group] = group_terminated, group_truncated
-            for i, info in zip(group, group_infos):
-                infos[i] = info
+            # the group's results as array assignments (its info as columns where the task gives them); then
+            # the ended worlds one by one, in order (a reset touches only its own world's rows)
+            obs[group], rewards[group] = finished.obs, finished.reward
+            terminated[group], truncated[group] = finished.terminated, finished.truncated
+            if finished.columns:
+                infos.put(group if finished.column_rows is None else group[finished.column_rows], finished.columns)
+            for k, info in finished.dicts.items():
+                infos[group[k]] = info
             self._elapsed[group] += 1
             if limit is not None:
                 truncated[group] |= self._elapsed[group] >= limit
-            for i in np.asarray(group)[terminated[group] | truncated[group]].tolist():
+            for i in group[terminated[group] | truncated[group]].tolist():
                 if reset_ended:
                     final_obs = obs[i].copy()
                     obs[i], reset_info = self.reset_world(i)
@@ -284,9 +297,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                              f"(world: action indices {where}); no world was stepped")
         return actions
 
-    def batch_infos(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
-        """Per-world info dicts as one dict of arrays with ``_key`` masks (``SyncVectorEnv``'s layout)."""
-        return _stack_infos(infos)
+    def batch_infos(self, infos: Sequence[dict[str, Any]]) -> dict[str, Any]:
+        """Per-world info dicts as one dict of arrays with ``_key`` masks (``SyncVectorEnv``'s layout): a
+        step's ``WorldInfos`` from its columns, a list dict by dict."""
+        return infos.stacked() if isinstance(infos, WorldInfos) else stack_infos(infos)
 
     # --- helpers -------------------------------------------------------------------
     def _obs_buffer(self) -> np.ndarray:
@@ -367,44 +381,6 @@ def _seed(value, name: str) -> int:
     if value < 0:
         raise ValueError(f"{name} must be >= 0, got {value}")
     return int(value)
-
-
-def _stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
-    """``VectorEnv._add_info`` over all worlds at once: the same keys, arrays, dtypes (the first world
-    with the key decides) and ``_key`` masks, a key at a time instead of a world at a time."""
-    n = len(infos)
-    # Worlds grouped by their keys, in order: a step's infos have one set (every world stepped) or a few
-    # (worlds just reset report fewer keys), so a key's worlds come from its groups, not a test per world.
-    groups: dict[tuple[str, ...], list[int]] = {}
-    for i, info in enumerate(infos):
-        groups.setdefault(tuple(info), []).append(i)
-    batched: dict[str, Any] = {}
-    for key in dict.fromkeys(key for keys in groups for key in keys):    # first seen first, as world by world
-        holders = [worlds for keys, worlds in groups.items() if key in keys]
-        worlds = holders[0] if len(holders) == 1 else sorted(itertools.chain.from_iterable(holders))
-        everyone = len(worlds) == n
-        where = slice(None) if everyone else worlds
-        values = [info[key] for info in infos] if everyone else [infos[i][key] for i in worlds]
-        first = values[0]
-        if key != "final_obs" and isinstance(first, dict):
-            inner: list[dict[str, Any]] = values if everyone else [{}] * n
-            if not everyone:
-                for i, value in zip(worlds, values):
-                    inner[i] = value
-            array = _stack_infos(inner)
-        elif key != "final_obs" and (type(first) in (int, float, bool) or isinstance(first, np.number)):
-            array = np.zeros(n, dtype=type(first))
-            array[where] = values
-        elif key != "final_obs" and isinstance(first, np.ndarray):
-            array = np.zeros((n, *first.shape), dtype=first.dtype)
-            array[where] = values
-        else:    # one object per world (a tuple stays a tuple): not unpacked as a sequence would be
-            array = np.full(n, None, dtype=object)
-            array[where] = np.fromiter(values, dtype=object, count=len(values))
-        mask = np.zeros(n, dtype=bool)
-        mask[where] = True
-        batched[key], batched[f"_{key}"] = array, mask
-    return batched
 
 
 def _vector_class(env_class: type[HumanoidEnv]) -> type[HumanoidVectorEnv]:

@@ -141,6 +141,17 @@ class FeatureHistory:
         return self.frames.reshape(-1).copy()
 
     @staticmethod
+    def push_rows(frames: np.ndarray, rows: np.ndarray, features: np.ndarray) -> np.ndarray:
+        """``push_each`` of the histories that are rows ``rows`` of ``frames`` (N, K, F), one array for many
+        worlds' histories (a batched env's; row k of ``features``: the new frame of history ``rows[k]``);
+        returns their ``flat()``, one row each, of one new array."""
+        own = frames[rows]
+        own[:, :-1] = own[:, 1:]
+        own[:, -1] = features
+        frames[rows] = own
+        return own.reshape(len(rows), -1)
+
+    @staticmethod
     def push_each(histories: list[FeatureHistory], features: np.ndarray) -> np.ndarray:
         """``push_features`` of each of ``histories`` (row k of ``features``: history k's new frame) as array
         operations over the batch; returns their ``flat()``, one row each, of one new array."""

@@ -523,6 +523,41 @@ def interlevel_outcome_columns(state, prev_root, packed_goal, rotation, reward, 
     return obs, results
 
 
+@jit
+def _step_reward_kernel(terms, fell_column, success_column, started, success_reward, failure_reward, out_terms,
+                        out_reward, fell, success):
+    for b in range(terms.shape[0]):
+        fell[b] = started[b] and fell_column[b] != 0.0
+        success[b] = started[b] and success_column[b] != 0.0
+        total = 0.0
+        for i in range(terms.shape[1]):    # a fall replaces the task terms by the failure reward
+            out_terms[b, i] = 0.0 if fell[b] else terms[b, i]
+            total += out_terms[b, i]
+        bonus = success_reward if success[b] else 0.0
+        penalty = failure_reward if fell[b] else 0.0
+        out_terms[b, terms.shape[1]] = bonus
+        out_terms[b, terms.shape[1] + 1] = penalty
+        out_reward[b] = total + (bonus + penalty)
+
+
+def interlevel_step_reward(terms: np.ndarray, results: np.ndarray, started: np.ndarray, success_reward: float,
+                           failure_reward: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A step's reward from the step kernel's ``results`` (``STEP_RESULTS`` columns) and the weighted task
+    ``terms`` (B, T) (Eq. 1's, or another reward's): ``(reward (B,), terms (B, T + 2), fell (B,), success
+    (B,))``, the terms' last two columns the success bonus and the failure reward. A fall replaces the
+    task terms by ``failure_reward``; success adds ``success_reward``; neither counts where ``started`` is
+    False (the episode's first outcome, before any step). The reward is the terms summed in order, the
+    bonus and failure reward last (the same sums as the single env's)."""
+    batch = terms.shape[0]
+    out_terms = np.empty((batch, terms.shape[1] + 2))
+    reward = np.empty(batch)
+    fell = np.empty(batch, dtype=np.bool_)
+    success = np.empty(batch, dtype=np.bool_)
+    _step_reward_kernel(np.ascontiguousarray(terms), results[:, _R_FELL], results[:, _R_SUCCESS], started,
+                        float(success_reward), float(failure_reward), out_terms, reward, fell, success)
+    return reward, out_terms, fell, success
+
+
 # the old names of ``interlevel_outcome`` and ``interlevel_outcome_columns``; deprecated, for one release
 _OLD_NAMES = {"interlevel_evaluate": "interlevel_outcome", "interlevel_evaluate_columns": "interlevel_outcome_columns"}
 

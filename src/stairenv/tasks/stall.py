@@ -5,27 +5,80 @@ policy may settle there long before it learns to reach the goal; ending such epi
 return away. The watch keeps the distance of the episode's last real approach (the first: its
 start) and the step it was reached; a distance at least ``distance`` below it is a new approach.
 More than ``seconds`` without one is a stall.
+
+``stall_step`` is the rule for one world (compiled); ``StallWatch`` holds one episode's clock and
+``stalled_worlds`` runs the rule over a batch's clocks as arrays.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from stairenv.numba_jit import jit
+
+
+@jit
+def stall_step(distance, step, approach_distance, approach_step, min_approach, seconds, dt):
+    """One step of the rule: ``(stalled, approach_distance, approach_step)`` after a step at ``distance``
+    from the goal, the episode's ``step``-th; ``seconds`` is ``inf`` without the aid."""
+    if distance < approach_distance - min_approach or approach_distance == math.inf:
+        approach_distance, approach_step = distance, step
+    return (step - approach_step) * dt > seconds, approach_distance, approach_step
+
+
+@jit
+def _stalled_worlds_kernel(distance, steps, approach_distance, approach_step, min_approach, seconds, dt, out):
+    for b in range(distance.shape[0]):
+        out[b], approach_distance[b], approach_step[b] = stall_step(
+            distance[b], steps[b], approach_distance[b], approach_step[b], min_approach, seconds, dt)
+    return out
+
+
+def stalled_worlds(distance: np.ndarray, steps: np.ndarray, approach_distance: np.ndarray,
+                   approach_step: np.ndarray, min_approach: float, seconds: float | None, dt: float) -> np.ndarray:
+    """``StallWatch.stalled`` of a batch of clocks (``approach_distance`` float64 and ``approach_step``
+    int64, (B,), updated in place): whether each world stalled, (B,) bool."""
+    return _stalled_worlds_kernel(distance, steps, approach_distance, approach_step, min_approach,
+                                  math.inf if seconds is None else seconds, dt,
+                                  np.empty(distance.shape[0], dtype=np.bool_))
+
 
 class StallWatch:
     """Per-episode stall clock: ``restart()`` at an episode's start, then ``stalled(distance, step)``
-    once a step (``step`` counts the episode's steps, ``dt`` seconds each)."""
+    once a step (``step`` counts the episode's steps, ``dt`` seconds each). The clock is held in two
+    arrays of one entry, ``approach`` (the distance of the last approach) and ``approach_at`` (its step),
+    so that a batched env can hold many worlds' clocks as rows of one array each."""
 
     def __init__(self, seconds: float | None, distance: float, dt: float) -> None:
         self.seconds, self.distance, self.dt = seconds, distance, dt
-        self.restart()
+        self.approach = np.full(1, math.inf)
+        self.approach_at = np.zeros(1, dtype=np.int64)
 
     def restart(self) -> None:
-        self.approach_distance, self.approach_step = math.inf, 0
+        self.approach[0], self.approach_at[0] = math.inf, 0
+
+    @property
+    def approach_distance(self) -> float:
+        return float(self.approach[0])
+
+    @approach_distance.setter
+    def approach_distance(self, value: float) -> None:
+        self.approach[0] = value
+
+    @property
+    def approach_step(self) -> int:
+        return int(self.approach_at[0])
+
+    @approach_step.setter
+    def approach_step(self, value: int) -> None:
+        self.approach_at[0] = value
 
     def stalled(self, distance: float, step: int) -> bool:
         """Whether no approach of ``self.distance`` happened for more than ``seconds`` (False without
         ``seconds``); ``distance`` is the step's distance to the goal."""
-        if distance < self.approach_distance - self.distance or self.approach_distance == math.inf:
-            self.approach_distance, self.approach_step = distance, step
-        return self.seconds is not None and (step - self.approach_step) * self.dt > self.seconds
+        stalled, self.approach[0], self.approach_at[0] = stall_step(
+            float(distance), int(step), self.approach[0], self.approach_at[0], self.distance,
+            math.inf if self.seconds is None else self.seconds, self.dt)
+        return stalled

@@ -44,6 +44,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from stairenv.environments.infos import column
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
@@ -337,10 +338,10 @@ class Trainer:
             obs, task_reward, terminated, truncated, infos, finals = self.venv.step_worlds(clipped, reset_ended=True)
             dones = terminated | truncated
             if self.style is not None:
-                amp = np.stack([info["amp_obs"] for info in infos])
+                amp = column(infos, "amp_obs")
                 conditions = None
                 if self.style.reference.condition_dim:
-                    conditions = np.stack([info["amp_condition"] for info in infos])
+                    conditions = column(infos, "amp_condition")
                 reward, style = self.style(self.style.agent_inputs(amp, conditions), task_reward)
                 style_sum += float(style.mean())
             else:
