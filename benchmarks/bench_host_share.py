@@ -12,10 +12,11 @@ array operations would be. Per round:
   the step: ``physics=`` gets a ``SerialPhysics`` that times its step less the env's callbacks, so
   nothing else of the step is changed;
 - ``arrays``: the kernels the env calls, once each over ``--array-worlds`` worlds' state arrays (the
-  env's worlds' states tiled). These are the task's compiled step (observation, reward terms, fall,
-  success, progress), then the reward and flags as arrays, then the style features with their history
-  shifted and flattened. That is the host's cost if the step handled its worlds only as arrays, with
-  the same formulas. Not in it: the state's copy from the device and the device's own step.
+  env's worlds' states and carry tiled). These are the task's compiled step (observation, reward terms,
+  fall, success, progress), the reward and the episode's end with the stall clocks, then the style
+  features with their history shifted (``FeatureHistory.push_rows``). That is the host's cost if the
+  step handled its worlds only as arrays, with the same formulas. Not in it: the state's copy from the
+  device and the device's own step.
 
 Printed per round: both figures, their ratio and the 3.3 us budget; at the end the medians. Results on
 our machine are in ``docs/gpu.md`` ("Where the targets stand").
@@ -33,7 +34,7 @@ import stairenv  # noqa: F401  (registers the ids)
 from stairenv import pretrained
 from stairenv.environments.batch_physics import SerialPhysics
 from stairenv.humanoid.state import HumanoidState
-from stairenv.style.features import amp_features
+from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.tasks import interlevel as task
 
 #: host time per world-step that 300k env steps/s allows when the host works serially with the device
@@ -88,24 +89,19 @@ def array_step(envs, worlds: int):
         return np.ascontiguousarray(np.tile(array, (reps,) + (1,) * (array.ndim - 1))[:worlds])
 
     state = HumanoidState(*(tiled(field) for field in state))
-    prev_root = tiled(np.concatenate([env._prev_root for env in envs]))
-    packed = tiled(np.concatenate([env._packed_goal for env in envs]))
-    rotation = task.StairsGoal.unpack(packed).rotation
+    carry = {path: tiled(values) for path, values in type(first)._take_carry(envs, None).items()}
+    rotation = task.StairsGoal.unpack(carry["_packed_goal"]).rotation
+    steps = np.full(worlds, 10, dtype=np.int64)
     history = np.zeros((worlds, *first._amp.frames.shape))
-    started = np.ones(worlds, dtype=bool)
-    num_terms = task.NUM_REWARD_TERMS
-    fell_column, success_column = task.STEP_RESULTS.index("fell"), task.STEP_RESULTS.index("success")
+    rows = np.arange(worlds)
 
     def step() -> None:
-        obs, results = task.interlevel_outcome_columns(state, prev_root, packed, rotation, first._reward_array,
-                                                       first.dt, first.termination_height, first.success_radius)
-        fell = started & (results[:, fell_column] != 0.0)
-        success = started & (results[:, success_column] != 0.0)
-        reward = np.where(fell[:, None], 0.0, results[:, :num_terms]).sum(axis=1)
-        reward += np.where(success, first.success_reward, 0.0) + np.where(fell, first.failure_reward, 0.0)
-        history[:, :-1] = history[:, 1:]
-        history[:, -1] = amp_features(state)
-        history.reshape(worlds, -1).copy()
+        obs, results = task.interlevel_outcome_columns(state, carry["_prev_root"], carry["_packed_goal"], rotation,
+                                                       first._reward_array, first.dt, first.termination_height,
+                                                       first.success_radius)
+        task.interlevel_reward_and_end(results[:, :task.NUM_REWARD_TERMS], results, steps, carry["_stall.approach"],
+                                       carry["_stall.approach_at"], first._end_parameters)
+        FeatureHistory.push_rows(history, rows, amp_features(state))
     return step
 
 

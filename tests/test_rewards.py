@@ -604,17 +604,23 @@ def test_env_step_reward_matches_hand_formula():
 
 
 def test_step_reward_composes_terms_bonus_and_failure_by_hand():
-    """``interlevel_step_reward``: the terms summed, plus the success bonus; a fall replaces the terms by the
-    failure reward; neither counts before the first step (``started`` False)."""
+    """``interlevel_reward_and_end``: the terms summed, plus the success bonus; a fall replaces the terms by
+    the failure reward; neither counts at the episode's first outcome (step 0); the episode ends on a fall,
+    or on success where success terminates."""
     terms = np.array([[0.3, 0.1, 0.4]] * 4)
     results = np.zeros((4, len(il.STEP_RESULTS)))
     fell, success = il.STEP_RESULTS.index("fell"), il.STEP_RESULTS.index("success")
     results[1, success] = 1.0
     results[2, fell] = 1.0
     results[3, fell] = results[3, success] = 1.0
-    started = np.array([True, True, True, False])
-    reward, all_terms, got_fell, got_success = il.interlevel_step_reward(terms, results, started, 10.0, -2.0)
-    assert reward.tolist() == [0.3 + 0.1 + 0.4, 0.3 + 0.1 + 0.4 + 10.0, -2.0, 0.3 + 0.1 + 0.4]
-    assert all_terms.tolist() == [[0.3, 0.1, 0.4, 0.0, 0.0], [0.3, 0.1, 0.4, 10.0, 0.0], [0.0, 0.0, 0.0, 0.0, -2.0],
-                                  [0.3, 0.1, 0.4, 0.0, 0.0]]
-    assert got_fell.tolist() == [False, False, True, False] and got_success.tolist() == [False, True, False, False]
+    steps = np.array([5, 5, 5, 0])
+    clocks = np.full(4, np.inf), np.zeros(4, dtype=np.int64)
+    for terminate_on_success in (True, False):
+        params = il.end_parameters(0.2, None, 1 / 30, 10.0, -2.0, terminate_on_success)
+        reward, all_terms, flags = il.interlevel_reward_and_end(terms, results, steps, *clocks, params)
+        assert reward.tolist() == [0.3 + 0.1 + 0.4, 0.3 + 0.1 + 0.4 + 10.0, -2.0, 0.3 + 0.1 + 0.4]
+        assert all_terms.tolist() == [[0.3, 0.1, 0.4, 0.0, 0.0], [0.3, 0.1, 0.4, 10.0, 0.0],
+                                      [0.0, 0.0, 0.0, 0.0, -2.0], [0.3, 0.1, 0.4, 0.0, 0.0]]
+        fell_flags, success_flags, stalled, ended = flags.T.tolist()
+        assert fell_flags == [False, False, True, False] and success_flags == [False, True, False, False]
+        assert stalled == [False] * 4 and ended == [False, terminate_on_success, True, False]

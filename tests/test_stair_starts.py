@@ -137,19 +137,30 @@ def test_stall_clock_restarts_on_each_approach():
 
 
 def test_stall_clocks_as_arrays_follow_each_watch():
-    """``stalled_worlds`` over a batch of clocks gives, step by step, what each world's ``StallWatch`` gives."""
-    from stairenv.tasks.stall import StallWatch, stalled_worlds
+    """The batched reward kernel's stall clocks (``interlevel_reward_and_end``) give, step by step, what each
+    world's ``StallWatch`` gives; a stall ends the episode; without ``stall_seconds`` nothing stalls."""
+    from stairenv.tasks import interlevel as task
+    from stairenv.tasks.stall import StallWatch
 
-    dt, rng = 1.0 / 30.0, np.random.default_rng(0)
-    watches = [StallWatch(0.5, 0.2, dt) for _ in range(5)]
-    approach, approach_at = np.full(5, np.inf), np.zeros(5, dtype=np.int64)
-    distance = np.full(5, 6.0)
+    dt, rng, n = 1.0 / 30.0, np.random.default_rng(0), 5
+    watches = [StallWatch(0.5, 0.2, dt) for _ in range(n)]
+    approach, approach_at = np.full(n, np.inf), np.zeros(n, dtype=np.int64)
+    results = np.zeros((n, len(task.STEP_RESULTS)))
+    distance = results[:, task.STEP_RESULTS.index("distance_to_target")]
+    distance[:] = 6.0
+    stalls = 0
     for step in range(120):
-        distance -= rng.uniform(-0.02, 0.05, 5)
-        stalled = stalled_worlds(distance, np.full(5, step), approach, approach_at, 0.2, 0.5, dt)
-        assert stalled.tolist() == [watch.stalled(d, step) for watch, d in zip(watches, distance.tolist())]
+        distance -= rng.uniform(-0.02, 0.05, n)
+        _, _, flags = task.interlevel_reward_and_end(np.zeros((n, 3)), results, np.full(n, step), approach,
+                                                     approach_at, task.end_parameters(0.2, 0.5, dt, 10.0, -1.0, True))
+        stalled = [watch.stalled(d, step) for watch, d in zip(watches, distance.tolist())]
+        assert flags[:, 2].tolist() == stalled and flags[:, 3].tolist() == stalled
         assert approach.tolist() == [watch.approach_distance for watch in watches]
-    assert not stalled_worlds(distance, np.full(5, 10_000), approach, approach_at, 0.2, None, dt).any()
+        stalls += sum(stalled)
+    assert stalls > 0
+    _, _, flags = task.interlevel_reward_and_end(np.zeros((n, 3)), results, np.full(n, 10_000), approach, approach_at,
+                                                 task.end_parameters(0.2, None, dt, 10.0, -1.0, True))
+    assert not flags.any()
 
 
 def test_a_stalled_episode_terminates_without_a_reward_of_its_own():

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import functools
+import operator
 import os
 import warnings
 import zipfile
@@ -103,8 +105,8 @@ class StepOutcome(NamedTuple):
 
     def world(self, k: int) -> StepOutcome:
         """World ``k``'s outcome of a batched one, its numbers as Python numbers (as a single env's)."""
-        return StepOutcome(self.obs[k], self.reward[k].item(), {key: value[k].item() for key, value in self.terms.items()},
-                           self.terminated[k].item(), {key: value[k].item() for key, value in self.results.items()})
+        return StepOutcome(self.obs[k], self.reward.item(k), {key: value.item(k) for key, value in self.terms.items()},
+                           self.terminated.item(k), {key: value.item(k) for key, value in self.results.items()})
 
     def worlds(self) -> list[StepOutcome]:
         """``world(k)`` of every world of a batched outcome (each array converted once, not per world)."""
@@ -520,7 +522,7 @@ class HumanoidEnv(gym.Env):
         """Make each world's ``ROW_ARRAYS`` and style history rows (views) of one array over ``envs`` (row i:
         ``envs[i]``), held in ``env._rows`` by path (the history as "amp"). A batched env does so once;
         ``_finish_batch(envs, rows=...)`` then reads and writes the carry of a group of worlds by their rows
-        (``_take_rows``, ``_put_rows``) instead of world by world. A world's own code keeps working on its
+        (``_take_carry``, ``_put_carry``) instead of world by world. A world's own code keeps working on its
         views."""
         shared: dict[str, np.ndarray] = {}
         for path in cls.ROW_ARRAYS:
@@ -533,21 +535,28 @@ class HumanoidEnv(gym.Env):
             env._rows = shared
 
     @classmethod
-    def _take_rows(cls, envs: list[HumanoidEnv], rows: np.ndarray | None, path: str) -> np.ndarray:
-        """The carry ``path`` of ``envs`` as one array (row k: world k): their rows of the shared array, or
-        (``rows`` None) each world's own, concatenated."""
+    def _take_carry(cls, envs: list[HumanoidEnv], rows: np.ndarray | None) -> dict[str, np.ndarray]:
+        """The ``ROW_ARRAYS`` of ``envs``, one array per path (row k: world k), for the task to read and write in
+        place: a single world's own arrays, else the worlds' rows of the shared arrays (``rows``) or each
+        world's own, concatenated; ``_put_carry`` writes the latter back."""
+        if rows is None and len(envs) == 1:
+            return {path: _attribute(envs[0], path) for path in cls.ROW_ARRAYS}
         if rows is not None:
-            return envs[0]._rows[path][rows]
-        return np.concatenate([_attribute(env, path) for env in envs])
+            shared = envs[0]._rows
+            return {path: shared[path][rows] for path in cls.ROW_ARRAYS}
+        return {path: np.concatenate([_attribute(env, path) for env in envs]) for path in cls.ROW_ARRAYS}
 
     @classmethod
-    def _put_rows(cls, envs: list[HumanoidEnv], rows: np.ndarray | None, path: str, values: np.ndarray) -> None:
-        """Write ``values`` (row k: world k) into the carry ``path`` of ``envs`` (``_take_rows``' inverse)."""
-        if rows is not None:
-            envs[0]._rows[path][rows] = values
+    def _put_carry(cls, envs: list[HumanoidEnv], rows: np.ndarray | None, carry: dict[str, np.ndarray]) -> None:
+        """Write ``carry`` (``_take_carry``'s, changed) back to the worlds (nothing to do for a single world's own)."""
+        if rows is None and len(envs) == 1:
             return
-        for k, env in enumerate(envs):
-            _attribute(env, path)[...] = values[k:k + 1]
+        for path, values in carry.items():
+            if rows is not None:
+                envs[0]._rows[path][rows] = values
+            else:
+                for k, env in enumerate(envs):
+                    _attribute(env, path)[...] = values[k:k + 1]
 
     def _episode_info(self) -> dict[str, Any]:
         """What ``info`` reports of the episode that does not change from step to step (InterLevel: its
@@ -745,11 +754,14 @@ def _rows_into(n: int, rows_a, values_a, rows_b, values_b) -> np.ndarray:
 
 def _attribute(env: HumanoidEnv, path: str):
     """``env.a.b`` for the path "a.b"."""
-    for name in path.split("."):
-        env = getattr(env, name)
-    return env
+    return _getter(path)(env)
+
+
+@functools.cache
+def _getter(path: str) -> operator.attrgetter:
+    return operator.attrgetter(path)
 
 
 def _set_attribute(env: HumanoidEnv, path: str, value) -> None:
-    *owner, name = path.split(".")
-    setattr(_attribute(env, ".".join(owner)) if owner else env, name, value)
+    owner, _, name = path.rpartition(".")
+    setattr(_attribute(env, owner) if owner else env, name, value)

@@ -19,15 +19,24 @@ from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import curriculum
-from stairenv.tasks.stall import StallWatch, stalled_worlds
+from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.validation import field_check
 from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
 
-# Columns of the step kernel's results (``task.STEP_RESULTS``) that ``_step_outcome_batch`` reports.
+# Columns of the step kernel's results (``task.STEP_RESULTS``) and of the end flags (``task.END_FLAGS``) that
+# a step outcome reports.
 _PROGRESS, _HEIGHT_PROGRESS, _DISTANCE_TO_TARGET = (task.STEP_RESULTS.index(name) for name in (
     "progress", "height_progress", "distance_to_target"))
+_FELL, _SUCCESS, _STALLED, _ENDED = (task.END_FLAGS.index(name) for name in ("fell", "success", "stalled", "ended"))
+
+
+def _named_results(results, flags) -> dict[str, Any]:
+    """A step outcome's named results from the step kernel's results and the end flags, each indexed by
+    column: one world's rows (lists) or the batch's columns (the arrays transposed)."""
+    return {"progress": results[_PROGRESS], "height_progress": results[_HEIGHT_PROGRESS], "success": flags[_SUCCESS],
+            "fell": flags[_FELL], "stalled": flags[_STALLED], "distance_to_target": results[_DISTANCE_TO_TARGET]}
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
@@ -132,6 +141,8 @@ class InterLevelEnv(HumanoidEnv):
         start, aids = config.start, config.training_aids
         self.reward_name = rewards.kind
         self._term_names = task.REWARD_TERMS if rewards.kind == "interlevel" else interscene.REWARD_TERMS
+        #: a step outcome's reward terms, in ``info`` and in the order they are summed
+        self._outcome_terms = (*self._term_names, "reward_success", "reward_failure")
         self.reward_config = rewards.terms
         self._reward_array = self.reward_config.as_array()  # what the compiled step takes
         self.success_reward, self.failure_reward = rewards.success_reward, rewards.failure_reward
@@ -241,35 +252,48 @@ class InterLevelEnv(HumanoidEnv):
         stall = self._stall    # the env's settings as they are now, the clock from zero
         stall.seconds, stall.distance, stall.dt = self.stall_seconds, self.stall_distance, self.dt
         stall.restart()
+        self._end_parameters = task.end_parameters(self.stall_distance, self.stall_seconds, self.dt,
+                                                   self.success_reward, self.failure_reward,
+                                                   self.terminate_on_success)
 
     BATCH_OUTCOMES = True
     ROW_ARRAYS = ("_prev_root", "_packed_goal", "_stall.approach", "_stall.approach_at")
 
     def _step_outcome(self, state) -> StepOutcome:
-        """``_step_outcome_batch`` of this world alone."""
-        return self._step_outcome_batch([self], state).world(0)
+        """``_step_outcomes`` of this world alone."""
+        return self._step_outcomes([self], state)[0]
 
     @classmethod
     def _step_outcomes(cls, envs: list[InterLevelEnv], state) -> list[StepOutcome]:
-        """``_step_outcome_batch`` world by world."""
-        return cls._step_outcome_batch(envs, state).worlds()
+        """``_outcome_arrays`` as one ``StepOutcome`` per world, its numbers as Python numbers."""
+        obs, reward, terms, flags, results = cls._outcome_arrays(envs, state)
+        names = envs[0]._outcome_terms
+        rewards, flag_rows, result_rows = reward.tolist(), flags.tolist(), results.tolist()
+        return [StepOutcome(obs[k], rewards[k], dict(zip(names, world_terms)), flag_rows[k][_ENDED],
+                            _named_results(result_rows[k], flag_rows[k]))
+                for k, world_terms in enumerate(terms.tolist())]
 
     @classmethod
     def _step_outcome_batch(cls, envs: list[InterLevelEnv], state, rows: np.ndarray | None = None) -> StepOutcome:
+        """``_outcome_arrays`` as one ``StepOutcome`` of arrays (each term and result a column over the
+        worlds)."""
+        obs, reward, terms, flags, results = cls._outcome_arrays(envs, state, rows)
+        return StepOutcome(obs, reward, dict(zip(envs[0]._outcome_terms, terms.T)), flags[:, _ENDED],
+                           _named_results(results.T, flags.T))
+
+    @classmethod
+    def _outcome_arrays(cls, envs: list[InterLevelEnv], state, rows: np.ndarray | None = None):
         """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
-        k) as one ``StepOutcome`` of arrays: one compiled call for the observation and the task's results
-        (``task.interlevel_outcome_columns``), one for the reward (``task.interlevel_step_reward``: the task
-        terms, zero on a fall, the success bonus and the failure reward; nothing has happened yet at an
-        episode's start) and one for the stall clocks; then the episode's end. The carry (``ROW_ARRAYS``) is
-        read and written by ``rows`` where a batched env shares it (``HumanoidEnv._share_rows``)."""
+        k) in two compiled calls: the observation and the task's results (``task.interlevel_outcome_columns``),
+        then the reward and the episode's end with the stall clocks (``task.interlevel_reward_and_end``).
+        Returns ``(obs, reward, terms, flags, results)``: the terms in ``_outcome_terms`` order, the flags
+        ``task.END_FLAGS``, the results ``task.STEP_RESULTS``. What a world carries from step to step
+        (``ROW_ARRAYS``) is read and written by ``rows`` where a batched env shares it
+        (``HumanoidEnv._share_rows``)."""
         first = envs[0]
-        n = len(envs)
-        if n == 1 and rows is None:
-            prev_root, goal, packed = first._prev_root, first._goal, first._packed_goal
-        else:
-            prev_root = cls._take_rows(envs, rows, "_prev_root")
-            packed = cls._take_rows(envs, rows, "_packed_goal")
-            goal = task.StairsGoal.unpack(packed)
+        carry = cls._take_carry(envs, rows)
+        prev_root, packed = carry["_prev_root"], carry["_packed_goal"]
+        goal = first._goal if len(envs) == 1 else task.StairsGoal.unpack(packed)
         obs, results = task.interlevel_outcome_columns(
             state, prev_root, packed, goal.rotation, first._reward_array, first.dt, first.termination_height,
             first.success_radius,
@@ -278,30 +302,12 @@ class InterLevelEnv(HumanoidEnv):
             terms = results[:, :task.NUM_REWARD_TERMS]
         else:
             terms = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt)
-        steps = np.fromiter((env._steps for env in envs), dtype=np.int64, count=n)
-        reward, terms, fell, success = task.interlevel_step_reward(terms, results, steps > 0, first.success_reward,
-                                                                   first.failure_reward)
-        distance = results[:, _DISTANCE_TO_TARGET]
-        approach = cls._take_rows(envs, rows, "_stall.approach")
-        approach_at = cls._take_rows(envs, rows, "_stall.approach_at")
-        stall = first._stall
-        stalled = stalled_worlds(distance, steps, approach, approach_at, stall.distance, stall.seconds, stall.dt)
-        cls._put_rows(envs, rows, "_stall.approach", approach)
-        cls._put_rows(envs, rows, "_stall.approach_at", approach_at)
-        cls._put_rows(envs, rows, "_prev_root", state.body_pos[:, PELVIS])
-        stalled &= ~(fell | success)
-        ended = fell | stalled
-        if first.terminate_on_success:
-            ended |= success
-        names = (*first._term_names, "reward_success", "reward_failure")
-        return StepOutcome(obs, reward, {name: terms[:, i] for i, name in enumerate(names)}, ended, {
-            "progress": results[:, _PROGRESS],
-            "height_progress": results[:, _HEIGHT_PROGRESS],
-            "success": success,
-            "fell": fell,
-            "stalled": stalled,
-            "distance_to_target": distance,
-        })
+        steps = np.fromiter((env._steps for env in envs), dtype=np.int64, count=len(envs))
+        reward, terms, flags = task.interlevel_reward_and_end(
+            terms, results, steps, carry["_stall.approach"], carry["_stall.approach_at"], first._end_parameters)
+        prev_root[...] = state.body_pos[:, PELVIS]
+        cls._put_carry(envs, rows, carry)
+        return obs, reward, terms, flags, results
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, **self._episode_info()}

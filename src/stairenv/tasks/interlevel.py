@@ -52,6 +52,7 @@ from typing import NamedTuple
 import numpy as np
 
 from stairenv.tasks.kernels import heading_cos_sin, jit, write_heading_vector, write_proprioception
+from stairenv.tasks.stall import stall_step
 from stairenv.humanoid.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
 from stairenv.validation import Check, check_number, checked, field_check
 from stairenv.world.stairs import Staircase
@@ -524,38 +525,63 @@ def interlevel_outcome_columns(state, prev_root, packed_goal, rotation, reward, 
 
 
 @jit
-def _step_reward_kernel(terms, fell_column, success_column, started, success_reward, failure_reward, out_terms,
-                        out_reward, fell, success):
+def _reward_and_end_kernel(terms, results, steps, approach, approach_at, params, out_terms, out_reward, flags):
+    min_approach, stall_seconds, dt = params[_E_STALL_DISTANCE], params[_E_STALL_SECONDS], params[_E_DT]
+    success_reward, failure_reward = params[_E_SUCCESS_REWARD], params[_E_FAILURE_REWARD]
+    terminate_on_success = params[_E_TERMINATE_ON_SUCCESS] > 0.5
     for b in range(terms.shape[0]):
-        fell[b] = started[b] and fell_column[b] != 0.0
-        success[b] = started[b] and success_column[b] != 0.0
+        started = steps[b] > 0    # nothing has happened yet at an episode's start
+        fell = started and results[b, _R_FELL] != 0.0
+        success = started and results[b, _R_SUCCESS] != 0.0
         total = 0.0
         for i in range(terms.shape[1]):    # a fall replaces the task terms by the failure reward
-            out_terms[b, i] = 0.0 if fell[b] else terms[b, i]
+            out_terms[b, i] = 0.0 if fell else terms[b, i]
             total += out_terms[b, i]
-        bonus = success_reward if success[b] else 0.0
-        penalty = failure_reward if fell[b] else 0.0
+        bonus = success_reward if success else 0.0
+        penalty = failure_reward if fell else 0.0
         out_terms[b, terms.shape[1]] = bonus
         out_terms[b, terms.shape[1] + 1] = penalty
         out_reward[b] = total + (bonus + penalty)
+        stalled, approach[b], approach_at[b] = stall_step(results[b, _R_DISTANCE_TO_TARGET], steps[b], approach[b],
+                                                          approach_at[b], min_approach, stall_seconds, dt)
+        stalled = stalled and not (fell or success)
+        flags[b, 0], flags[b, 1], flags[b, 2] = fell, success, stalled
+        flags[b, 3] = fell or (success and terminate_on_success) or stalled
 
 
-def interlevel_step_reward(terms: np.ndarray, results: np.ndarray, started: np.ndarray, success_reward: float,
-                           failure_reward: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A step's reward from the step kernel's ``results`` (``STEP_RESULTS`` columns) and the weighted task
-    ``terms`` (B, T) (Eq. 1's, or another reward's): ``(reward (B,), terms (B, T + 2), fell (B,), success
-    (B,))``, the terms' last two columns the success bonus and the failure reward. A fall replaces the
-    task terms by ``failure_reward``; success adds ``success_reward``; neither counts where ``started`` is
-    False (the episode's first outcome, before any step). The reward is the terms summed in order, the
-    bonus and failure reward last (the same sums as the single env's)."""
+#: columns of ``interlevel_reward_and_end``'s flags
+END_FLAGS = ("fell", "success", "stalled", "ended")
+#: what ``end_parameters`` packs, in order
+END_PARAMETERS = ("stall_distance", "stall_seconds", "dt", "success_reward", "failure_reward", "terminate_on_success")
+(_E_STALL_DISTANCE, _E_STALL_SECONDS, _E_DT, _E_SUCCESS_REWARD, _E_FAILURE_REWARD,
+ _E_TERMINATE_ON_SUCCESS) = range(len(END_PARAMETERS))
+
+
+def end_parameters(stall_distance: float, stall_seconds: float | None, dt: float, success_reward: float,
+                   failure_reward: float, terminate_on_success: bool) -> np.ndarray:
+    """``interlevel_reward_and_end``'s settings as one array (``END_PARAMETERS``; no stall: ``stall_seconds``
+    None, packed as inf), which an env keeps for the episode."""
+    return np.array([stall_distance, math.inf if stall_seconds is None else stall_seconds, dt, success_reward,
+                     failure_reward, 1.0 if terminate_on_success else 0.0], dtype=np.float64)
+
+
+def interlevel_reward_and_end(terms: np.ndarray, results: np.ndarray, steps: np.ndarray, approach: np.ndarray,
+                              approach_at: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A step's reward and end from the step kernel's ``results`` (``STEP_RESULTS`` columns) and the weighted
+    task ``terms`` (B, T) (Eq. 1's, or another reward's), the episodes' step counts ``steps`` and their stall
+    clocks (``approach``, ``approach_at``: ``stairenv.tasks.stall``, updated in place); ``params`` is
+    ``end_parameters(...)``. Returns ``(reward (B,), terms (B, T + 2), flags (B, 4))``: the terms' last two
+    columns the success bonus and the failure reward, the flags ``END_FLAGS``. A fall replaces the task
+    terms by the failure reward; success adds the success reward; neither counts at an episode's first
+    outcome (``steps`` 0). The reward is the terms summed in order, the bonus and failure reward last. A
+    stall counts only without a fall or success; the episode ends on a fall, a stall, or success where
+    success terminates."""
     batch = terms.shape[0]
     out_terms = np.empty((batch, terms.shape[1] + 2))
     reward = np.empty(batch)
-    fell = np.empty(batch, dtype=np.bool_)
-    success = np.empty(batch, dtype=np.bool_)
-    _step_reward_kernel(np.ascontiguousarray(terms), results[:, _R_FELL], results[:, _R_SUCCESS], started,
-                        float(success_reward), float(failure_reward), out_terms, reward, fell, success)
-    return reward, out_terms, fell, success
+    flags = np.empty((batch, len(END_FLAGS)), dtype=np.bool_)
+    _reward_and_end_kernel(terms, results, steps, approach, approach_at, params, out_terms, reward, flags)
+    return reward, out_terms, flags
 
 
 # the old names of ``interlevel_outcome`` and ``interlevel_outcome_columns``; deprecated, for one release

@@ -6,8 +6,8 @@ return away. The watch keeps the distance of the episode's last real approach (t
 start) and the step it was reached; a distance at least ``distance`` below it is a new approach.
 More than ``seconds`` without one is a stall.
 
-``stall_step`` is the rule for one world (compiled); ``StallWatch`` holds one episode's clock and
-``stalled_worlds`` runs the rule over a batch's clocks as arrays.
+``stall_step`` is the rule for one world (compiled): ``StallWatch`` holds one episode's clock and calls
+it, and compiled batch kernels (InterLevel's ``interlevel_reward_and_end``) call it for each world's clock.
 """
 
 from __future__ import annotations
@@ -26,23 +26,6 @@ def stall_step(distance, step, approach_distance, approach_step, min_approach, s
     if distance < approach_distance - min_approach or approach_distance == math.inf:
         approach_distance, approach_step = distance, step
     return (step - approach_step) * dt > seconds, approach_distance, approach_step
-
-
-@jit
-def _stalled_worlds_kernel(distance, steps, approach_distance, approach_step, min_approach, seconds, dt, out):
-    for b in range(distance.shape[0]):
-        out[b], approach_distance[b], approach_step[b] = stall_step(
-            distance[b], steps[b], approach_distance[b], approach_step[b], min_approach, seconds, dt)
-    return out
-
-
-def stalled_worlds(distance: np.ndarray, steps: np.ndarray, approach_distance: np.ndarray,
-                   approach_step: np.ndarray, min_approach: float, seconds: float | None, dt: float) -> np.ndarray:
-    """``StallWatch.stalled`` of a batch of clocks (``approach_distance`` float64 and ``approach_step``
-    int64, (B,), updated in place): whether each world stalled, (B,) bool."""
-    return _stalled_worlds_kernel(distance, steps, approach_distance, approach_step, min_approach,
-                                  math.inf if seconds is None else seconds, dt,
-                                  np.empty(distance.shape[0], dtype=np.bool_))
 
 
 class StallWatch:
