@@ -428,6 +428,8 @@ def test_world_infos_read_as_the_per_world_dicts():
     everyone.put(np.arange(2), {"x": np.array([1.0, 2.0])})
     assert_same(everyone.stacked(), stack_infos(list(everyone)))
     assert list(everyone) == [{"x": 1.0}, {"x": 2.0}] and everyone[:1] == [{"x": 1.0}]
+    with pytest.raises(ValueError, match="differ from the first group"):
+        everyone.put(np.array([1]), {"y": np.array([1.0])})
 
 
 @pytest.mark.parametrize("env_id", ["InterLevel-v0", "SIMS-Sit-v0"])

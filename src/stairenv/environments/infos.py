@@ -37,8 +37,9 @@ class WorldInfos(Sequence):
         self._explicit = np.zeros(n, dtype=bool)
 
     def put(self, rows, columns: Columns) -> None:
-        """Rows ``rows`` of every column (each column of ``columns`` has one row per world of ``rows``). The
-        first group decides the keys, dtypes and shapes; every later group must bring the same keys."""
+        """Rows ``rows`` of every column (each column of ``columns`` has one row per world of ``rows``), once per
+        world and before its dict is read. The first group decides the keys, dtypes and shapes; every later
+        group must bring the same keys (``ValueError`` otherwise)."""
         _scatter(self.columns, columns, rows, self.n)
         self.in_columns[rows] = True
         self._explicit[rows] = False
@@ -147,13 +148,17 @@ def columns_of_rows(paths: tuple[tuple[str, ...], ...], rows: list[tuple]) -> Co
             node = node.setdefault(key, {})
         if type(first) in (int, float, bool) or isinstance(first, np.number):
             node[path[-1]] = np.array(values, dtype=type(first))
-        else:
-            node[path[-1]] = np.array(values)
+        elif isinstance(first, np.ndarray):
+            node[path[-1]] = np.array(values, dtype=first.dtype)
+        else:    # one object per world, as stack_infos keeps it
+            node[path[-1]] = np.fromiter(values, dtype=object, count=len(values))
     return columns
 
 
 # --- helpers -------------------------------------------------------------------------------------
 def _scatter(into: Columns, columns: Columns, rows, n: int) -> None:
+    if into and into.keys() != columns.keys():
+        raise ValueError(f"a group's info keys {sorted(columns)} differ from the first group's {sorted(into)}")
     for key, values in columns.items():
         if isinstance(values, dict):
             _scatter(into.setdefault(key, {}), values, rows, n)
@@ -166,7 +171,7 @@ def _scatter(into: Columns, columns: Columns, rows, n: int) -> None:
 def _row(columns: Columns, i: int) -> dict[str, Any]:
     """World i's dict: numbers as Python numbers (``item()``), array rows as arrays, nested dicts alike."""
     return {key: _row(values, i) if isinstance(values, dict) else
-            (values[i].item() if values.ndim == 1 else values[i]) for key, values in columns.items()}
+            (values.item(i) if values.ndim == 1 else values[i]) for key, values in columns.items()}
 
 
 def _masked(columns: Columns, mask: np.ndarray) -> dict[str, Any]:
