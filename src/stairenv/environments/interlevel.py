@@ -37,6 +37,8 @@ def _named_results(results, flags) -> dict[str, Any]:
     column: one world's rows (lists) or the batch's columns (the arrays transposed)."""
     return {"progress": results[_PROGRESS], "height_progress": results[_HEIGHT_PROGRESS], "success": flags[_SUCCESS],
             "fell": flags[_FELL], "stalled": flags[_STALLED], "distance_to_target": results[_DISTANCE_TO_TARGET]}
+
+
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
