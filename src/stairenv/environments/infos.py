@@ -10,6 +10,7 @@ task that finishes world by world) has its dict set whole: ``infos[i] = {...}``.
 Consumers that need one key of every world (the trainer's ``amp_obs``) read ``column(infos, key)``, and
 the gymnasium ``step`` reads ``infos.stacked()``: both from the columns, with no dict per world.
 ``stack_infos`` is the per-world route (``SyncVectorEnv``'s layout), used where there are no columns.
+Gymnasium has only that route (``VectorEnv._add_info``, world by world), hence this module.
 """
 
 from __future__ import annotations
