@@ -3,6 +3,7 @@ InterLevel env, and of the lean trainer end to end.
 
     PYTHONPATH=src python benchmarks/bench_warp.py [--sizes 1024,4096,8192] [--c-size 256]
                                                    [--budget 25] [--out bench_warp.json] [--quick]
+                                                   [--state-on-device]
 
 Measured, each size in its own try (a failure is recorded and the next size runs):
 
@@ -20,6 +21,9 @@ Measured, each size in its own try (a failure is recorded and the next size runs
   warm-up iteration, env steps/s end to end (collect + update) and the collect alone. The policy,
   the update and the discriminator run on ``--train-device`` (auto: cuda where torch sees a GPU;
   ``policy_device`` in the JSON says which).
+
+``--state-on-device``: every Warp measurement with the state kept on the device between resets
+(``state_on_device=True``; physics ``warp-device-state`` in the table and JSON).
 
 Each measurement stops at its time budget (``--budget`` seconds of timed steps) and none starts after
 ``--deadline`` seconds, so the whole run is bounded (about 5-6 minutes with the defaults, most of it
@@ -59,10 +63,22 @@ def gpu_name() -> str:
         return f"unknown ({error})"
 
 
+#: ``--state-on-device``'s name for Warp with the state kept on the device between resets
+WARP_DEVICE_STATE = "warp-device-state"
+
+
+def train_config(n: int, physics: str, **kwargs):
+    """The lean trainer's config for ``physics`` ("mujoco", "warp" or ``WARP_DEVICE_STATE``)."""
+    from stairenv.training import TrainConfig
+    if physics == WARP_DEVICE_STATE:
+        return TrainConfig(num_envs=n, physics="warp", env_kwargs={"state_on_device": True}, **kwargs)
+    return TrainConfig(num_envs=n, physics=physics, **kwargs)
+
+
 def make(n: int, physics: str):
     """The batched env the lean trainer builds (``make_env``: its amp_history, the registration's limit)."""
-    from stairenv.training import TrainConfig, make_env
-    return make_env(TrainConfig(num_envs=n, physics=physics))
+    from stairenv.training import make_env
+    return make_env(train_config(n, physics))
 
 
 def time_steps(step, warmup: int, max_steps: int, budget: float) -> tuple[int, float]:
@@ -96,13 +112,16 @@ def bench_env(n: int, physics: str, args, keep: dict | None = None) -> dict:
     steps, seconds = time_steps(env_step, args.warmup, args.max_steps, args.budget)
     out.update(env_steps=steps, env_seconds=round(seconds, 3), env_steps_per_s=round(n * steps / seconds))
     say(f"{physics} env, {n} worlds: {out['env_steps_per_s']:,} env steps/s ({steps} steps in {seconds:.1f} s)")
-    if physics == "warp":
+    if physics.startswith("warp"):
         physics_impl = vec.physics
         worlds = [(env.model, env.data) for env in vec.envs]
         frame_skip = vec.envs[0].frame_skip
-        for env in vec.envs:    # stand everyone up again: a fallen world's NaN-free state is all we need
+        physics_impl.sync_worlds()    # with the state on the device: its worlds' MjData brought up to date
+        for k, env in enumerate(vec.envs):    # stand everyone up again: a fallen world's NaN-free state is all we need
             env.data.qvel[:] = 0.0
-        steps, seconds = time_steps(lambda: physics_impl.step(worlds, frame_skip), 2, args.max_steps,
+            physics_impl.world_changed(k)
+        ctrl = {"ctrl": np.zeros((n, vec.envs[0].model.nu))} if physics_impl.state_on_device else {}
+        steps, seconds = time_steps(lambda: physics_impl.step(worlds, frame_skip, **ctrl), 2, args.max_steps,
                                     args.budget / 3)
         out.update(physics_steps=steps, physics_steps_per_s=round(n * steps / seconds))
         say(f"warp physics alone (copies included), {n} worlds: {out['physics_steps_per_s']:,} env steps/s")
@@ -134,12 +153,12 @@ def bench_train(n: int, physics: str, args, venv=None) -> dict:
     import torch
 
     from stairenv.style.wrappers import default_reference
-    from stairenv.training import Trainer, TrainConfig, build_style, make_env
+    from stairenv.training import Trainer, build_style, make_env
 
     threads = max(1, (os.cpu_count() or 2) // 2)
     device = args.train_device if args.train_device != "auto" else ("cuda" if torch.cuda.is_available() else "cpu")
-    config = TrainConfig(num_envs=n, physics=physics, total_steps=10**12, torch_threads=threads,
-                         checkpoint_every=10**12, device=device)
+    config = train_config(n, physics, total_steps=10**12, torch_threads=threads, checkpoint_every=10**12,
+                          device=device)
     venv = venv if venv is not None and venv.num_envs == n else make_env(config)
     trainer = Trainer(config, build_style(config, default_reference(venv)), venv)
     out = {"worlds": n, "physics": physics, "policy_device": device, "torch_threads": threads,
@@ -192,6 +211,8 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--max-steps", type=int, default=300, help="timed env steps per measurement at most")
     p.add_argument("--warmup", type=int, default=5, help="untimed env steps after the first")
     p.add_argument("--quick", action="store_true", help="tiny sizes and budgets: checks that it runs")
+    p.add_argument("--state-on-device", action="store_true",
+                   help="Warp with the state kept on the device between resets (state_on_device=True)")
     p.add_argument("--out", help="write the figures as JSON here")
     args = p.parse_args(argv)
     if args.quick:
@@ -223,13 +244,14 @@ def main(argv: list[str] | None = None) -> dict:
     # cheapest first, the trainer on the env of its size (saving a build), the largest size last
     if args.c_size:
         attempt("env", bench_env, args.c_size, "mujoco", args)
+    warp = WARP_DEVICE_STATE if args.state_on_device else "warp"
     for n in sizes:
         keep: dict = {}
-        attempt("env", bench_env, n, "warp", args, keep if n == args.train_size else None)
+        attempt("env", bench_env, n, warp, args, keep if n == args.train_size else None)
         if n == args.train_size:
-            attempt("train", bench_train, n, "warp", args, keep.get("venv"))
+            attempt("train", bench_train, n, warp, args, keep.get("venv"))
     if args.train_size and args.train_size not in sizes:
-        attempt("train", bench_train, args.train_size, "warp", args)
+        attempt("train", bench_train, args.train_size, warp, args)
     if args.train_c_size:
         attempt("train", bench_train, args.train_c_size, "mujoco", args)
 

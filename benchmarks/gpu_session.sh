@@ -24,12 +24,15 @@ step() {    # step NAME SECONDS COMMAND...: run it, its output in $OUT/NAME.log,
 }
 
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu.csv" 2>&1 || true
-# K ranks sharing the GPU over 4,096 worlds of Warp physics: the host's per-world task on K cores
+# the env and the trainer at 4,096 Warp worlds, the host's MjData the truth (the default), against C at 256
 # (the first run compiles Warp's CUDA kernels, cached for the others)
-step ranks_warp 360 "$PY" benchmarks/bench_ranks.py --ranks 1,4,8,16 --timeout 110 --out "$OUT/ranks_warp.json"
-# the same split on the C back-end: a many-core machine's cores shared by K ranks
-step ranks_mujoco 150 "$PY" benchmarks/bench_ranks.py --physics mujoco --worlds 256 --ranks 1,4,8 --timeout 45 \
-    --out "$OUT/ranks_mujoco.json"
+step warp_env 170 "$PY" benchmarks/bench_warp.py --sizes 4096 --train-size 4096 --train-c-size 0 --budget 10 \
+    --deadline 120 --out "$OUT/warp_env.json"
+# the same with the state kept on the device between resets (state_on_device=True)
+step warp_env_device_state 150 "$PY" benchmarks/bench_warp.py --sizes 4096 --train-size 4096 --c-size 0 \
+    --train-c-size 0 --budget 10 --deadline 100 --state-on-device --out "$OUT/warp_env_device_state.json"
+# K ranks sharing the GPU over 4,096 worlds of Warp physics: the host's per-world task on K cores
+step ranks_warp 190 "$PY" benchmarks/bench_ranks.py --ranks 1,8 --timeout 85 --out "$OUT/ranks_warp.json"
 # the lean trainer on CUDA against the CPU (skipped where torch sees no GPU)
 step tests_cuda 60 "$PY" -m pytest -q -p no:cacheprovider tests/test_training.py -k cuda
 echo "results in $OUT"

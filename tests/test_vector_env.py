@@ -27,8 +27,15 @@ from stairenv.vec_sb3 import SB3BatchedVecEnv, make_sb3_vec_env
 
 IDS = sorted(load_presets())
 # the contract tests below also run on MuJoCo Warp (its CPU device here) where it is installed
-WARP = pytest.param("warp", marks=pytest.mark.skipif(
-    __import__("importlib").util.find_spec("mujoco_warp") is None, reason="mujoco_warp not installed (.[gpu])"))
+_NO_WARP = pytest.mark.skipif(__import__("importlib").util.find_spec("mujoco_warp") is None,
+                              reason="mujoco_warp not installed (.[gpu])")
+WARP = pytest.param("warp", marks=_NO_WARP)
+# Warp with the state kept on the device between resets (state_on_device=True)
+WARP_DEVICE_STATE = pytest.param("warp-device-state", marks=_NO_WARP)
+
+
+def physics_keywords(physics: str) -> dict:
+    return {"physics": "warp", "state_on_device": True} if physics == "warp-device-state" else {"physics": physics}
 
 
 def assert_same(a, b, where=""):
@@ -93,9 +100,9 @@ def test_physics_backends_give_the_same_worlds(physics):
     assert_same(runs[0], runs[1])
 
 
-@pytest.mark.parametrize("physics", ["mujoco", WARP])
+@pytest.mark.parametrize("physics", ["mujoco", WARP, WARP_DEVICE_STATE])
 def test_next_step_autoreset_semantics(physics):
-    vec = batched("InterLevel-v0", 3, max_episode_steps=4, physics=physics)
+    vec = batched("InterLevel-v0", 3, max_episode_steps=4, **physics_keywords(physics))
     assert vec.metadata["autoreset_mode"] == gym.vector.AutoresetMode.NEXT_STEP
     single = gym.make("InterLevel-v0")
     obs, info = vec.reset(seed=[10, 11, 12])
@@ -114,6 +121,8 @@ def test_next_step_autoreset_semantics(physics):
     assert "reward_location" not in info                             # reset infos carry no reward terms
     # a world that ends alone resets alone
     vec.envs[2].data.qvel[:] = 1e3                                   # speeds no body reaches: unstable
+    if getattr(vec.physics, "state_on_device", False):
+        vec.physics.world_changed(2)                                 # a write into a world's MjData, announced
     _, _, _, truncated, info = vec.step(zeros)
     assert truncated.tolist() == [False, False, True]
     _, reward, _, truncated, info = vec.step(zeros)
@@ -178,9 +187,9 @@ def test_non_real_actions_are_refused_naming_the_world():
     vec.step(np.zeros((3, 28), dtype=np.int64))
 
 
-@pytest.mark.parametrize("physics", ["mujoco", WARP])
+@pytest.mark.parametrize("physics", ["mujoco", WARP, WARP_DEVICE_STATE])
 def test_reset_mask_resets_only_those_worlds(physics):
-    vec = batched("InterLevel-v0", 3, physics=physics)
+    vec = batched("InterLevel-v0", 3, **physics_keywords(physics))
     vec.reset(seed=0)
     obs, *_ = vec.step(np.zeros((3, 28)))
     new, info = vec.reset(options={"reset_mask": np.array([False, True, False])})
@@ -244,10 +253,10 @@ def test_threads_release_the_gil_and_keep_worlds_apart():
         np.testing.assert_array_equal(env.data.qpos, data.qpos)
 
 
-@pytest.mark.parametrize("physics", ["mujoco", WARP])
+@pytest.mark.parametrize("physics", ["mujoco", WARP, WARP_DEVICE_STATE])
 def test_gymnasium_amp_wrapper_runs_on_the_batched_env(physics):
     from stairenv.style.wrappers import AMPVectorWrapper
-    wrapped = AMPVectorWrapper(batched("InterLevel-v0", 2, max_episode_steps=6, physics=physics),
+    wrapped = AMPVectorWrapper(batched("InterLevel-v0", 2, max_episode_steps=6, **physics_keywords(physics)),
                                AMPStyleReward(gait_reference(), w_task=1.0, w_style=1.0))
     wrapped.reset(seed=0)
     for _ in range(8):

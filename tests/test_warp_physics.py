@@ -65,6 +65,18 @@ def test_physics_device_is_for_warp_only():
         batched(1, physics="warp", physics_device=0)
 
 
+def test_state_on_device_is_for_warp_only():
+    """``state_on_device`` keeps Warp's state on the device; the C back-ends step each world's ``MjData``, and
+    a back-end object takes its own setting, so both are refused (before any world is built), as is a value
+    that is not a bool."""
+    with pytest.raises(ValueError, match="state_on_device=True is for physics='warp' only"):
+        batched(1, state_on_device=True)
+    with pytest.raises(ValueError, match="state_on_device"):
+        batched(1, physics=ThreadPoolPhysics(1), state_on_device=True)
+    with pytest.raises(TypeError, match="state_on_device must be True or False"):
+        batched(1, physics="warp", state_on_device="yes")
+
+
 def test_a_replicated_env_equals_a_freshly_built_one():
     """``replicate`` (how a device back-end's batched env makes its worlds): its own model and data, and
     the same episodes as an env built anew."""
@@ -245,6 +257,42 @@ def test_a_divergence_truncates_that_world_only():
 
 
 @warp_only
+def test_state_on_the_device_follows_the_host_truth_path():
+    """``WarpPhysics(state_on_device=True)``: the same trajectories as with the host's ``MjData`` as the truth
+    (the same physics on the device; only the kinematics the task reads run in float32 there), resets and
+    ends included; the worlds' ``MjData`` lag until ``sync_worlds``; a write into a world's ``MjData``
+    announced with ``world_changed`` reaches the device (a diverged state: that world alone truncated)."""
+    from stairenv.environments.warp_physics import WarpPhysics
+
+    n, runs = 4, {}
+    for on_device in (False, True):
+        vec = batched(n, physics=WarpPhysics(device="cpu", state_on_device=on_device), max_episode_steps=12)
+        vec.reset(seed=3)
+        rng = np.random.default_rng(0)
+        runs[on_device] = [vec.step(rng.uniform(-1, 1, (n, 28))) for _ in range(30)]
+        if on_device:
+            physics = vec.physics
+            stale = np.flatnonzero(physics._stale)
+            host_qpos = physics._state_host["qpos"]
+            assert stale.size and not np.array_equal(vec.envs[stale[0]].data.qpos, host_qpos[stale[0]].astype(np.float64))
+            physics.sync_worlds()
+            for k in stale:
+                assert np.array_equal(vec.envs[k].data.qpos, host_qpos[k].astype(np.float64))
+            vec.envs[1].data.qvel[:] = 1e12
+            physics.world_changed(1)
+            with pytest.warns(UserWarning, match="physics became unstable"):
+                *_, truncated, info = vec.step(np.zeros((n, 28)))
+            assert info["physics_unstable"].tolist() == [False, True, False, False] and truncated[1]
+        vec.close()
+    ends = 0
+    for t, (host, device) in enumerate(zip(runs[False], runs[True])):
+        assert np.abs(host[0] - device[0]).max() < OBS_TOL and np.abs(host[1] - device[1]).max() < REWARD_TOL, t
+        assert np.array_equal(host[2], device[2]) and np.array_equal(host[3], device[3]), t
+        ends += int(np.sum(host[2] | host[3]))
+    assert ends >= n
+
+
+@warp_only
 @pytest.mark.parametrize("env_id", ["InterLevel2D-v0", "InterSceneStairs-v0"])
 def test_the_ablation_ids_run_on_warp(env_id):
     warp, c = batched(2, env_id, physics="warp"), batched(2, env_id, physics="serial")
@@ -259,12 +307,14 @@ def test_the_ablation_ids_run_on_warp(env_id):
 
 
 @warp_only
-def test_the_lean_trainer_runs_on_warp_physics():
+@pytest.mark.parametrize("state_on_device", [False, True])
+def test_the_lean_trainer_runs_on_warp_physics(state_on_device):
     from stairenv.training import Trainer, TrainConfig
     config = TrainConfig(num_envs=2, physics="warp", rollout_steps=4, minibatch_size=8, epochs=1, style="none",
-                         total_steps=8)
+                         total_steps=8, env_kwargs={"state_on_device": state_on_device})
     trainer = Trainer(config)
     assert isinstance(trainer.venv, HumanoidVectorEnv) and type(trainer.venv.physics).__name__ == "WarpPhysics"
+    assert trainer.venv.physics.state_on_device is state_on_device
     trainer.collect()
     stats = trainer.update()
     assert all(np.isfinite(v) for v in stats.values())

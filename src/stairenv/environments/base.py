@@ -20,7 +20,7 @@ from stairenv.environments.infos import columns_of_rows, flatten
 from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import read_state, stack_states
+from stairenv.humanoid.state import read_state, stack_states, states_from_arrays
 from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_reference_library
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
@@ -406,6 +406,17 @@ class HumanoidEnv(gym.Env):
             env._ctrl[:] = ctrl
             env._after_action()
 
+    @classmethod
+    def _action_targets(cls, envs: list[HumanoidEnv], actions: np.ndarray) -> np.ndarray:
+        """The PD targets of many worlds as one array (row k: world k), for a back-end that takes the ctrl
+        of all worlds at once (``WarpPhysics(state_on_device=True)``): ``_prepare_worlds``' action map with
+        no world's ctrl written. Only for classes with the plain action map and no ``_before_physics``."""
+        if cls._apply_action is not HumanoidEnv._apply_action or cls._before_physics is not HumanoidEnv._before_physics:
+            raise ValueError(f"{cls.__name__} changes its ctrl world by world; its state cannot stay on the device")
+        offsets = np.array([env._ctrl_offset for env in envs])
+        scales = np.array([env._ctrl_scale for env in envs])
+        return offsets + scales * actions
+
     def _physics(self) -> None:
         """``frame_skip`` physics steps (a batched env runs them for all its worlds instead)."""
         mujoco.mj_step(self.model, self.data, self.frame_skip)
@@ -456,17 +467,19 @@ class HumanoidEnv(gym.Env):
 
     @classmethod
     def _finish_batch(cls, envs: list[HumanoidEnv], poses_current: bool = False,
-                      rows: np.ndarray | None = None) -> BatchStep:
+                      rows: np.ndarray | None = None, device_state: dict[str, np.ndarray] | None = None) -> BatchStep:
         """``_finish_step`` of many worlds of this class as a ``BatchStep``: where the class computes its
         outcomes as arrays (``_step_outcome_batch``), the info too, as columns, with no dict per world;
         otherwise ``_finish_worlds``' per-world results. Each world's info equals its ``_finish_step``'s:
         the task's results and its ``_episode_info`` (``_info`` is those two for such a class), then what
         every env reports, then the reward terms. ``rows``: the worlds' rows of the arrays ``_share_rows``
-        made (None: each world's own carry)."""
+        made (None: each world's own carry). ``device_state``: the worlds' state as a device back-end left it
+        (``WarpPhysics.state``: ``qpos``, ``qvel``, ``xpos``, ``xmat``, ``diverged``; row k: world k), read
+        instead of each world's ``MjData``."""
         if cls._step_outcome_batch is HumanoidEnv._step_outcome_batch:
             return BatchStep.of_worlds(cls._finish_worlds(envs, poses_current))
         n = len(envs)
-        sound = cls._sound_worlds(envs, poses_current)
+        sound = cls._sound_worlds(envs, poses_current) if device_state is None else cls._sound_arrays(envs, device_state)
         dicts: dict[int, dict[str, Any]] = {}
         obs = reward = terminated = truncated = None
         for k, (env, world_sound) in enumerate(zip(envs, sound)):
@@ -478,7 +491,12 @@ class HumanoidEnv(gym.Env):
         columns: dict[str, Any] = {}
         if worlds:
             world_rows = rows if rows is None or stable is None else rows[stable]
-            state = cls._read_worlds(worlds)
+            if device_state is None:
+                state = cls._read_worlds(worlds)
+            else:
+                fields = [device_state[name] if stable is None else device_state[name][stable]
+                          for name in ("xpos", "xmat", "qpos", "qvel")]
+                state = states_from_arrays(*fields, worlds[0]._idx)
             outcome = cls._step_outcome_batch(worlds, state, world_rows)
             if world_rows is None:
                 amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
@@ -688,6 +706,19 @@ class HumanoidEnv(gym.Env):
                 env._mark_unstable()
             elif not poses_current:
                 env._bring_up_poses(env.model, env.data)
+        return sound
+
+    @classmethod
+    def _sound_arrays(cls, envs: list[HumanoidEnv], device_state: dict[str, np.ndarray]) -> list[bool]:
+        """``_sound_worlds`` from a device back-end's arrays: a world is sound unless the device flagged it
+        diverged (non-finite or beyond MuJoCo's bound) or it moves faster than a body can; an unsound world
+        is marked as ``_physics_sound`` marks it."""
+        idx = envs[0]._idx
+        speeds = device_state["qvel"][:, idx.qvel_root.start:idx.qvel_joints.stop]
+        sound = (~device_state["diverged"] & (np.abs(speeds) <= envs[0]._speed_limits).all(axis=1)).tolist()
+        for env, world_sound in zip(envs, sound):
+            if not world_sound:
+                env._mark_unstable()
         return sound
 
     @staticmethod

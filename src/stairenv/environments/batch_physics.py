@@ -151,12 +151,14 @@ PHYSICS_BACKENDS = ("mujoco", "threads", "serial", "warp")
 
 
 def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = None,
-                 device: str | None = None) -> BatchPhysics:
+                 device: str | None = None, state_on_device: bool = False) -> BatchPhysics:
     """A back-end by name (``PHYSICS_BACKENDS``) or an object that already implements ``BatchPhysics``.
     ``nthread``: the threads of the "mujoco" pool (default ``os.cpu_count()``); the other back-ends
     take none. ``device``: the Warp device of "warp" ("cuda:1", "cpu"; default Warp's first GPU, else its
-    CPU device; a data-parallel rank passes its own GPU); the C back-ends run on the host only."""
+    CPU device; a data-parallel rank passes its own GPU); the C back-ends run on the host only.
+    ``state_on_device``: "warp" keeps the state on the device between resets (``WarpPhysics``)."""
     check_physics_device(backend, device)
+    check_state_on_device(backend, state_on_device)
     if not isinstance(backend, str):
         return backend
     if backend not in PHYSICS_BACKENDS:
@@ -165,7 +167,7 @@ def make_physics(backend: str | BatchPhysics = "mujoco", nthread: int | None = N
         raise ValueError(f"physics_threads must be None or a positive integer, got {nthread!r}")
     if backend == "warp":
         from stairenv.environments.warp_physics import WarpPhysics
-        return WarpPhysics(device=device)
+        return WarpPhysics(device=device, state_on_device=state_on_device)
     return ThreadPoolPhysics(nthread) if backend in ("mujoco", "threads") else SerialPhysics()
 
 
@@ -179,3 +181,13 @@ def check_physics_device(backend: str | BatchPhysics, device: str | None) -> Non
     if backend != "warp":
         raise ValueError(f"physics_device={device!r} is for physics='warp' only; physics={backend!r} chooses "
                          "its own device")
+
+
+def check_state_on_device(backend: str | BatchPhysics, state_on_device: bool) -> None:
+    """``state_on_device``: True or False, True with ``physics="warp"`` only (the C back-ends step each
+    world's ``MjData`` on the host; a ``BatchPhysics`` object is built with its own setting)."""
+    if not isinstance(state_on_device, bool):
+        raise TypeError(f"state_on_device must be True or False, got {state_on_device!r}")
+    if state_on_device and backend != "warp":
+        raise ValueError(f"state_on_device=True is for physics='warp' only (the C back-ends step each world's "
+                         f"MjData on the host; a back-end object takes its own setting); got physics={backend!r}")

@@ -62,7 +62,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from stairenv.environments.base import NUMERIC_KINDS, BatchStep, HumanoidEnv
-from stairenv.environments.batch_physics import BatchPhysics, check_physics_device, make_physics
+from stairenv.environments.batch_physics import BatchPhysics, check_physics_device, check_state_on_device, make_physics
 from stairenv.environments.infos import WorldInfos, stack_infos
 
 
@@ -74,7 +74,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     refused with a ``ValueError`` saying why) or a ``BatchPhysics``; ``physics_threads``: the pool's
     threads (default ``os.cpu_count()``; ``nthread`` is its older name); ``max_episode_steps``: the
     truncation limit (None: none); ``physics_device``: where "warp" runs ("cuda:1", "cpu"; default Warp's
-    first GPU; a data-parallel rank of the trainer passes its own);
+    first GPU; a data-parallel rank of the trainer passes its own); ``state_on_device``: with "warp", the
+    device's state is the truth between resets (opt-in: each world's ``MjData`` then lags until
+    ``physics.sync_worlds()``, and a write into one must be announced with ``physics.world_changed(i)``;
+    ``warp_physics.WarpPhysics``);
     ``batch_outcomes``: the task's step outcomes over the batch in one call (default: where the env class can;
     ``batch_evaluation`` is its older name, deprecated).
     """
@@ -84,6 +87,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, *, env_class: type[HumanoidEnv] | None = None,
                  max_episode_steps: int | None = None, physics: str | BatchPhysics = "mujoco",
                  physics_threads: int | None = None, nthread: int | None = None, physics_device: str | None = None,
+                 state_on_device: bool = False,
                  batch_outcomes: bool | None = None, batch_evaluation: bool | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
@@ -113,6 +117,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         device = physics == "warp" or hasattr(physics, "bind")
         # refused before any world is built: a device for a host back-end, an id the device cannot hold
         check_physics_device(physics, physics_device)
+        check_state_on_device(physics, state_on_device)
         if device:
             from stairenv.environments.warp_physics import check_supported
             check_supported(env_class)
@@ -130,11 +135,14 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.action_space = batch_space(first.action_space, self.num_envs)
         self.metadata = {**first.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = first.render_mode
-        self.physics = make_physics(physics, physics_threads, physics_device)
+        self.physics = make_physics(physics, physics_threads, physics_device, state_on_device)
         if hasattr(self.physics, "bind"):    # a device back-end: every world's model and data, once
             self.physics.bind([(env.model, env.data) for env in self.envs])
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
         self._world_changed = getattr(self.physics, "world_changed", None)
+        #: a device back-end that keeps the state (``WarpPhysics(state_on_device=True)``): the step hands it the
+        #: ctrl as one array and finishes from its arrays; the worlds' ``MjData`` lag until ``sync_worlds``
+        self._state_on_device = bool(getattr(self.physics, "state_on_device", False))
         #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
         #: (``BATCH_OUTCOMES``: InterLevel, PlaMo, SIMS), else world by world
         self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
@@ -143,6 +151,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self._shared_rows = self.batch_outcomes and env_class._step_outcome_batch is not None
         if self._shared_rows:
             env_class._share_rows(self.envs)
+        if self._state_on_device and not self._shared_rows:
+            raise ValueError(f"a back-end with the state on the device needs a task that finishes over arrays "
+                             f"(InterLevel ids, batch_outcomes=True); {env_class.__name__} does not")
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._was_reset = False
@@ -227,7 +238,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
-        type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
+        on_device = self._state_on_device
+        if on_device:    # the PD targets go to the device as one array
+            ctrl = type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping]) if stepping else None
+        else:
+            type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             for i in resetting:
@@ -241,8 +256,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                 return
             group = np.array([stepping[k] for k in ks], dtype=np.int64)
             if self.batch_outcomes:    # the task over this group of worlds in one call
+                state = None if not on_device else {key: value[ks] for key, value in self.physics.state.items()}
                 finished = type(envs[0])._finish_batch([envs[i] for i in group.tolist()], poses_current=True,
-                                                       rows=group if self._shared_rows else None)
+                                                       rows=group if self._shared_rows else None,
+                                                       device_state=state)
             else:
                 finished = BatchStep.of_worlds([results[k] for k in ks])
                 for k in ks:
@@ -274,8 +291,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         def bring_up_poses(k: int) -> None:    # also in the physics thread: collect then finds them current
             envs[0]._bring_up_poses(*worlds[k])
 
-        self.physics.step(worlds, envs[0].frame_skip, bring_up_poses if self.batch_outcomes else finish,
-                          reset_ended_before, collect)
+        if on_device:
+            self.physics.step(worlds, envs[0].frame_skip, None, reset_ended_before, collect, ctrl=ctrl)
+        else:
+            self.physics.step(worlds, envs[0].frame_skip, bring_up_poses if self.batch_outcomes else finish,
+                              reset_ended_before, collect)
         return obs.copy(), rewards, terminated, truncated, infos, finals
 
     def check_actions(self, actions) -> np.ndarray:

@@ -27,6 +27,11 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
   The env then runs ``mj_kinematics`` on the host (``_physics_sound``, as after ``mj_step``), so the body
   poses the task reads come from these ``qpos``.
 
+Opt-in, ``state_on_device=True`` (``WarpPhysics`` docstring): the device's state is the truth between resets.
+Only worlds marked changed (``world_changed``: a reset, or an announced write) go up, the ctrl comes as one
+array, the device runs the kinematics, and the stepped worlds' state stays in ``state`` as arrays that the
+env finishes from; the worlds' ``MjData`` are written only by ``sync_worlds``.
+
 Options (integrator, solver, iterations, line-search iterations, tolerances, timestep, cone) are the
 ``MjModel``'s: ``mujoco_warp.put_model`` reads them, and ``settings()`` reports both sides. MuJoCo Warp
 computes in float32 and is not bit-deterministic, so a world stepped here follows the C back-end's
@@ -115,10 +120,18 @@ class WarpPhysics:
     steps of random actions on InterLevel; overflows are counted in ``overflows``); ``graph``: replay the
     ``nstep`` substeps as one captured graph (default: on a GPU, where it saves a launch per kernel; Warp
     replays graphs on its CPU device too, which the tests use to check the capture). ``bind(worlds)`` must
-    be called once with every world of the batch before ``step`` (the batched env does)."""
+    be called once with every world of the batch before ``step`` (the batched env does).
+
+    ``state_on_device`` (opt-in; default False, the host's ``MjData`` is the truth): the device's state is
+    the truth between resets. A step then takes the worlds' ctrl as one array (``step(..., ctrl=...)``),
+    sends up only the state of worlds marked changed (``world_changed(k)``: a reset, or a write into a
+    world's ``MjData`` that must reach the device), runs the kinematics on the device and leaves the stepped
+    worlds' state in ``state`` as arrays (``qpos``, ``qvel``, ``xpos``, ``xmat``, ``time``, ``diverged``)
+    instead of writing each world's ``MjData``; ``sync_worlds(ks)`` writes worlds' ``MjData`` on request
+    (rendering, reading a world's data)."""
 
     def __init__(self, device: str | None = None, nconmax: int = 32, njmax: int = 128,
-                 graph: bool | None = None) -> None:
+                 graph: bool | None = None, state_on_device: bool = False) -> None:
         self._wp, self._mjw = _import_warp()
         wp = self._wp
         wp.config.quiet = True
@@ -129,6 +142,9 @@ class WarpPhysics:
         self.graph = self.device.is_cuda if graph is None else bool(graph)
         #: why a CUDA graph could not be captured (the substeps then launch kernel by kernel), if so
         self.graph_error: str | None = None
+        self.state_on_device = bool(state_on_device)
+        #: with ``state_on_device``: the last step's stepped worlds (rows in ``step``'s order) as arrays
+        self.state: dict[str, np.ndarray] | None = None
         self.model = self.data = None
         self.worlds: list[World] = []
         self._slot: dict[int, int] = {}
@@ -166,12 +182,35 @@ class WarpPhysics:
         self._ctrl_host = np.zeros((n, model0.nu), dtype=np.float32)
         self._time_host = np.zeros(n, dtype=np.float64)
         self._changed = np.ones(n, dtype=bool)
+        self._state_changed = np.ones(n, dtype=bool)    # state_on_device: rows to send up
+        self._stale = np.zeros(n, dtype=bool)    # state_on_device: worlds whose MjData lags the device
         self._graphs = {}
 
     def world_changed(self, k: int) -> None:
         """World ``k``'s staircase was written into its host ``MjModel`` (a reset): copy the per-world model
-        fields up before the next step (its state goes up at every step anyway)."""
+        fields up before the next step (its state goes up at every step anyway; with ``state_on_device``,
+        its state goes up then too, as its ``MjData`` now holds it)."""
         self._changed[k] = True
+        self._state_changed[k] = True
+        self._stale[k] = False
+
+    def sync_worlds(self, ks: Sequence[int] | None = None) -> None:
+        """With ``state_on_device``: write worlds ``ks`` (default: every world whose ``MjData`` lags) from the
+        device's last state into their ``MjData`` (``qpos``, ``qvel``, ``act``, warm start, time, then
+        ``mj_kinematics``). Without it every step writes them, and this does nothing."""
+        if not self.state_on_device:
+            return
+        ks = np.flatnonzero(self._stale) if ks is None else np.asarray(ks, dtype=np.int64)
+        for k in ks.tolist():
+            if not self._stale[k]:
+                continue
+            model, data = self.worlds[k]
+            for name, host in self._state_host.items():
+                if host.shape[1]:
+                    getattr(data, name)[:] = host[k]
+            data.time = self._time_host[k]
+            mujoco.mj_kinematics(model, data)
+            self._stale[k] = False
 
     def settings(self) -> dict[str, tuple]:
         """The options the device runs with next to the host model's: ``{name: (host, device)}``."""
@@ -188,7 +227,10 @@ class WarpPhysics:
     # --- stepping ---------------------------------------------------------------------------------
     def step(self, worlds: Sequence[World], nstep: int, then: Callable[[int], None] | None = None,
              meanwhile: Callable[[], None] | None = None,
-             collect: Callable[[list[int]], None] | None = None) -> None:
+             collect: Callable[[list[int]], None] | None = None, ctrl: np.ndarray | None = None) -> None:
+        if self.state_on_device and worlds:
+            self._step_on_device(worlds, nstep, then, meanwhile, collect, ctrl)
+            return
         if not worlds:
             if meanwhile is not None:
                 meanwhile()
@@ -215,9 +257,70 @@ class WarpPhysics:
         if collect is not None:
             collect(list(range(len(worlds))))
 
-    def _upload(self, worlds: Sequence[World], slots: np.ndarray) -> None:
+    def _step_on_device(self, worlds, nstep, then, meanwhile, collect, ctrl) -> None:
+        """``step`` with ``state_on_device`` (see the class docstring)."""
+        if self.model is None:
+            raise RuntimeError("WarpPhysics.bind(worlds) must be called before step")
+        if ctrl is None:
+            raise ValueError("WarpPhysics(state_on_device=True).step needs the worlds' ctrl as one array (ctrl=)")
+        wp, mjw = self._wp, self._mjw
+        try:
+            slots = np.fromiter((self._slot[id(data)] for _, data in worlds), dtype=np.int64, count=len(worlds))
+        except KeyError:
+            raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
+        self._upload_model_rows()
+        for k in np.flatnonzero(self._state_changed).tolist():    # reset (or announced) worlds: their MjData
+            data = self.worlds[k][1]
+            for name, host in self._state_host.items():
+                if host.shape[1]:
+                    host[k] = getattr(data, name)
+            self._time_host[k] = data.time
+        self._state_changed[:] = False
+        for name, host in self._state_host.items():
+            if host.shape[1]:
+                self._assign(getattr(self.data, name), host)
+        self._assign(self.data.time, self._time_host)
+        self._ctrl_host[slots] = ctrl
+        self._assign(self.data.ctrl, self._ctrl_host)
+        with wp.ScopedDevice(self.device):
+            self.data.overflow.zero_()
+            self._launch(nstep)
+            mjw.kinematics(self.model, self.data)    # body poses at the new qpos, as the host's mj_kinematics
+            if meanwhile is not None:
+                meanwhile()
+            down = {name: getattr(self.data, name).numpy() for name in (*STATE_FIELDS, "xpos", "xmat")}
+            overflow = self.data.overflow.numpy()
+        n = len(self.worlds)
+        for name in STATE_FIELDS:
+            self._state_host[name][:] = down[name].reshape(n, -1)
+        times = self._time_host[slots]
+        for _ in range(nstep):    # as mj_step advances it, in float64
+            times += self._timestep
+        self._time_host[slots] = times
+        self._stale[slots] = True
+        rows = {name: down[name].reshape(n, -1)[slots].astype(np.float64) for name in (*STATE_FIELDS, "xpos", "xmat")}
+        bad = ~(np.isfinite(rows["qpos"]).all(1) & np.isfinite(rows["qvel"]).all(1)
+                & (np.abs(rows["qvel"]) <= MAX_VALUE).all(1) & (np.abs(rows["qpos"]) <= MAX_VALUE).all(1)
+                & np.isfinite(rows["qacc_warmstart"]).all(1))
+        self.overflows += int(self._overflowed(overflow[slots]).sum())
+        self.state = {"qpos": rows["qpos"], "qvel": rows["qvel"], "xpos": rows["xpos"].reshape(len(slots), -1, 3),
+                      "xmat": rows["xmat"].reshape(len(slots), -1, 9), "time": times, "diverged": bad}
+        if then is not None:
+            for k in range(len(worlds)):
+                then(k)
+        if collect is not None:
+            collect(list(range(len(worlds))))
+
+    def _overflowed(self, overflow: np.ndarray) -> np.ndarray:
+        """Which worlds' contacts or constraint rows overflowed the device's buffers."""
+        mjw = self._mjw
+        return (overflow & int(mjw.OverflowType.NEFC | mjw.OverflowType.NJMAX_NNZ | mjw.OverflowType.BROADPHASE
+                               | mjw.OverflowType.NARROWPHASE)) != 0
+
+    def _upload_model_rows(self) -> None:
+        """A changed world's staircase: its rows of the per-world model fields and its treads' poses."""
         changed = np.flatnonzero(self._changed)
-        if changed.size:    # a reset world's staircase: its rows of the per-world model fields
+        if changed.size:
             for name, host in self._model_host.items():
                 for k in changed:
                     host[k] = getattr(self.worlds[k][0], name)
@@ -227,6 +330,9 @@ class WarpPhysics:
                     host[k] = getattr(self.worlds[k][1], name)
                 self._assign(getattr(self.data, name), host)
             self._changed[:] = False
+
+    def _upload(self, worlds: Sequence[World], slots: np.ndarray) -> None:
+        self._upload_model_rows()
         datas = [data for _, data in worlds]
         for name, host in self._state_host.items():    # the host's state is the truth (resets, pushes)
             if host.shape[1]:
@@ -276,9 +382,7 @@ class WarpPhysics:
         qpos, qvel, act, warm = (rows[name] for name in STATE_FIELDS)
         bad = ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
                 & (np.abs(qpos) <= MAX_VALUE).all(1) & np.isfinite(warm).all(1))
-        full = (overflow[slots] & int(self._mjw.OverflowType.NEFC | self._mjw.OverflowType.NJMAX_NNZ
-                                      | self._mjw.OverflowType.BROADPHASE
-                                      | self._mjw.OverflowType.NARROWPHASE)) != 0
+        full = self._overflowed(overflow[slots])
         self.overflows += int(full.sum())
         dt = self._timestep
         has_act = act.shape[1] > 0

@@ -51,15 +51,20 @@ def read_state(data: mujoco.MjData, idx: HumanoidIndices) -> HumanoidState:
 def read_states(datas, idx: HumanoidIndices) -> HumanoidState:
     """The humanoid's state in each of ``datas`` (worlds of one model structure, ``idx`` of any of
     them) as one batch: the rows equal ``read_state`` of each world. Copies, not views."""
+    return states_from_arrays(np.stack([data.xpos for data in datas]), np.stack([data.xmat for data in datas]),
+                              np.stack([data.qpos for data in datas]), np.stack([data.qvel for data in datas]), idx)
+
+
+def states_from_arrays(xpos: np.ndarray, xmat: np.ndarray, qpos: np.ndarray, qvel: np.ndarray,
+                       idx: HumanoidIndices) -> HumanoidState:
+    """The humanoid's state from many worlds' ``MjData`` fields stacked (``xpos`` (B, nbody, 3), ``xmat``
+    (B, nbody, 9), ``qpos``, ``qvel``): what ``read_states`` reads, from arrays a device back-end brings
+    down in one copy per field. Copies, not views."""
     bodies = idx.body_ids if idx.body_slice is None else idx.body_slice
-    xpos = np.stack([data.xpos for data in datas])
-    xmat = np.stack([data.xmat for data in datas])
-    qpos = np.stack([data.qpos for data in datas])
-    qvel = np.stack([data.qvel for data in datas])
     root_vel = qvel[:, idx.qvel_root]
     return HumanoidState(
         body_pos=np.ascontiguousarray(xpos[:, bodies]),
-        body_mat=np.ascontiguousarray(xmat[:, bodies]).reshape(len(datas), len(BODY_NAMES), 3, 3),
+        body_mat=np.ascontiguousarray(xmat[:, bodies]).reshape(len(xpos), len(BODY_NAMES), 3, 3),
         root_lin_vel=np.ascontiguousarray(root_vel[:, :3]),
         root_ang_vel=np.ascontiguousarray(root_vel[:, 3:]),
         dof_pos=np.ascontiguousarray(qpos[:, idx.qpos_joints]),
