@@ -108,14 +108,6 @@ class StepOutcome(NamedTuple):
         return StepOutcome(self.obs[k], self.reward.item(k), {key: value.item(k) for key, value in self.terms.items()},
                            self.terminated.item(k), {key: value.item(k) for key, value in self.results.items()})
 
-    def worlds(self) -> list[StepOutcome]:
-        """``world(k)`` of every world of a batched outcome (each array converted once, not per world)."""
-        rewards, terminated = self.reward.tolist(), self.terminated.tolist()
-        terms = {key: value.tolist() for key, value in self.terms.items()}
-        results = {key: value.tolist() for key, value in self.results.items()}
-        return [StepOutcome(self.obs[k], rewards[k], {key: value[k] for key, value in terms.items()}, terminated[k],
-                            {key: value[k] for key, value in results.items()}) for k in range(len(rewards))]
-
 
 class BatchStep(NamedTuple):
     """What ``HumanoidEnv._finish_batch`` makes of a batch of B worlds after their physics: the step's
@@ -400,9 +392,7 @@ class HumanoidEnv(gym.Env):
             for env, action in zip(envs, actions):
                 env._prepare_step(action)
             return
-        offsets = np.array([env._ctrl_offset for env in envs])
-        scales = np.array([env._ctrl_scale for env in envs])
-        for env, ctrl in zip(envs, offsets + scales * actions):    # _apply_action's operations, row by row
+        for env, ctrl in zip(envs, _pd_targets(envs, actions)):    # _apply_action's operations, row by row
             env._ctrl[:] = ctrl
             env._after_action()
 
@@ -413,9 +403,7 @@ class HumanoidEnv(gym.Env):
         no world's ctrl written. Only for classes with the plain action map and no ``_before_physics``."""
         if cls._apply_action is not HumanoidEnv._apply_action or cls._before_physics is not HumanoidEnv._before_physics:
             raise ValueError(f"{cls.__name__} changes its ctrl world by world; its state cannot stay on the device")
-        offsets = np.array([env._ctrl_offset for env in envs])
-        scales = np.array([env._ctrl_scale for env in envs])
-        return offsets + scales * actions
+        return _pd_targets(envs, actions)
 
     def _physics(self) -> None:
         """``frame_skip`` physics steps (a batched env runs them for all its worlds instead)."""
@@ -447,13 +435,10 @@ class HumanoidEnv(gym.Env):
         the stable worlds read as one batch, ``_step_outcomes`` and the style features in one call each.
         ``poses_current``: every world's ``mj_kinematics`` already ran after its physics (``_bring_up_poses``)."""
         results: list[tuple | None] = [None] * len(envs)
-        stable = []
-        for k, (env, sound) in enumerate(zip(envs, cls._sound_worlds(envs, poses_current))):
-            env._steps += 1
-            if sound:
-                stable.append(k)
-            else:
-                results[k] = env._unstable_step()
+        unstable = _count_steps(envs, cls._sound_worlds(envs, poses_current))
+        for k, result in unstable.items():
+            results[k] = result
+        stable = [k for k in range(len(envs)) if k not in unstable]
         if stable:
             worlds = [envs[k] for k in stable]
             state = cls._read_worlds(worlds)
@@ -480,13 +465,9 @@ class HumanoidEnv(gym.Env):
             return BatchStep.of_worlds(cls._finish_worlds(envs, poses_current))
         n = len(envs)
         sound = cls._sound_worlds(envs, poses_current) if device_state is None else cls._sound_arrays(envs, device_state)
-        dicts: dict[int, dict[str, Any]] = {}
+        unstable = _count_steps(envs, sound)
         obs = reward = terminated = truncated = None
-        for k, (env, world_sound) in enumerate(zip(envs, sound)):
-            env._steps += 1
-            if not world_sound:
-                dicts[k] = env._unstable_step()
-        stable = None if not dicts else np.array([k for k in range(n) if k not in dicts], dtype=np.int64)
+        stable = None if not unstable else np.array([k for k in range(n) if k not in unstable], dtype=np.int64)
         worlds = envs if stable is None else [envs[k] for k in stable]
         columns: dict[str, Any] = {}
         if worlds:
@@ -514,16 +495,18 @@ class HumanoidEnv(gym.Env):
                        **outcome.terms}
             obs, reward, terminated = outcome.obs, outcome.reward, outcome.terminated
             truncated = np.zeros(len(worlds), dtype=bool)
-        if dicts:    # the unstable worlds' rows, from their whole results
-            unstable = np.array(list(dicts), dtype=np.int64)
-            results = [dicts[k] for k in unstable.tolist()]
-            obs = _rows_into(n, stable, obs, unstable, np.array([result[0] for result in results]))
-            reward = _rows_into(n, stable, reward, unstable, np.array([result[1] for result in results], dtype=np.float64))
-            terminated = _rows_into(n, stable, terminated, unstable,
+        if unstable:    # the unstable worlds' rows, from their whole results
+            rows_unstable = np.array(list(unstable), dtype=np.int64)
+            results = list(unstable.values())
+            obs = _rows_into(n, stable, obs, rows_unstable, np.array([result[0] for result in results]))
+            reward = _rows_into(n, stable, reward, rows_unstable,
+                                np.array([result[1] for result in results], dtype=np.float64))
+            terminated = _rows_into(n, stable, terminated, rows_unstable,
                                     np.array([result[2] for result in results], dtype=bool))
-            truncated = _rows_into(n, stable, truncated, unstable, np.array([result[3] for result in results], dtype=bool))
-            dicts = {k: result[4] for k, result in dicts.items()}
-        return BatchStep(obs, reward, terminated, truncated, columns, stable, dicts)
+            truncated = _rows_into(n, stable, truncated, rows_unstable,
+                                   np.array([result[3] for result in results], dtype=bool))
+        return BatchStep(obs, reward, terminated, truncated, columns, stable,
+                         {k: result[4] for k, result in unstable.items()})
 
     #: the task's step outcomes of a batch as one ``StepOutcome`` of arrays: a classmethod
     #: ``(envs, state, rows=None) -> StepOutcome`` where a class has it (InterLevel), which ``_finish_batch``
@@ -772,6 +755,21 @@ class HumanoidEnv(gym.Env):
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
+
+
+def _pd_targets(envs: list[HumanoidEnv], actions: np.ndarray) -> np.ndarray:
+    """Each world's PD targets ``offset + scale * action`` (``_apply_action``'s map), one row per world."""
+    return np.array([env._ctrl_offset for env in envs]) + np.array([env._ctrl_scale for env in envs]) * actions
+
+
+def _count_steps(envs: list[HumanoidEnv], sound: list[bool]) -> dict[int, tuple]:
+    """A batch's step counted in each world, and ``_unstable_step``'s result of each unsound world k."""
+    unstable = {}
+    for k, (env, world_sound) in enumerate(zip(envs, sound)):
+        env._steps += 1
+        if not world_sound:
+            unstable[k] = env._unstable_step()
+    return unstable
 
 
 def _rows_into(n: int, rows_a, values_a, rows_b, values_b) -> np.ndarray:

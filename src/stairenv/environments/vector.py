@@ -143,7 +143,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         #: a device back-end that keeps the state (``WarpPhysics(state_on_device=True)``): the step hands it the
         #: ctrl as one array and finishes from its arrays; the worlds' ``MjData`` lag until ``sync_worlds``
         self._state_on_device = bool(getattr(self.physics, "state_on_device", False))
-        #: the task's step outcomes over the batch (``HumanoidEnv._finish_worlds``) where the env class can
+        #: the task's step outcomes over the batch (``HumanoidEnv._finish_batch``) where the env class can
         #: (``BATCH_OUTCOMES``: InterLevel, PlaMo, SIMS), else world by world
         self.batch_outcomes = bool(env_class.BATCH_OUTCOMES) if batch_outcomes is None else batch_outcomes
         #: the worlds' carry shared as rows of arrays over the batch, where the class computes its outcomes as
@@ -256,7 +256,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                 return
             group = np.array([stepping[k] for k in ks], dtype=np.int64)
             if self.batch_outcomes:    # the task over this group of worlds in one call
-                state = None if not on_device else {key: value[ks] for key, value in self.physics.state.items()}
+                state = None if not on_device else self.physics.state if len(ks) == len(stepping) else {
+                    key: value[ks] for key, value in self.physics.state.items()}
                 finished = type(envs[0])._finish_batch([envs[i] for i in group.tolist()], poses_current=True,
                                                        rows=group if self._shared_rows else None,
                                                        device_state=state)

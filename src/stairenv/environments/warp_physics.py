@@ -126,7 +126,7 @@ class WarpPhysics:
     the truth between resets. A step then takes the worlds' ctrl as one array (``step(..., ctrl=...)``),
     sends up only the state of worlds marked changed (``world_changed(k)``: a reset, or a write into a
     world's ``MjData`` that must reach the device), runs the kinematics on the device and leaves the stepped
-    worlds' state in ``state`` as arrays (``qpos``, ``qvel``, ``xpos``, ``xmat``, ``time``, ``diverged``)
+    worlds' state in ``state`` as arrays (``qpos``, ``qvel``, ``xpos``, ``xmat``, ``diverged``)
     instead of writing each world's ``MjData``; ``sync_worlds(ks)`` writes worlds' ``MjData`` on request
     (rendering, reading a world's data)."""
 
@@ -299,12 +299,10 @@ class WarpPhysics:
         self._time_host[slots] = times
         self._stale[slots] = True
         rows = {name: down[name].reshape(n, -1)[slots].astype(np.float64) for name in (*STATE_FIELDS, "xpos", "xmat")}
-        bad = ~(np.isfinite(rows["qpos"]).all(1) & np.isfinite(rows["qvel"]).all(1)
-                & (np.abs(rows["qvel"]) <= MAX_VALUE).all(1) & (np.abs(rows["qpos"]) <= MAX_VALUE).all(1)
-                & np.isfinite(rows["qacc_warmstart"]).all(1))
+        bad = _diverged(rows["qpos"], rows["qvel"], rows["qacc_warmstart"])
         self.overflows += int(self._overflowed(overflow[slots]).sum())
         self.state = {"qpos": rows["qpos"], "qvel": rows["qvel"], "xpos": rows["xpos"].reshape(len(slots), -1, 3),
-                      "xmat": rows["xmat"].reshape(len(slots), -1, 9), "time": times, "diverged": bad}
+                      "xmat": rows["xmat"].reshape(len(slots), -1, 9), "diverged": bad}
         if then is not None:
             for k in range(len(worlds)):
                 then(k)
@@ -380,8 +378,7 @@ class WarpPhysics:
                   overflow: np.ndarray) -> None:
         rows = {name: value.reshape(len(self.worlds), -1)[slots].astype(np.float64) for name, value in down.items()}
         qpos, qvel, act, warm = (rows[name] for name in STATE_FIELDS)
-        bad = ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
-                & (np.abs(qpos) <= MAX_VALUE).all(1) & np.isfinite(warm).all(1))
+        bad = _diverged(qpos, qvel, warm)
         full = self._overflowed(overflow[slots])
         self.overflows += int(full.sum())
         dt = self._timestep
@@ -406,3 +403,10 @@ class WarpPhysics:
         self.model = self.data = None
         self.worlds = []
         self._slot = {}
+
+
+def _diverged(qpos: np.ndarray, qvel: np.ndarray, warm: np.ndarray) -> np.ndarray:
+    """Worlds (rows) whose state is non-finite or beyond MuJoCo's bound: those C would reset (see the module
+    docstring, "Divergence")."""
+    return ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
+             & (np.abs(qpos) <= MAX_VALUE).all(1) & np.isfinite(warm).all(1))
