@@ -29,6 +29,7 @@ checkpointing and evaluating; ``--resume`` takes a checkpoint of any rank count 
 ``--device cuda``: the lean trainer's networks, rollout, PPO and AMP updates on the GPU, the envs on the host;
 under torchrun local rank r takes the node's GPU ``r mod GPUs`` for its networks (``--device cuda``) and its
 physics (``--physics warp``), so several ranks may share one GPU (nccl beside gloo where each has its own);
+``--state-on-device`` (with ``--physics warp``): the worlds' state stays on the GPU between resets;
 a rank that cannot start (its machine lacks the checkpoint, the motions, MuJoCo Warp or a GPU) stops every
 rank with its reason. ``docs/training.md`` compares them.
 
@@ -218,6 +219,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--physics-threads", type=int, default=None,
                    help="threads of the mujoco physics pool (default: the cores; with --resume: the checkpoint's "
                         "unless given)")
+    p.add_argument("--state-on-device", action="store_true",
+                   help="with --physics warp: the state stays on the device between resets, the step reads it as "
+                        "arrays (2-2.5x the env's rate on an H200; docs/gpu.md); like --device, this machine's "
+                        "choice, not taken from a checkpoint")
     p.add_argument("--climb-cache-workers", type=int, default=0,
                    help="InterLevel stair starts: synthesise every climb the env can draw on this many processes "
                         "before training (~80-165 ms of one core each, ~4,000 on the default ranges); 0 (default): "
@@ -440,7 +445,8 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
         return TrainConfig(
             env_id=args.env, env_kwargs=env_kwargs, num_envs=args.n_envs, seed=args.seed,
             physics=args.physics or TrainConfig.physics, physics_threads=args.physics_threads,
-            total_steps=int(args.timesteps), rollout_steps=args.n_steps, epochs=args.n_epochs,
+            state_on_device=args.state_on_device, total_steps=int(args.timesteps), rollout_steps=args.n_steps,
+            epochs=args.n_epochs,
             minibatch_size=args.batch_size, learning_rate=args.learning_rate, target_kl=args.adaptive_kl,
             gamma=args.gamma, gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
             max_grad_norm=args.max_grad_norm, hidden=tuple(args.policy_hidden), log_std_init=args.log_std_init,
@@ -537,7 +543,10 @@ def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None
         for name in ("physics", "physics_threads"):
             if getattr(args, name) is not None:
                 config = config.replace(**{name: getattr(args, name)})
-        config = config.replace(device=args.device)    # this machine's (default cpu), whatever trained it
+        try:    # this machine's (default cpu; host truth), whatever trained it
+            config = config.replace(device=args.device, state_on_device=args.state_on_device)
+        except ValueError as err:
+            raise SystemExit(f"--resume: {err}") from None
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
                                                                    config.reference)
         # checkpoints written before the run recorded it need the flag again
@@ -654,6 +663,8 @@ def main(argv: list[str] | None = None) -> Path:
     if "WORLD_SIZE" in os.environ and int(os.environ["WORLD_SIZE"]) > 1:
         raise SystemExit("--trainer sb3 trains in one process; data-parallel training (torchrun) is the lean "
                          "trainer's")
+    if args.state_on_device and (args.vec_env != "batched" or args.physics != "warp"):
+        raise SystemExit("--state-on-device needs --physics warp (with --trainer sb3: and --vec-env batched)")
     if args.torch_threads is not None:
         torch.set_num_threads(args.torch_threads)
     env_kwargs = run_env_kwargs(args)
@@ -674,6 +685,7 @@ def main(argv: list[str] | None = None) -> Path:
         # for the other vec envs)
         venv = VecMonitor(make_sb3_vec_env(args.env, n_envs=args.n_envs, seed=args.seed,
                                            physics=args.physics or "mujoco", physics_threads=args.physics_threads,
+                                           **({"state_on_device": True} if args.state_on_device else {}),
                                            **env_kwargs))
     else:
         vec_cls = SubprocVecEnv if args.vec_env == "subproc" and args.n_envs > 1 else DummyVecEnv

@@ -3,6 +3,7 @@ task's per-world Python (the host's ceiling, ``docs/gpu.md``) runs on K cores in
 
     python benchmarks/bench_ranks.py [--physics warp|mujoco] [--ranks 1,4,8] [--worlds 4096] [--iterations 8]
                                      [--device cuda] [--timeout 240] [--out ranks.json] [--quick]
+                                     [--state-on-device]
 
 For each K of ``--ranks``: ``torchrun --standalone --nproc-per-node K baselines/train_ppo.py --physics P
 --device DEVICE --n-envs WORLDS/K`` (the lean trainer, PPO + AMP with the default recipe, InterLevel-v0),
@@ -40,14 +41,19 @@ ROLLOUT_STEPS = 16    # train_ppo.py's default --n-steps
 
 
 def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: str, timeout: float,
-              logdir: Path) -> dict:
+              logdir: Path, state_on_device: bool = False) -> dict:
     per_rank = worlds // ranks
+    # torchrun's --tee: each rank's streams also into files of its own, so a failed rank's error is kept
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}",
+               "--log-dir", str(logdir / "ranks"), "--tee", "3",
                str(ROOT / "baselines" / "train_ppo.py"), "--env", "InterLevel-v0", "--physics", physics,
                "--device", device, "--n-envs", str(per_rank), "--n-steps", str(ROLLOUT_STEPS),
                "--timesteps", str(iterations * ranks * per_rank * ROLLOUT_STEPS), "--eval-episodes", "0",
-               "--no-progress-bar", "--checkpoint-every", str(10**12), "--logdir", str(logdir)]
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT / "src")}
+               "--no-progress-bar", "--checkpoint-every", str(10**12), "--logdir", str(logdir),
+               *(["--state-on-device"] if state_on_device else [])]
+    # src first, the caller's path kept (packages carried to a machine with --target live there)
+    path = os.pathsep.join(filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")]))
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": path}
     start = time.perf_counter()
     launch = subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -64,7 +70,7 @@ def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: st
             output = ""
         returncode = "timeout"
     tail = output[-1500:]
-    result = {"physics": physics, "ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
+    result = {"physics": physics, "state_on_device": state_on_device, "ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
               "wall_s": round(time.perf_counter() - start, 1)}
     log = logdir / "InterLevel-v0" / "seed0" / "log.jsonl"
     lines = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
@@ -77,7 +83,20 @@ def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: st
     result["ok"] = returncode == 0 and bool(timed)    # completed, with a timed iteration
     if returncode != 0:
         result["output_tail"] = tail
+        result["rank_errors"] = rank_errors(logdir / "ranks")
     return result
+
+
+def rank_errors(folder: Path, chars: int = 2000) -> dict[str, str]:
+    """The end of each rank's stderr where it wrote any (torchrun's ``--tee`` files,
+    ``<run>/attempt_<n>/<local rank>/stderr.log``), keyed by local rank: what a rank died of, which
+    torchrun's own report leaves out."""
+    errors = {}
+    for path in sorted(folder.glob("**/stderr.log")):
+        text = path.read_text(errors="replace").strip()
+        if text:
+            errors[path.parent.name] = text[-chars:]
+    return errors
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
@@ -85,6 +104,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     p.add_argument("--physics", choices=("warp", "mujoco"), default="warp",
                    help="warp: the ranks share the GPU; mujoco: the ranks share the cores")
     p.add_argument("--ranks", default="1,4,8", help="processes on this machine, comma-separated")
+    p.add_argument("--state-on-device", action="store_true",
+                   help="with --physics warp: the state kept on the device between resets (train_ppo.py's flag)")
     p.add_argument("--worlds", type=int, default=4096, help="worlds in all, split over the ranks")
     p.add_argument("--iterations", type=int, default=8, help="PPO iterations per run (the first two untimed)")
     p.add_argument("--device", default="cuda", help="torch device of the networks and updates (cuda or cpu)")
@@ -95,14 +116,15 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if args.quick:
         args.ranks, args.worlds, args.iterations, args.device = "1,2", 4, 4, "cpu"
     results = []
-    print(f"physics {args.physics}, {args.worlds} worlds in all, {args.iterations} iterations, networks on "
+    where = " (state on the device)" if args.state_on_device else ""
+    print(f"physics {args.physics}{where}, {args.worlds} worlds in all, {args.iterations} iterations, networks on "
           f"{args.device}", flush=True)
     print(f"{'ranks':>5} {'worlds/rank':>11} {'env steps/s':>12} {'collect/s':>10} {'x 1 rank':>8} {'wall s':>7}",
           flush=True)
     for ranks in (int(k) for k in args.ranks.split(",")):
         with tempfile.TemporaryDirectory() as folder:
             result = run_ranks(ranks, args.worlds, args.iterations, args.physics, args.device, args.timeout,
-                               Path(folder))
+                               Path(folder), args.state_on_device)
         results.append(result)
         base = results[0].get("env_steps_per_s")
         rate = result.get("env_steps_per_s")
@@ -113,6 +135,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
               f"{result['wall_s']:>7}{failed}", flush=True)
         if result["returncode"] != 0:
             print(result.get("output_tail", ""), flush=True)
+            for rank, error in result["rank_errors"].items():
+                print(f"--- local rank {rank}'s stderr, its end:\n{error}", flush=True)
         if args.out:
             Path(args.out).write_text(json.dumps(results, indent=1))
     return results

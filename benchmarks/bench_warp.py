@@ -71,7 +71,7 @@ def train_config(n: int, physics: str, **kwargs):
     """The lean trainer's config for ``physics`` ("mujoco", "warp" or ``WARP_DEVICE_STATE``)."""
     from stairenv.training import TrainConfig
     if physics == WARP_DEVICE_STATE:
-        return TrainConfig(num_envs=n, physics="warp", env_kwargs={"state_on_device": True}, **kwargs)
+        return TrainConfig(num_envs=n, physics="warp", state_on_device=True, **kwargs)
     return TrainConfig(num_envs=n, physics=physics, **kwargs)
 
 

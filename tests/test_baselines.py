@@ -113,6 +113,11 @@ def test_bad_flags_are_rejected(tmp_path):
     done = subprocess.run([sys.executable, str(SCRIPT), "--config", str(config)],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and "bogus_key" in done.stderr
+    # the state on the device is Warp's: refused with the C physics, by both trainers
+    for trainer in ("lean", "sb3"):
+        done = subprocess.run([sys.executable, str(SCRIPT), "--trainer", trainer, "--state-on-device", "--timesteps",
+                               "10"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+        assert done.returncode != 0 and "warp" in done.stderr and "Traceback" not in done.stderr, done.stderr
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -66,6 +67,20 @@ def test_bench_importers_runs(tmp_path):
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stdout.count("faster than before") == 8, done.stdout  # 2 clips x 2 modes x wall, CPU
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(__import__("torch").cuda.is_available(), reason="needs a machine where torch sees no GPU")
+def test_bench_ranks_reports_what_a_failed_rank_died_of(tmp_path):
+    """A run whose ranks fail (networks on CUDA where torch sees none) is reported with each rank's own
+    stderr (torchrun's --tee files), not only torchrun's report, which leaves the cause out."""
+    spec = importlib.util.spec_from_file_location("bench_ranks", BENCHMARKS / "bench_ranks.py")
+    bench_ranks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_ranks)
+    result = bench_ranks.run_ranks(2, 4, 3, "mujoco", "cuda", timeout=300, logdir=tmp_path)
+    assert result["returncode"] not in (0, "timeout") and not result["ok"]
+    assert sorted(result["rank_errors"]) == ["0", "1"], result
+    assert all("torch sees no GPU" in error for error in result["rank_errors"].values()), result["rank_errors"]
 
 
 def test_gpu_session_script_runs_each_step_and_records_its_status(tmp_path):

@@ -192,7 +192,8 @@ def test_a_checkpoint_never_runs_code(tmp_path):
 @pytest.mark.parametrize("field, value, message", [
     ("num_envs", 0, "num_envs"), ("epochs", 2.5, "epochs"), ("physics", "gpu", "physics"),
     ("hidden", (256, 0), "hidden"), ("style", "gail", "style"), ("learning_rate", -1.0, "learning_rate"),
-    ("device", "", "device"),
+    ("device", "", "device"), ("state_on_device", True, "for physics='warp' only"),
+    ("state_on_device", "yes", "state_on_device must be True or False"),
 ])
 def test_config_errors_name_the_field(field, value, message):
     with pytest.raises((TypeError, ValueError), match=message):
@@ -200,9 +201,13 @@ def test_config_errors_name_the_field(field, value, message):
 
 
 def test_config_round_trip_and_unknown_fields():
-    config = TrainConfig(env_kwargs={"step_height": (0.05, 0.1)}, hidden=(64, 32), target_kl=0.02)
+    config = TrainConfig(env_kwargs={"step_height": (0.05, 0.1)}, hidden=(64, 32), target_kl=0.02, physics="warp",
+                         state_on_device=True)
     again = TrainConfig.from_dict(config.as_dict())
-    assert again.hidden == (64, 32) and again.target_kl == 0.02
+    assert again.hidden == (64, 32) and again.target_kl == 0.02 and again.state_on_device is True
+    older = config.as_dict()    # a checkpoint written before the field existed: the host's MjData the truth
+    del older["state_on_device"]
+    assert TrainConfig.from_dict(older).state_on_device is False
     with pytest.raises(ValueError, match="unknown TrainConfig fields"):
         TrainConfig.from_dict({"bogus": 1})
 

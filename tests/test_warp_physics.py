@@ -311,7 +311,7 @@ def test_the_ablation_ids_run_on_warp(env_id):
 def test_the_lean_trainer_runs_on_warp_physics(state_on_device):
     from stairenv.training import Trainer, TrainConfig
     config = TrainConfig(num_envs=2, physics="warp", rollout_steps=4, minibatch_size=8, epochs=1, style="none",
-                         total_steps=8, env_kwargs={"state_on_device": state_on_device})
+                         total_steps=8, state_on_device=state_on_device)
     trainer = Trainer(config)
     assert isinstance(trainer.venv, HumanoidVectorEnv) and type(trainer.venv.physics).__name__ == "WarpPhysics"
     assert trainer.venv.physics.state_on_device is state_on_device
@@ -352,3 +352,21 @@ def test_a_ranks_physics_runs_on_its_own_device(monkeypatch):
     assert asked == ["cpu", None]
     batched(1, physics="warp", physics_device="cpu").close()
     assert asked == ["cpu", None, "cpu"]
+
+
+@warp_only
+def test_train_ppo_keeps_the_state_on_the_device_by_flag_and_resumes_as_this_machine_says(tmp_path, train_ppo):
+    """``--state-on-device`` is the machine's choice, as ``--device``: the checkpoint records it, a resume
+    takes the flag (absent: the host's ``MjData`` the truth), and a resume on the C physics with it stops
+    with the reason."""
+    from stairenv.training import read_checkpoint
+    tiny = ["--physics", "warp", "--n-envs", "2", "--n-steps", "4", "--batch-size", "8", "--n-epochs", "1",
+            "--style", "none", "--eval-episodes", "0", "--no-progress-bar", "--logdir", str(tmp_path)]
+    train_ppo.run(["--timesteps", "8", "--state-on-device", *tiny], tmp_path)
+    final = tmp_path / "InterLevel-v0" / "seed0" / "final_checkpoint.pt"
+    assert read_checkpoint(final)["config"]["state_on_device"] is True
+    train_ppo.run(["--timesteps", "8", "--resume", str(final), *tiny], tmp_path)
+    assert read_checkpoint(final)["config"]["state_on_device"] is False and read_checkpoint(final)["steps"] == 16
+    said = train_ppo.fails(["--timesteps", "8", "--resume", str(final), "--state-on-device", "--physics", "mujoco",
+                            *tiny[2:]], tmp_path)
+    assert "state_on_device=True is for physics='warp' only" in said

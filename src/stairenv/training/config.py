@@ -11,6 +11,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from stairenv.environments.batch_physics import check_state_on_device
 from stairenv.validation import check_bool, check_choice, check_float, check_int
 
 
@@ -25,6 +26,7 @@ class TrainConfig:
     | num_envs | 128 | worlds stepped together (per rank in a data-parallel run) |
     | physics | "mujoco" | the batched env's physics ("mujoco": C library, thread pool; "serial"; "warp": GPU) |
     | physics_threads | None | threads of the "mujoco" pool (None: the cores) |
+    | state_on_device | False | with "warp": the state stays on the device between resets (``WarpPhysics``) |
     | seed | 0 | seeds torch, the trainer's generators, the worlds (world i: seed + i; rank r's j: r x num_envs + j) |
     | total_steps | 2,000,000 | env steps (all worlds together, every rank's) |
     | rollout_steps | 16 | steps per world between updates |
@@ -58,6 +60,7 @@ class TrainConfig:
     num_envs: int = 128
     physics: str = "mujoco"
     physics_threads: int | None = None
+    state_on_device: bool = False
     seed: int = 0
     total_steps: int = 2_000_000
     rollout_steps: int = 16
@@ -106,6 +109,7 @@ class TrainConfig:
         self._set("physics", check_choice("physics", self.physics, ("mujoco", "threads", "serial", "warp")))
         if self.physics_threads is not None:
             self._set("physics_threads", check_int("physics_threads", self.physics_threads, 1, 1024))
+        check_state_on_device(self.physics, self.state_on_device)
         self._set("seed", check_int("seed", self.seed, 0, 2**31 - 1))
         self._set("total_steps", check_int("total_steps", self.total_steps, 0, 10**12))
         self._set("rollout_steps", check_int("rollout_steps", self.rollout_steps, 1, 100_000))

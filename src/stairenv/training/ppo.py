@@ -705,6 +705,8 @@ def make_env(config: TrainConfig, parallel: Local = LOCAL) -> HumanoidVectorEnv:
     if config.style == "amp":
         kwargs.setdefault("amp_history", config.amp_history)
     threads = config.physics_threads
+    if config.state_on_device:
+        kwargs["state_on_device"] = True
     if config.physics == "warp" and parallel.physics_device is not None:
         kwargs["physics_device"] = parallel.physics_device
     elif config.physics != "warp" and threads is None and parallel.ranks_on_node > 1:
