@@ -539,12 +539,12 @@ def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None
         config = TrainConfig.from_dict(resume["config"])
         if not args.auto_resume:    # --auto-resume: on to the run's own end
             config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
-        # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's
-        for name in ("physics", "physics_threads"):
-            if getattr(args, name) is not None:
-                config = config.replace(**{name: getattr(args, name)})
-        try:    # this machine's (default cpu; host truth), whatever trained it
-            config = config.replace(device=args.device, state_on_device=args.state_on_device)
+        # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's;
+        # the device and the state's place are this machine's flags (default cpu, host truth) whatever trained it
+        machine = {name: getattr(args, name) for name in ("physics", "physics_threads")
+                   if getattr(args, name) is not None}
+        try:
+            config = config.replace(**machine, device=args.device, state_on_device=args.state_on_device)
         except ValueError as err:
             raise SystemExit(f"--resume: {err}") from None
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,

@@ -70,8 +70,8 @@ def run_ranks(ranks: int, worlds: int, iterations: int, physics: str, device: st
             output = ""
         returncode = "timeout"
     tail = output[-1500:]
-    result = {"physics": physics, "state_on_device": state_on_device, "ranks": ranks, "worlds_per_rank": per_rank, "returncode": returncode,
-              "wall_s": round(time.perf_counter() - start, 1)}
+    result = {"physics": physics, "state_on_device": state_on_device, "ranks": ranks, "worlds_per_rank": per_rank,
+              "returncode": returncode, "wall_s": round(time.perf_counter() - start, 1)}
     log = logdir / "InterLevel-v0" / "seed0" / "log.jsonl"
     lines = [json.loads(line) for line in log.read_text().splitlines()] if log.exists() else []
     timed = lines[2:] if len(lines) > 2 else lines[-1:]

@@ -367,6 +367,10 @@ def test_train_ppo_keeps_the_state_on_the_device_by_flag_and_resumes_as_this_mac
     assert read_checkpoint(final)["config"]["state_on_device"] is True
     train_ppo.run(["--timesteps", "8", "--resume", str(final), *tiny], tmp_path)
     assert read_checkpoint(final)["config"]["state_on_device"] is False and read_checkpoint(final)["steps"] == 16
+    train_ppo.run(["--timesteps", "8", "--state-on-device", "--resume", str(final), *tiny], tmp_path)
+    train_ppo.run(["--timesteps", "8", "--resume", str(final), "--physics", "mujoco", *tiny[2:]], tmp_path)
+    config = read_checkpoint(final)["config"]    # a state-on-device run goes on on the C physics
+    assert (config["physics"], config["state_on_device"], read_checkpoint(final)["steps"]) == ("mujoco", False, 32)
     said = train_ppo.fails(["--timesteps", "8", "--resume", str(final), "--state-on-device", "--physics", "mujoco",
                             *tiny[2:]], tmp_path)
     assert "state_on_device=True is for physics='warp' only" in said
