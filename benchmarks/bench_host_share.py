@@ -18,8 +18,13 @@ array operations would be. Per round:
   step handled its worlds only as arrays, with the same formulas. Not in it: the state's copy from the
   device and the device's own step.
 
-Printed per round: both figures, their ratio and the 3.3 us budget; at the end the medians. Results on
-our machine are in ``docs/gpu.md`` ("Where the targets stand").
+- ``resets``: ``--resets`` worlds of the same env reset in turn through the batched env's own path
+  (``reset_world``, the autoreset's), in us per reset, and what they add per world-step at one episode
+  end every ``--episode-steps`` world-steps (default 17: the random actions of ``bench_warp.py``,
+  measured in session 31; early in training ~28).
+
+Printed per round: the figures, host / arrays and the 3.3 us budget; at the end the medians. Results on
+our machine are in ``docs/gpu.md`` ("Where the targets stand", "Measured on one NVIDIA H200").
 """
 
 from __future__ import annotations
@@ -112,12 +117,24 @@ def arrays_us(step, worlds: int, calls: int) -> float:
     return (time.perf_counter() - start) / (calls * worlds) * 1e6
 
 
+def reset_us(venv, obs: np.ndarray, count: int) -> float:
+    """us per world reset, worlds in turn, through ``reset_world`` (the path an ended world takes); each
+    reset world's first observation written into ``obs``."""
+    start = time.perf_counter()
+    for k in range(count):
+        obs[k % venv.num_envs] = venv.reset_world(k % venv.num_envs)[0]
+    return (time.perf_counter() - start) / count * 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--worlds", type=int, default=256, help="worlds of the batched env")
     parser.add_argument("--steps", type=int, default=100, help="timed steps per round")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--array-worlds", type=int, default=4096, help="worlds of the array-only step")
+    parser.add_argument("--resets", type=int, default=200, help="world resets timed per round")
+    parser.add_argument("--episode-steps", type=float, default=17.0,
+                        help="world-steps per episode end, to put the resets per world-step")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
@@ -129,19 +146,23 @@ def main() -> None:
     *_, obs = host_us(venv, physics, policy, obs, 5)    # warm-up: compiled kernels loaded
     step = array_step(venv.envs, args.array_worlds)
     step()
-    hosts, arrays = [], []
+    hosts, arrays, resets = [], [], []
     for r in range(args.rounds):
         host, physics_us, obs = host_us(venv, physics, policy, obs, args.steps)
         array = arrays_us(step, args.array_worlds, max(1, args.steps // 10))
+        reset = reset_us(venv, obs, args.resets)
         hosts.append(host)
         arrays.append(array)
+        resets.append(reset)
         print(f"round {r}: host {host:.1f} us per world-step ({args.worlds} worlds; physics {physics_us:.0f} "
               f"on one thread), arrays {array:.2f} "
               f"({args.array_worlds} worlds), host / arrays {host / array:.0f}x; budget at 300k env steps/s "
-              f"{BUDGET_US:.1f}")
-    host, array = float(np.median(hosts)), float(np.median(arrays))
+              f"{BUDGET_US:.1f}; a reset {reset:.0f} us ({reset / args.episode_steps:.1f} per world-step at one "
+              f"end per {args.episode_steps:g})")
+    host, array, reset = (float(np.median(values)) for values in (hosts, arrays, resets))
     print(f"median: host {host:.1f} us per world-step, arrays {array:.2f}, host / arrays {host / array:.0f}x, "
-          f"arrays / budget {array / BUDGET_US:.2f}")
+          f"arrays / budget {array / BUDGET_US:.2f}; a reset {reset:.0f} us, "
+          f"{reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g}")
     venv.close()
 
 
