@@ -28,9 +28,10 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
   poses the task reads come from these ``qpos``.
 
 Opt-in, ``state_on_device=True`` (``WarpPhysics`` docstring): the device's state is the truth between resets.
-Only worlds marked changed (``world_changed``: a reset, or an announced write) go up, the ctrl comes as one
-array, the device runs the kinematics, and the stepped worlds' state stays in ``state`` as arrays that the
-env finishes from; the worlds' ``MjData`` are written only by ``sync_worlds``.
+Only worlds marked changed (``world_changed``: a reset, or an announced write) are read from their
+``MjData``, the state goes up only after such a change, the ctrl comes as one array, the device runs the
+kinematics, and the stepped worlds' state stays in ``state`` as arrays that the env finishes from; the
+worlds' ``MjData`` are written only by ``sync_worlds``.
 
 Options (integrator, solver, iterations, line-search iterations, tolerances, timestep, cone) are the
 ``MjModel``'s: ``mujoco_warp.put_model`` reads them, and ``settings()`` reports both sides. MuJoCo Warp
@@ -124,8 +125,8 @@ class WarpPhysics:
 
     ``state_on_device`` (opt-in; default False, the host's ``MjData`` is the truth): the device's state is
     the truth between resets. A step then takes the worlds' ctrl as one array (``step(..., ctrl=...)``),
-    sends up only the state of worlds marked changed (``world_changed(k)``: a reset, or a write into a
-    world's ``MjData`` that must reach the device), runs the kinematics on the device and leaves the stepped
+    reads only the ``MjData`` of worlds marked changed (``world_changed(k)``: a reset, or a write into a
+    world's ``MjData`` that must reach the device) and sends the state up only when one was (whole fields), runs the kinematics on the device and leaves the stepped
     worlds' state in ``state`` as arrays (``qpos``, ``qvel``, ``xpos``, ``xmat``, ``diverged``)
     instead of writing each world's ``MjData``; ``sync_worlds(ks)`` writes worlds' ``MjData`` on request
     (rendering, reading a world's data)."""
@@ -269,17 +270,19 @@ class WarpPhysics:
         except KeyError:
             raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
         self._upload_model_rows()
-        for k in np.flatnonzero(self._state_changed).tolist():    # reset (or announced) worlds: their MjData
+        changed = np.flatnonzero(self._state_changed).tolist()
+        for k in changed:    # reset (or announced) worlds: their MjData into the host rows
             data = self.worlds[k][1]
             for name, host in self._state_host.items():
                 if host.shape[1]:
                     host[k] = getattr(data, name)
             self._time_host[k] = data.time
         self._state_changed[:] = False
-        for name, host in self._state_host.items():
-            if host.shape[1]:
-                self._assign(getattr(self.data, name), host)
-        self._assign(self.data.time, self._time_host)
+        if changed:    # else the device holds these fields already (the host rows are its last download)
+            for name, host in self._state_host.items():
+                if host.shape[1]:
+                    self._assign(getattr(self.data, name), host)
+        self._assign(self.data.time, self._time_host)    # every step: the host keeps the time in float64
         self._ctrl_host[slots] = ctrl
         self._assign(self.data.ctrl, self._ctrl_host)
         with wp.ScopedDevice(self.device):

@@ -50,14 +50,6 @@ class StallWatch:
     def approach_distance(self, value: float) -> None:
         self.approach[0] = value
 
-    @property
-    def approach_step(self) -> int:
-        return int(self.approach_at[0])
-
-    @approach_step.setter
-    def approach_step(self, value: int) -> None:
-        self.approach_at[0] = value
-
     def stalled(self, distance: float, step: int) -> bool:
         """Whether no approach of ``self.distance`` happened for more than ``seconds`` (False without
         ``seconds``); ``distance`` is the step's distance to the goal."""
