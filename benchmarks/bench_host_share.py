@@ -18,10 +18,11 @@ array operations would be. Per round:
   step handled its worlds only as arrays, with the same formulas. Not in it: the state's copy from the
   device and the device's own step.
 
-- ``resets``: ``--resets`` worlds of the same env reset in turn through the batched env's own path
-  (``reset_world``, the autoreset's), in us per reset, and what they add per world-step at one episode
-  end every ``--episode-steps`` world-steps (default 17: the random actions of ``bench_warp.py``,
-  measured in session 31; early in training ~28).
+- ``resets``: ``--resets`` worlds of the same env reset through the batched env's own paths, in us per
+  reset: one at a time (``reset_world``) and in groups (``reset_worlds``, the autoreset's: the worlds
+  whose episodes ended at one step, ``--worlds / --episode-steps`` of them by default), and what the
+  grouped resets add per world-step at one episode end every ``--episode-steps`` world-steps (default
+  17: the random actions of ``bench_warp.py``, measured in session 31; early in training ~28).
 
 Printed per round: the figures, host / arrays and the 3.3 us budget; at the end the medians. Results on
 our machine are in ``docs/gpu.md`` ("Where the targets stand", "Measured on one NVIDIA H200").
@@ -117,12 +118,18 @@ def arrays_us(step, worlds: int, calls: int) -> float:
     return (time.perf_counter() - start) / (calls * worlds) * 1e6
 
 
-def reset_us(venv, obs: np.ndarray, count: int) -> float:
-    """us per world reset, worlds in turn, through ``reset_world`` (the path an ended world takes); each
-    reset world's first observation written into ``obs``."""
+def reset_us(venv, obs: np.ndarray, count: int, group: int) -> float:
+    """us per world reset, ``group`` worlds at a time (``reset_worlds``; one: ``reset_world``), the worlds
+    in turn; each reset world's first observation written into ``obs``."""
+    worlds = np.arange(count) % venv.num_envs
     start = time.perf_counter()
-    for k in range(count):
-        obs[k % venv.num_envs] = venv.reset_world(k % venv.num_envs)[0]
+    if group == 1:
+        for i in worlds.tolist():
+            obs[i] = venv.reset_world(i)[0]
+    else:
+        for at in range(0, count, group):
+            rows = np.unique(worlds[at:at + group])
+            obs[rows] = venv.reset_worlds(rows)[0]
     return (time.perf_counter() - start) / count * 1e6
 
 
@@ -135,8 +142,11 @@ def main() -> None:
     parser.add_argument("--resets", type=int, default=200, help="world resets timed per round")
     parser.add_argument("--episode-steps", type=float, default=17.0,
                         help="world-steps per episode end, to put the resets per world-step")
+    parser.add_argument("--reset-group", type=int, default=None,
+                        help="worlds reset together (default: --worlds / --episode-steps, the ended worlds of a step)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
+    group = args.reset_group or max(1, round(args.worlds / args.episode_steps))
 
     policy = pretrained.load("InterLevel-v0")
     physics = TimedSerialPhysics()
@@ -146,23 +156,26 @@ def main() -> None:
     *_, obs = host_us(venv, physics, policy, obs, 5)    # warm-up: compiled kernels loaded
     step = array_step(venv.envs, args.array_worlds)
     step()
-    hosts, arrays, resets = [], [], []
+    hosts, arrays, alone, grouped = [], [], [], []
     for r in range(args.rounds):
         host, physics_us, obs = host_us(venv, physics, policy, obs, args.steps)
         array = arrays_us(step, args.array_worlds, max(1, args.steps // 10))
-        reset = reset_us(venv, obs, args.resets)
+        one = reset_us(venv, obs, args.resets, 1)
+        reset = reset_us(venv, obs, args.resets, group)
         hosts.append(host)
         arrays.append(array)
-        resets.append(reset)
+        alone.append(one)
+        grouped.append(reset)
         print(f"round {r}: host {host:.1f} us per world-step ({args.worlds} worlds; physics {physics_us:.0f} "
               f"on one thread), arrays {array:.2f} "
               f"({args.array_worlds} worlds), host / arrays {host / array:.0f}x; budget at 300k env steps/s "
-              f"{BUDGET_US:.1f}; a reset {reset:.0f} us ({reset / args.episode_steps:.1f} per world-step at one "
-              f"end per {args.episode_steps:g})")
-    host, array, reset = (float(np.median(values)) for values in (hosts, arrays, resets))
+              f"{BUDGET_US:.1f}; a reset {one:.0f} us alone, {reset:.0f} in groups of {group} "
+              f"({reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g})")
+    host, array, one, reset = (float(np.median(values)) for values in (hosts, arrays, alone, grouped))
     print(f"median: host {host:.1f} us per world-step, arrays {array:.2f}, host / arrays {host / array:.0f}x, "
-          f"arrays / budget {array / BUDGET_US:.2f}; a reset {reset:.0f} us, "
-          f"{reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g}")
+          f"arrays / budget {array / BUDGET_US:.2f}; a reset {one:.0f} us alone, {reset:.0f} in groups of "
+          f"{group} ({one / reset:.1f}x), {reset / args.episode_steps:.1f} per world-step at one end per "
+          f"{args.episode_steps:g}")
     venv.close()
 
 

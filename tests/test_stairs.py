@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from hypothesis.configuration import set_hypothesis_home_dir
 
 import stairenv  # noqa: F401  (registers the envs)
-from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
+from stairenv.world.stairs import Staircase, StairsConfig, StairsLayout, StairsSlots, generate_stairs
 
 # Hypothesis writes its storage (example database, a constants cache filled while pytest
 # collects) under ./.hypothesis by default: keep it in a temporary directory instead.
@@ -243,6 +243,26 @@ def test_config_accepts_lists_and_stores_tuples():
     assert c.num_steps == (2, 4)
     assert c.step_height_set == (0.1, 0.2)
     assert c.max_steps == 4
+
+
+def test_layout_is_the_frame_transform_to_the_last_bit():
+    """A batch's layout (what resets write into the models) holds, bit for bit, each staircase's treads and
+    markers taken through ``to_world`` (the full rotation), its unused slots parked."""
+    rng = np.random.default_rng(3)
+    config = StairsConfig()
+    stairs = [generate_stairs(config, rng) for _ in range(40)]
+    layout = StairsLayout.of(stairs, config.max_steps)
+    assert layout.centres.shape == layout.half.shape == (40, config.max_steps, 3)
+    for k, s in enumerate(stairs):
+        n = s.num_steps
+        local, half = s.local_boxes()
+        assert np.array_equal(layout.centres[k, :n], s.to_world(local))
+        assert np.array_equal(layout.half[k, :n], half)
+        assert np.array_equal(layout.marker_bottom[k], s.to_world(s.marker_bottom_local))
+        assert np.array_equal(layout.marker_top[k], s.to_world(s.marker_top_local))
+        assert np.array_equal(layout.origin[k], s.origin)
+        assert (layout.centres[k, n:, 2] < 0).all() and (layout.half[k, n:] <= 0.01).all()
+        assert np.array_equal(layout.quat[k], [math.cos(s.yaw / 2), 0.0, 0.0, math.sin(s.yaw / 2)])
 
 
 # --- MuJoCo slots ---------------------------------------------------------------------------------

@@ -197,6 +197,35 @@ def test_reset_mask_resets_only_those_worlds(physics):
     assert info["_time"].tolist() == [False, True, False]
 
 
+@pytest.mark.parametrize("kwargs", [{}, {"init": "hybrid", "step_height_levels": 4, "stairs_start_fraction": 0.5}])
+def test_worlds_reset_together_equal_worlds_reset_one_by_one(kwargs):
+    """``reset_worlds`` (an autoreset's resets, the draws per world and the rest over the group) gives what
+    the same worlds reset in turn give: the staircases in the models, the state, observations and infos,
+    and the episodes that follow."""
+    n, group = 5, [0, 2, 3]
+    together, one_by_one = batched("InterLevel-v0", n, **kwargs), batched("InterLevel-v0", n, **kwargs)
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (12, n, 28))
+    for vec in (together, one_by_one):
+        vec.reset(seed=3)
+        vec.step(actions[0])
+    got = together.reset_worlds(group)
+    want = [one_by_one.reset_world(i) for i in group]
+    assert_same(got[0], np.array([obs for obs, _ in want]), "obs")
+    assert_same(got[1], [info for _, info in want], "infos")
+    for a, b in zip(together.envs, one_by_one.envs):
+        for name in ("body_pos", "body_quat", "geom_size", "geom_rbound", "geom_aabb", "bvh_aabb"):
+            assert np.array_equal(getattr(a.model, name), getattr(b.model, name)), name
+        for name in ("qpos", "qvel", "ctrl", "xpos", "xmat"):
+            assert np.array_equal(getattr(a.data, name), getattr(b.data, name)), name
+    for t, action in enumerate(actions[1:]):
+        assert_same(together.step(action), one_by_one.step(action), f"step {t}")
+    obs, infos = together.reset_worlds([])
+    assert obs.shape == (0, *together.single_observation_space.shape) and infos == []
+    together.close()
+    one_by_one.close()
+
+
 def test_sb3_vecenv_contract():
     venv = make_sb3_vec_env("InterLevel-v0", 3, seed=4, max_episode_steps=5)
     obs = venv.reset()

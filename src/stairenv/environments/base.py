@@ -9,6 +9,7 @@ import os
 import warnings
 import zipfile
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -311,15 +312,34 @@ class HumanoidEnv(gym.Env):
 
     # --- the episode template ---------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        rng = self.np_random
-        # A world kept between resets is rebuilt on a seed: a seeded episode depends on no earlier one.
-        self._seeded_reset = seed is not None
-        self._build_world(rng, options)
-        mujoco.mj_resetData(self.model, self.data)
-        self._reference_start = bool(self._place_character(rng, options))
-        self._new_goal(rng, options)
-        return self._begin_episode()
+        return type(self)._reset_worlds([self], [seed], [options])[0]
+
+    @classmethod
+    def _reset_worlds(cls, envs: list[HumanoidEnv], seeds: Sequence[int | None],
+                      options: Sequence[dict[str, Any] | None]) -> list[tuple]:
+        """``reset`` of many worlds of this class (a batched env's resets): ``reset``'s ``(obs, info)`` per
+        world. Each world draws from its own generator in the order its own ``reset`` would, so the result is
+        the same world by world or together; what needs no draw goes over the batch where the class can
+        (``_build_worlds``, ``_begin_episodes``)."""
+        if not envs:
+            return []
+        for env, seed in zip(envs, seeds):
+            gym.Env.reset(env, seed=seed)
+            # A world kept between resets is rebuilt on a seed: a seeded episode depends on no earlier one.
+            env._seeded_reset = seed is not None
+        cls._build_worlds(envs, options)
+        for env, world_options in zip(envs, options):
+            rng = env.np_random
+            mujoco.mj_resetData(env.model, env.data)
+            env._reference_start = bool(env._place_character(rng, world_options))
+            env._new_goal(rng, world_options)
+        return cls._begin_episodes(envs)
+
+    @classmethod
+    def _build_worlds(cls, envs: list[HumanoidEnv], options: Sequence[dict[str, Any] | None]) -> None:
+        """Each world's ``_build_world`` with its own generator (a class may write them over the batch)."""
+        for env, world_options in zip(envs, options):
+            env._build_world(env.np_random, world_options)
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """The episode's world: write it into the model, or rebuild the model (``_compile``)."""
@@ -342,14 +362,28 @@ class HumanoidEnv(gym.Env):
     def _begin_episode(self):
         """Start counting from the current state: the first step outcome, the style history filled.
         Returns ``reset``'s ``(obs, info)``."""
-        self._needs_reset = False
-        self._steps = 0
-        self._episode_paths, self._episode_values = flatten(self._episode_info())
-        state = self._read_state()
-        self._amp.fill(state)
-        self._start_tracking(state)
-        self._outcome = self._step_outcome(state)
-        return self._outcome.obs, self._full_info(self._outcome, unstable=False, terms=False)
+        return type(self)._begin_episodes([self])[0]
+
+    @classmethod
+    def _begin_episodes(cls, envs: list[HumanoidEnv]) -> list[tuple]:
+        """``_begin_episode`` of many worlds of this class, their state read and their first step outcomes
+        made as one batch (``_step_outcomes``)."""
+        for env in envs:
+            env._needs_reset = False
+            env._steps = 0
+            env._episode_paths, env._episode_values = flatten(env._episode_info())
+        state = envs[0]._read_state() if len(envs) == 1 else cls._read_worlds(envs)
+        features = amp_features(state)
+        for k, env in enumerate(envs):
+            world = state if len(envs) == 1 else _row(state, k)
+            env._amp.fill_features(features[k])
+            env._start_tracking(world)
+        outcomes = cls._step_outcomes(envs, state)
+        results = []
+        for env, outcome in zip(envs, outcomes):
+            env._outcome = outcome
+            results.append((outcome.obs, env._full_info(outcome, unstable=False, terms=False)))
+        return results
 
     def _start_tracking(self, state) -> None:
         """Reset what ``_step_outcome`` carries from step to step (the previous root position...)."""
@@ -574,7 +608,7 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _step_outcomes(cls, envs: list[HumanoidEnv], state) -> list[StepOutcome]:
         """``_step_outcome`` of each world of ``envs`` (row k of the batch ``state`` is world k's state)."""
-        return [env._step_outcome(type(state)(*(field[k:k + 1] for field in state))) for k, env in enumerate(envs)]
+        return [env._step_outcome(_row(state, k)) for k, env in enumerate(envs)]
 
     def _before_physics(self) -> None:
         """Called by ``step`` after the action is applied, before the physics."""
@@ -794,3 +828,8 @@ def _getter(path: str) -> operator.attrgetter:
 def _set_attribute(env: HumanoidEnv, path: str, value) -> None:
     owner, _, name = path.rpartition(".")
     setattr(_attribute(env, owner) if owner else env, name, value)
+
+
+def _row(state, k: int):
+    """Row ``k`` of a batch state, as a batch of one (views)."""
+    return type(state)(*(field[k:k + 1] for field in state))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import mujoco
@@ -190,6 +191,16 @@ class InterLevelEnv(HumanoidEnv):
         return super().reset(seed=seed, options=options)
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
+        self._set_stairs([self], [self._draw_stairs(rng, options)])
+
+    @classmethod
+    def _build_worlds(cls, envs: list[InterLevelEnv], options: Sequence[dict[str, Any] | None]) -> None:
+        """Each world's staircase drawn with its own generator, then all written as one layout."""
+        cls._set_stairs(envs, [env._draw_stairs(env.np_random, world_options)
+                               for env, world_options in zip(envs, options)])
+
+    def _draw_stairs(self, rng: np.random.Generator, options: dict[str, Any] | None) -> Staircase:
+        """The episode's staircase (and whether it starts on the stairs)."""
         # options={"episode_cut": True}: the episode in progress was cut short (a trainer's checkpoint),
         # not ended by the task, so the curriculum does not judge it
         config = self._episode_stairs_config(rng, judge_last=not (options or {}).get("episode_cut", False))
@@ -203,7 +214,7 @@ class InterLevelEnv(HumanoidEnv):
             stairs = dataclasses.replace(
                 stairs, step_height=stair_starts.snap(stairs.step_height, *config.height_range),
                 step_depth=stair_starts.snap(stairs.step_depth, *config.step_depth))
-        self._set_stairs(stairs)
+        return stairs
 
     def _episode_stairs_config(self, rng: np.random.Generator, judge_last: bool = True) -> StairsConfig:
         """``stairs_config``, its step heights narrowed to the curriculum level's band when there is a
@@ -341,13 +352,19 @@ class InterLevelEnv(HumanoidEnv):
             )
         return stairs
 
-    def _set_stairs(self, stairs: Staircase) -> None:
-        self.stairs = stairs
-        self._slots.place(self.model, stairs)
-        self._goal = task.StairsGoal.from_stairs([stairs])
-        self._packed_goal[...] = self._goal.pack()
-        self._stairs_info = stairs.as_dict()
-        self._camera_azimuth = math.degrees(stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
+    @staticmethod
+    def _set_stairs(envs: list[InterLevelEnv], stairs: list[Staircase]) -> None:
+        """Write ``stairs[k]`` into world k's model and goal, the geometry of all of them as one layout."""
+        layout = envs[0]._slots.layout(stairs)
+        goals = task.StairsGoal.of_layout(layout)
+        packed = goals.pack()
+        for k, (env, world_stairs) in enumerate(zip(envs, stairs)):
+            env.stairs = world_stairs
+            env._slots.place_layout(env.model, layout, k)
+            env._goal = goals if len(envs) == 1 else task.StairsGoal(*(field[k:k + 1] for field in goals))
+            env._packed_goal[...] = packed[k]
+            env._stairs_info = world_stairs.as_dict()
+            env._camera_azimuth = math.degrees(world_stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

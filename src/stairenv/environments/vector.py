@@ -177,8 +177,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         obs = self._obs_buffer() if mask is None else self._last_obs.copy()
         infos: list[dict[str, Any]] = [{}] * self.num_envs
         self._last_obs = obs
-        for i in worlds:
-            obs[i], infos[i] = self.reset_world(i, seed=seeds[i], options=options or None)
+        worlds = list(worlds)
+        obs[worlds], reset_infos = self.reset_worlds(worlds, [seeds[i] for i in worlds],
+                                                     [options or None] * len(worlds))
+        for i, info in zip(worlds, reset_infos):
+            infos[i] = info
         self._was_reset = True
         return obs.copy(), self.batch_infos(infos)
 
@@ -186,23 +189,32 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         """A full reset with a seed and options per world (SB3's ``VecEnv`` convention); returns the
         observations and the list of per-world infos."""
         self.check_open()
-        obs = np.empty((self.num_envs, *self.single_observation_space.shape), dtype=self.single_observation_space.dtype)
-        infos: list[dict[str, Any]] = [{}] * self.num_envs
-        for i in range(self.num_envs):
-            obs[i], infos[i] = self.reset_world(i, seed=seeds[i], options=options[i] or None)
+        obs, infos = self.reset_worlds(range(self.num_envs), seeds, [world_options or None for world_options in options])
         self._was_reset = True
         return obs, infos
 
     def reset_world(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None):
         """Reset world ``i`` alone (its episode count and autoreset flag too); its ``(obs, info)``."""
+        obs, infos = self.reset_worlds([i], [seed], [options])
+        return obs[0], infos[0]
+
+    def reset_worlds(self, worlds: Sequence[int], seeds: Sequence[int | None] | None = None,
+                     options: Sequence[dict[str, Any] | None] | None = None) -> tuple[np.ndarray, list[dict[str, Any]]]:
+        """Reset ``worlds`` together (each as ``reset_world`` would: the same draws, the same result), what
+        needs no draw done over them at once; their observations (row k: ``worlds[k]``) and infos."""
         self.check_open()
-        obs, info = self.envs[i].reset(seed=seed, options=options)
+        worlds = [int(i) for i in worlds]
+        seeds = [None] * len(worlds) if seeds is None else list(seeds)
+        options = [None] * len(worlds) if options is None else list(options)
+        results = type(self.envs[0])._reset_worlds([self.envs[i] for i in worlds], seeds, options)
+        obs = np.array([result[0] for result in results], dtype=self.single_observation_space.dtype)
+        obs = obs.reshape(len(worlds), *self.single_observation_space.shape)
         if self._world_changed is not None:
-            self._world_changed(i)
-        self._elapsed[i] = 0
-        self._autoreset[i] = False
-        self._last_obs[i] = obs
-        return obs, info
+            self._world_changed(worlds)
+        self._elapsed[worlds] = 0
+        self._autoreset[worlds] = False
+        self._last_obs[worlds] = obs
+        return obs, [result[1] for result in results]
 
     def step(self, actions):
         self.check_open()
@@ -245,8 +257,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
-            for i in resetting:
-                obs[i], infos[i] = self.reset_world(i)
+            if len(resetting):
+                obs[resetting], reset_infos = self.reset_worlds(resetting)
+                for i, info in zip(resetting.tolist(), reset_infos):
+                    infos[i] = info
 
         results = self._results
         limit = self.max_episode_steps
@@ -266,7 +280,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                 for k in ks:
                     results[k] = None
             # the group's results as array assignments (its info as columns where the task gives them); then
-            # the ended worlds one by one, in order (a reset touches only its own world's rows)
+            # the ended worlds' resets
             obs[group], rewards[group] = finished.obs, finished.reward
             terminated[group], truncated[group] = finished.terminated, finished.truncated
             if finished.columns:
@@ -276,13 +290,14 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             self._elapsed[group] += 1
             if limit is not None:
                 truncated[group] |= self._elapsed[group] >= limit
-            for i in group[terminated[group] | truncated[group]].tolist():
-                if reset_ended:
-                    final_obs = obs[i].copy()
-                    obs[i], reset_info = self.reset_world(i)
-                    finals[i] = (final_obs, reset_info)
-                else:
-                    self._autoreset[i] = True
+            ended = group[terminated[group] | truncated[group]]
+            if not reset_ended:
+                self._autoreset[ended] = True
+            elif len(ended):    # reset together (a reset touches only its own world's rows)
+                final_obs = obs[ended]
+                obs[ended], reset_infos = self.reset_worlds(ended)
+                for k, i in enumerate(ended.tolist()):
+                    finals[i] = (final_obs[k], reset_infos[k])
 
         worlds = [(envs[i].model, envs[i].data) for i in stepping]
 

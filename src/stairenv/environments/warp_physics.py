@@ -187,10 +187,10 @@ class WarpPhysics:
         self._stale = np.zeros(n, dtype=bool)    # state_on_device: worlds whose MjData lags the device
         self._graphs = {}
 
-    def world_changed(self, k: int) -> None:
-        """World ``k``'s staircase was written into its host ``MjModel`` (a reset): copy the per-world model
-        fields up before the next step (its state goes up at every step anyway; with ``state_on_device``,
-        its state goes up then too, as its ``MjData`` now holds it)."""
+    def world_changed(self, k: int | Sequence[int]) -> None:
+        """World ``k``'s (or worlds ``k``') staircase was written into its host ``MjModel`` (a reset): copy the
+        per-world model fields up before the next step (its state goes up at every step anyway; with
+        ``state_on_device``, its state goes up then too, as its ``MjData`` now holds it)."""
         self._changed[k] = True
         self._state_changed[k] = True
         self._stale[k] = False

@@ -122,10 +122,9 @@ class FeatureHistory:
             raise ValueError(f"amp_history must be >= 1, got {num_frames}")
         self.frames = np.zeros((num_frames, AMP_FEATURE_SIZE))
 
-    def fill(self, state: HumanoidState) -> None:
-        """Every frame the features of ``state`` (a batch of one), as at an episode start."""
-        amp_features(state, self.frames[-1:])
-        self.frames[:-1] = self.frames[-1]
+    def fill_features(self, frame: np.ndarray) -> None:
+        """Every frame ``frame`` (a row of ``amp_features``), as at an episode start."""
+        self.frames[:] = frame
 
     def push(self, state: HumanoidState) -> None:
         """Drop the oldest frame and append the features of ``state`` (a batch of one)."""

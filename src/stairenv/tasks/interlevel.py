@@ -55,7 +55,7 @@ from stairenv.tasks.kernels import heading_cos_sin, jit, write_heading_vector, w
 from stairenv.tasks.stall import stall_step
 from stairenv.humanoid.state import HEAD, LEFT_FOOT, PELVIS, RIGHT_FOOT, HumanoidState
 from stairenv.validation import Check, check_number, checked, field_check
-from stairenv.world.stairs import Staircase
+from stairenv.world.stairs import Staircase, StairsLayout
 
 OBSERVATION_SIZE = 118
 OBSERVATION_STRUCTURE: dict[str, slice] = {
@@ -117,23 +117,28 @@ class StairsGoal(NamedTuple):
 
     @classmethod
     def from_stairs(cls, stairs: Sequence[Staircase]) -> "StairsGoal":
-        # np.array of a list of equal-shape arrays: np.stack's result (contiguous), for less per reset
-        target = np.array([s.marker_top for s in stairs])
-        bottom = np.array([s.marker_bottom for s in stairs])
+        return cls.of_layout(StairsLayout.of(stairs, 0))
+
+    @classmethod
+    def of_layout(cls, layout: StairsLayout) -> "StairsGoal":
+        """The goals of a ``StairsLayout``'s staircases (row i: staircase i)."""
+        up = np.zeros_like(layout.axis)
+        up[:, 2] = 1.0
+        target, bottom = layout.marker_top, layout.marker_bottom
         return cls(
             target=target,
             bottom=bottom,
-            origin=np.array([s.origin for s in stairs]),
-            rotation=np.array([s.rotation for s in stairs]),
-            yaw=np.array([s.yaw for s in stairs]),
+            origin=layout.origin,
+            rotation=np.stack((layout.axis, layout.across, up), axis=-1),
+            yaw=layout.yaw,
             marker_distance=np.linalg.norm(target - bottom, axis=-1),
-            target_local=np.array([s.marker_top_local for s in stairs]),
-            bottom_local=np.array([s.marker_bottom_local for s in stairs]),
-            top_height=np.array([s.top_height for s in stairs]),
-            step_depth=np.array([s.step_depth for s in stairs]),
-            num_steps=np.array([float(s.num_steps) for s in stairs]),
-            landing_end=np.array([s.landing_start + s.landing_depth for s in stairs]),
-            half_width=np.array([s.width / 2 for s in stairs]),
+            target_local=layout.marker_top_local,
+            bottom_local=layout.marker_bottom_local,
+            top_height=layout.num_steps * layout.step_height,
+            step_depth=layout.step_depth,
+            num_steps=layout.num_steps.astype(np.float64),
+            landing_end=(layout.num_steps - 1) * layout.step_depth + layout.landing_depth,
+            half_width=layout.width / 2,
         )
 
 

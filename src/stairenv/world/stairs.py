@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import mujoco
 import numpy as np
@@ -169,18 +171,13 @@ class Staircase:
 
     def local_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """Centres and half sizes (n, 3) of the n tread blocks, in the stairs frame."""
-        k = np.arange(1, self.num_steps + 1)
-        depth = np.full(self.num_steps, self.step_depth)
-        depth[-1] = self.landing_depth
-        front = (k - 1) * self.step_depth
-        height = k * self.step_height
-        centres = np.stack((front + depth / 2, np.zeros(self.num_steps), height / 2), axis=1)
-        half = np.stack((depth / 2, np.full(self.num_steps, self.width / 2), height / 2), axis=1)
-        return centres, half
+        centres, half = _tread_boxes(*_numbers([self]), self.num_steps)
+        return centres[0], half[0]
 
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        centres, half = self.local_boxes()
-        return self.to_world(centres), half
+        """Centres and half sizes (n, 3) of the n tread blocks, in the world."""
+        layout = StairsLayout.of([self], self.num_steps)
+        return layout.centres[0], layout.half[0]
 
     def surface_height(self, points: np.ndarray) -> np.ndarray:
         """Height of the walkable surface (tread top or floor) under world points (..., 2|3)."""
@@ -206,7 +203,8 @@ class Staircase:
     @functools.cached_property
     def _markers(self) -> tuple[np.ndarray, np.ndarray]:
         """(M_B, M_T) in the world, computed once (a reset reads each twice), read-only."""
-        markers = self.to_world(self.marker_bottom_local), self.to_world(self.marker_top_local)
+        layout = StairsLayout.of([self], 0)
+        markers = layout.marker_bottom[0], layout.marker_top[0]
         for array in markers:
             array.flags.writeable = False
         return markers
@@ -223,6 +221,93 @@ class Staircase:
 
     def as_dict(self) -> dict[str, float | int]:
         return {field.name: getattr(self, field.name) for field in fields(self)}
+
+
+_FIELDS = ("step_height", "step_depth", "width", "num_steps", "landing_depth", "yaw", "distance")
+
+
+def _numbers(stairs: Sequence[Staircase]) -> tuple[np.ndarray, ...]:
+    """The staircases' defining numbers as arrays over them (row i: ``stairs[i]``)."""
+    return tuple(np.array([getattr(s, name) for s in stairs]) for name in _FIELDS)
+
+
+def _tread_boxes(step_height, step_depth, width, num_steps, landing_depth, yaw, distance,
+                 slots: int) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and half sizes (B, slots, 3) in the stairs frame of treads 1..slots of B staircases (the
+    arrays of ``_numbers``): tread k is a solid block from the ground to ``k * step_height``, the last one
+    (k = num_steps) the landing, ``landing_depth`` deep. Rows past a staircase's ``num_steps`` are what the
+    formula gives (``StairsLayout`` parks them)."""
+    k = np.arange(1, slots + 1)
+    depth = np.where(k == num_steps[:, None], landing_depth[:, None], step_depth[:, None])
+    front = (k - 1) * step_depth[:, None]
+    height = k * step_height[:, None]
+    centres = np.stack((front + depth / 2, np.zeros_like(depth), height / 2), axis=-1)
+    half = np.stack((depth / 2, np.broadcast_to(width[:, None] / 2, depth.shape), height / 2), axis=-1)
+    return centres, half
+
+
+class StairsLayout(NamedTuple):
+    """B staircases in the world as arrays (row i: staircase i): what a reset writes into the model
+    (``StairsSlots.place_layout``) and what the task's goal reads (``StairsGoal.of_layout``), made in a few
+    array operations however many staircases a batch of resets draws.
+
+    Every point lies on the centre line (w = 0), so the stairs-to-world transform of ``Staircase.to_world``
+    reduces to ``origin + u * axis + z * up``: the terms it drops are exact zeros, so the numbers are the
+    same to the last bit."""
+
+    step_height: np.ndarray     # (B,)
+    step_depth: np.ndarray      # (B,)
+    width: np.ndarray           # (B,)
+    num_steps: np.ndarray       # (B,) int
+    landing_depth: np.ndarray   # (B,)
+    yaw: np.ndarray             # (B,)
+    distance: np.ndarray        # (B,)
+    axis: np.ndarray            # (B, 3) unit ascent direction
+    across: np.ndarray          # (B, 3) unit direction across, to the left
+    origin: np.ndarray          # (B, 3) foot of the first riser on the centre line
+    marker_bottom_local: np.ndarray    # (B, 3) M_B, stairs frame
+    marker_top_local: np.ndarray       # (B, 3) M_T, stairs frame
+    marker_bottom: np.ndarray   # (B, 3) M_B, world
+    marker_top: np.ndarray      # (B, 3) M_T, world
+    centres: np.ndarray         # (B, slots, 3) treads' centres, world; unused slots parked
+    half: np.ndarray            # (B, slots, 3) treads' half sizes; unused slots parked
+    quat: np.ndarray            # (B, 4) the treads' orientation (a yaw), wxyz
+
+    @classmethod
+    def of(cls, stairs: Sequence[Staircase], slots: int) -> StairsLayout:
+        """The layout of ``stairs`` over ``slots`` tread slots (at least each staircase's ``num_steps``)."""
+        numbers = _numbers(stairs)
+        step_height, step_depth, width, num_steps, landing_depth, yaw, distance = numbers
+        # math's cos and sin, as Staircase's frame and the quaternion have always used (numpy's may differ in
+        # the last bit)
+        cos = np.array([math.cos(s.yaw) for s in stairs])
+        sin = np.array([math.sin(s.yaw) for s in stairs])
+        zero = np.zeros_like(cos)
+        axis, across = np.stack((cos, sin, zero), axis=-1), np.stack((-sin, cos, zero), axis=-1)
+        origin = distance[:, None] * axis
+        top_height = num_steps * step_height
+        landing_start = (num_steps - 1) * step_depth
+        standing = np.full_like(cos, STANDING_ROOT_HEIGHT)
+        bottom_local = np.stack((zero, zero, standing), axis=-1)
+        top_local = np.stack((landing_start + landing_depth / 2, zero, top_height + STANDING_ROOT_HEIGHT), axis=-1)
+        centres, half = _tread_boxes(*numbers, slots)
+        parked = np.arange(slots) >= num_steps[:, None]
+        world_centres = _on_centre_line(centres, axis, origin)
+        world_centres[parked], half[parked] = _PARKED_POS, _PARKED_HALF
+        quat = np.stack((np.array([math.cos(s.yaw / 2) for s in stairs]), zero, zero,
+                         np.array([math.sin(s.yaw / 2) for s in stairs])), axis=-1)
+        return cls(step_height, step_depth, width, num_steps, landing_depth, yaw, distance, axis, across, origin,
+                   bottom_local, top_local, _on_centre_line(bottom_local, axis, origin),
+                   _on_centre_line(top_local, axis, origin), world_centres, half, quat)
+
+
+def _on_centre_line(local: np.ndarray, axis: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """Stairs-frame points (B, ..., 3) with w = 0 in the world (row i in staircase i's frame)."""
+    extra = (slice(None),) + (None,) * (local.ndim - 2)
+    u, z = local[..., 0:1], local[..., 2]
+    world = u * axis[extra] + origin[extra]
+    world[..., 2] = z
+    return world
 
 
 def generate_stairs(config: StairsConfig, rng: np.random.Generator) -> Staircase:
@@ -272,9 +357,6 @@ class StairsSlots:
 
     def __init__(self, spec: mujoco.MjSpec, max_steps: int, prefix: str = "stairs") -> None:
         self.max_steps = int(max_steps)
-        # every slot parked, what ``place`` starts from (copied, not tiled, at each reset)
-        self._parked_pos = np.tile(_PARKED_POS, (self.max_steps, 1))
-        self._parked_half = np.tile(_PARKED_HALF, (self.max_steps, 1))
         self.prefix = prefix
         for i in range(self.max_steps):
             body = spec.worldbody.add_body(name=f"{prefix}_step{i}", pos=_PARKED_POS)
@@ -316,25 +398,34 @@ class StairsSlots:
 
     def place(self, model: mujoco.MjModel, stairs: Staircase) -> None:
         """Write ``stairs`` into ``model`` (call mj_forward afterwards)."""
-        if self._body_ids is None:
-            raise RuntimeError("StairsSlots.bind(model) must be called before place()")
-        if stairs.num_steps > self.max_steps:
-            raise ValueError(f"staircase has {stairs.num_steps} steps; this model holds at most {self.max_steps}")
-        n = stairs.num_steps
-        centres, half = stairs.world_boxes()
-        half_all, pos_all = self._parked_half.copy(), self._parked_pos.copy()
-        half_all[:n], pos_all[:n] = half, centres
-        quat = np.array([math.cos(stairs.yaw / 2), 0.0, 0.0, math.sin(stairs.yaw / 2)])
+        self.place_layout(model, self.layout([stairs]), 0)
+
+    def layout(self, stairs: Sequence[Staircase]) -> StairsLayout:
+        """``StairsLayout`` of ``stairs`` over this model's slots (a ``ValueError`` if one has too many steps)."""
+        self._check_bound()
+        for s in stairs:
+            if s.num_steps > self.max_steps:
+                raise ValueError(f"staircase has {s.num_steps} steps; this model holds at most {self.max_steps}")
+        return StairsLayout.of(stairs, self.max_steps)
+
+    def place_layout(self, model: mujoco.MjModel, layout: StairsLayout, i: int) -> None:
+        """Write staircase ``i`` of ``layout`` (made by ``layout``) into ``model`` (call mj_forward afterwards)."""
+        self._check_bound()
+        half = layout.half[i]
         bodies, geoms = self._body_rows, self._geom_rows
-        model.body_pos[bodies] = pos_all
-        model.body_quat[bodies] = quat
-        model.geom_size[geoms] = half_all
-        model.geom_rbound[geoms] = np.linalg.norm(half_all, axis=1)
+        model.body_pos[bodies] = layout.centres[i]
+        model.body_quat[bodies] = layout.quat[i]
+        model.geom_size[geoms] = half
+        model.geom_rbound[geoms] = np.linalg.norm(half, axis=1)
         model.geom_aabb[geoms, :3] = 0.0
-        model.geom_aabb[geoms, 3:] = half_all
+        model.geom_aabb[geoms, 3:] = half
         # The body's bounding volume (used when the other body has several geoms, e.g. the
         # torso) is computed at compile time: resize it with the box (geom at the body origin).
         bvh = self._bvh_rows
         model.bvh_aabb[bvh, :3] = 0.0
-        model.bvh_aabb[bvh, 3:] = half_all
-        model.body_pos[self._marker_ids] = np.array((stairs.marker_bottom, stairs.marker_top))
+        model.bvh_aabb[bvh, 3:] = half
+        model.body_pos[self._marker_ids] = (layout.marker_bottom[i], layout.marker_top[i])
+
+    def _check_bound(self) -> None:
+        if self._body_ids is None:
+            raise RuntimeError("StairsSlots.bind(model) must be called before place()")
