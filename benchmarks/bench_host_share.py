@@ -22,7 +22,10 @@ array operations would be. Per round:
   reset: one at a time (``reset_world``) and in groups (``reset_worlds``, the autoreset's: the worlds
   whose episodes ended at one step, ``--worlds / --episode-steps`` of them by default), and what the
   grouped resets add per world-step at one episode end every ``--episode-steps`` world-steps (default
-  17: the random actions of ``bench_warp.py``, measured in session 31; early in training ~28).
+  17: the random actions of ``bench_warp.py``, measured in session 31; early in training ~28). The
+  grouped resets are timed twice: as with the C back-end (``mj_forward`` at the end of each) and as a
+  device back-end's batched env makes them (``mj_kinematics``, ``HumanoidEnv._reset_forward``), the
+  figure per world-step being the device's.
 
 Printed per round: the figures, host / arrays and the 3.3 us budget; at the end the medians. Results on
 our machine are in ``docs/gpu.md`` ("Where the targets stand", "Measured on one NVIDIA H200").
@@ -34,6 +37,7 @@ import argparse
 import time
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the ids)
@@ -118,10 +122,13 @@ def arrays_us(step, worlds: int, calls: int) -> float:
     return (time.perf_counter() - start) / (calls * worlds) * 1e6
 
 
-def reset_us(venv, obs: np.ndarray, count: int, group: int) -> float:
+def reset_us(venv, obs: np.ndarray, count: int, group: int, device: bool = False) -> float:
     """us per world reset, ``group`` worlds at a time (``reset_worlds``; one: ``reset_world``), the worlds
-    in turn; each reset world's first observation written into ``obs``."""
+    in turn; each reset world's first observation written into ``obs``. ``device``: ending as on a device
+    back-end (``mj_kinematics``)."""
     worlds = np.arange(count) % venv.num_envs
+    for env in venv.envs:
+        env._reset_forward = mujoco.mj_kinematics if device else mujoco.mj_forward
     start = time.perf_counter()
     if group == 1:
         for i in worlds.tolist():
@@ -156,26 +163,29 @@ def main() -> None:
     *_, obs = host_us(venv, physics, policy, obs, 5)    # warm-up: compiled kernels loaded
     step = array_step(venv.envs, args.array_worlds)
     step()
-    hosts, arrays, alone, grouped = [], [], [], []
+    hosts, arrays, alone, grouped, on_device = [], [], [], [], []
     for r in range(args.rounds):
         host, physics_us, obs = host_us(venv, physics, policy, obs, args.steps)
         array = arrays_us(step, args.array_worlds, max(1, args.steps // 10))
         one = reset_us(venv, obs, args.resets, 1)
-        reset = reset_us(venv, obs, args.resets, group)
+        grouped.append(reset_us(venv, obs, args.resets, group))
+        reset = reset_us(venv, obs, args.resets, group, device=True)
         hosts.append(host)
         arrays.append(array)
         alone.append(one)
-        grouped.append(reset)
+        on_device.append(reset)
         print(f"round {r}: host {host:.1f} us per world-step ({args.worlds} worlds; physics {physics_us:.0f} "
               f"on one thread), arrays {array:.2f} "
               f"({args.array_worlds} worlds), host / arrays {host / array:.0f}x; budget at 300k env steps/s "
-              f"{BUDGET_US:.1f}; a reset {one:.0f} us alone, {reset:.0f} in groups of {group} "
-              f"({reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g})")
-    host, array, one, reset = (float(np.median(values)) for values in (hosts, arrays, alone, grouped))
+              f"{BUDGET_US:.1f}; a reset {one:.0f} us alone, {grouped[-1]:.0f} in groups of {group}, {reset:.0f} "
+              f"as on a device ({reset / args.episode_steps:.1f} per world-step at one end per "
+              f"{args.episode_steps:g})")
+    host, array, one, together, reset = (float(np.median(values))
+                                         for values in (hosts, arrays, alone, grouped, on_device))
     print(f"median: host {host:.1f} us per world-step, arrays {array:.2f}, host / arrays {host / array:.0f}x, "
-          f"arrays / budget {array / BUDGET_US:.2f}; a reset {one:.0f} us alone, {reset:.0f} in groups of "
-          f"{group} ({one / reset:.1f}x), {reset / args.episode_steps:.1f} per world-step at one end per "
-          f"{args.episode_steps:g}")
+          f"arrays / budget {array / BUDGET_US:.2f}; a reset {one:.0f} us alone, {together:.0f} in groups of "
+          f"{group} ({one / together:.1f}x), {reset:.0f} as on a device ({one / reset:.1f}x), "
+          f"{reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g}")
     venv.close()
 
 

@@ -121,6 +121,24 @@ def test_the_device_runs_the_c_models_options():
 
 
 @warp_only
+@pytest.mark.parametrize("kwargs", [{}, {"init": "hybrid", "stairs_start_fraction": 0.5}])
+def test_a_reset_on_the_device_computes_the_poses_only(kwargs):
+    """On the Warp back-end a reset runs ``mj_kinematics``, not ``mj_forward``: the same staircases, state,
+    poses and first observations as the C back-end's reset (so the same episodes), but no derived quantity
+    the host never reads (no contact, no acceleration)."""
+    c_backend, device = batched(4, **kwargs), batched(4, physics="warp", **kwargs)
+    got, want = device.reset(seed=2)[0], c_backend.reset(seed=2)[0]
+    np.testing.assert_array_equal(got, want)
+    for a, b in zip(c_backend.envs, device.envs):
+        for name in ("qpos", "qvel", "ctrl", "xpos", "xmat", "geom_xpos"):
+            np.testing.assert_array_equal(getattr(b.data, name), getattr(a.data, name), name)
+        assert np.abs(a.data.qacc).max() > 0 and not b.data.qacc.any() and b.data.ncon == 0
+    assert any(a.data.ncon for a in c_backend.envs)
+    c_backend.close()
+    device.close()
+
+
+@warp_only
 def test_one_step_from_the_same_state_matches_the_c_backend():
     """The same reset states (the host's code) and actions, one env step, 8 worlds x 3 seeds: most worlds
     agree to float32 rounding; the rest (measured: 1-2 worlds in 6 on some seeds, where a hand rests on

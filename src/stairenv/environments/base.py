@@ -346,9 +346,15 @@ class HumanoidEnv(gym.Env):
         raise NotImplementedError
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
-        """Place the character (servos holding its pose, ``mj_forward`` run); True if it starts
+        """Place the character (servos holding its pose, ``_reset_forward`` run); True if it starts
         from a reference state."""
         raise NotImplementedError
+
+    #: what a reset runs once the character is placed: ``mj_forward``, every derived quantity (as Gymnasium's
+    #: MuJoCo envs leave ``MjData`` after a reset). A batched env on a device back-end makes it
+    #: ``mj_kinematics`` (a quarter of a reset's time on one core): the poses are all the host reads, the device
+    #: computes the rest at its step, and after a step there the host's ``MjData`` holds the kinematics only too.
+    _reset_forward = staticmethod(mujoco.mj_forward)
 
     def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         """What the task draws once the character is placed (a path from its start, a contact goal)."""
@@ -650,7 +656,7 @@ class HumanoidEnv(gym.Env):
     def _place_at(self, xy, heading: float, reference: tuple[np.ndarray, np.ndarray] | None,
                   floor: float = 0.0) -> None:
         """Put the character at ``xy`` facing ``heading``, its lowest point just above ``floor``: in the
-        ``reference`` state, or standing. Servos hold the pose; runs mj_forward."""
+        ``reference`` state, or standing. Servos hold the pose; runs ``_reset_forward``."""
         model, data = self.model, self.data
         if reference is not None:
             place_reference_state(model, data, self._idx, reference[0], reference[1], xy, heading, floor)
@@ -659,7 +665,7 @@ class HumanoidEnv(gym.Env):
             mujoco.mj_kinematics(model, data)
             data.qpos[self._idx.qpos_root.start + 2] += floor + 0.002 - humanoid_lowest_z(model, data, self._geoms)
         self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
+        self._reset_forward(model, data)
 
     def _hold_pose_ctrl(self) -> None:
         """Servo targets = the current joint angles (an episode starts holding its pose)."""

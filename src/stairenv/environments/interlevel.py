@@ -7,7 +7,6 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import mujoco
 import numpy as np
 from gymnasium import spaces
 
@@ -242,7 +241,7 @@ class InterLevelEnv(HumanoidEnv):
             qpos, qvel = stair_starts.climb_state(stairs.step_height, stairs.step_depth, stairs.num_steps, rng)
             place_state_in_frame(model, data, self._idx, qpos, qvel, stairs.yaw, stairs.origin)
             self._hold_pose_ctrl()
-            mujoco.mj_forward(model, data)
+            self._reset_forward(model, data)
             return True
         radius = self.start_radius * math.sqrt(rng.uniform())
         angle = rng.uniform(0.0, 2.0 * math.pi)
@@ -257,7 +256,7 @@ class InterLevelEnv(HumanoidEnv):
         joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
         data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
         self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
+        self._reset_forward(model, data)
         return False
 
     def _start_tracking(self, state) -> None:

@@ -57,6 +57,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
@@ -124,6 +125,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.num_envs = int(num_envs)
         if device:    # thousands of worlds: copies of the first (~10x faster than building each), all unseeded
             first = env_class(**kwargs)
+            # a reset computes the poses only: the host reads no more, the device computes the rest
+            first._reset_forward = mujoco.mj_kinematics
             self.envs: list[HumanoidEnv] = [first, *(first.replicate() for _ in range(self.num_envs - 1))]
         else:
             self.envs = [env_class(**kwargs) for _ in range(self.num_envs)]
