@@ -503,8 +503,9 @@ def test_step_worlds_infos_are_the_single_envs(env_id):
 
 
 def test_shared_rows_are_the_worlds_own_carry():
-    """A batched InterLevel env holds its worlds' carry (last root, goal, stall clock, style history) as rows
-    of one array each: a world's own reset writes its rows; a copy of a world holds its own."""
+    """A batched InterLevel env holds its worlds' carry (last root, goal, stall clock, style history) and
+    action map as rows of one array each: a world's own reset writes its rows; a copy of a world holds its
+    own."""
     import copy
 
     vec = batched("InterLevel-v0", 3)
@@ -513,7 +514,12 @@ def test_shared_rows_are_the_worlds_own_carry():
     for i, env in enumerate(vec.envs):
         assert env._rows is rows and np.shares_memory(env._prev_root, rows["_prev_root"][i])
         assert np.shares_memory(env._amp.frames, rows["amp"][i])
+        assert np.shares_memory(env._ctrl_scale, rows["_ctrl_scale"][i])
         assert np.array_equal(rows["_packed_goal"][i:i + 1], env._goal.pack())
+    action = np.random.default_rng(0).uniform(-1, 1, (3, 28))
+    vec.step(action)
+    for env, world_action in zip(vec.envs, action):    # the PD targets read from the shared map
+        assert np.array_equal(env.data.ctrl, env._ctrl_offset + env._ctrl_scale * world_action)
     vec.step(np.zeros((3, 28)))
     assert np.array_equal(rows["_prev_root"][1], vec.envs[1].data.xpos[vec.envs[1]._idx.pelvis_id])
     vec.reset_world(2, seed=11)

@@ -424,26 +424,27 @@ class HumanoidEnv(gym.Env):
         self._expected_time = self.data.time + self.dt    # dt: frame_skip timesteps
 
     @classmethod
-    def _prepare_worlds(cls, envs: list[HumanoidEnv], actions: np.ndarray) -> None:
+    def _prepare_worlds(cls, envs: list[HumanoidEnv], actions: np.ndarray, rows: np.ndarray | None = None) -> None:
         """``_prepare_step`` of many worlds of this class (row k of ``actions``: world k's checked action),
         each world's ctrl as its ``_prepare_step`` writes it: where the class keeps this action map, the PD
-        targets of all worlds in one array operation, then copied into each world's ctrl."""
+        targets of all worlds in one array operation, then copied into each world's ctrl. ``rows``: see
+        ``_share_rows``."""
         if cls._apply_action is not HumanoidEnv._apply_action or not envs:
             for env, action in zip(envs, actions):
                 env._prepare_step(action)
             return
-        for env, ctrl in zip(envs, _pd_targets(envs, actions)):    # _apply_action's operations, row by row
+        for env, ctrl in zip(envs, _pd_targets(envs, actions, rows)):    # _apply_action's operations, row by row
             env._ctrl[:] = ctrl
             env._after_action()
 
     @classmethod
-    def _action_targets(cls, envs: list[HumanoidEnv], actions: np.ndarray) -> np.ndarray:
+    def _action_targets(cls, envs: list[HumanoidEnv], actions: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """The PD targets of many worlds as one array (row k: world k), for a back-end that takes the ctrl
         of all worlds at once (``WarpPhysics(state_on_device=True)``): ``_prepare_worlds``' action map with
         no world's ctrl written. Only for classes with the plain action map and no ``_before_physics``."""
         if cls._apply_action is not HumanoidEnv._apply_action or cls._before_physics is not HumanoidEnv._before_physics:
             raise ValueError(f"{cls.__name__} changes its ctrl world by world; its state cannot stay on the device")
-        return _pd_targets(envs, actions)
+        return _pd_targets(envs, actions, rows)
 
     def _physics(self) -> None:
         """``frame_skip`` physics steps (a batched env runs them for all its worlds instead)."""
@@ -560,8 +561,8 @@ class HumanoidEnv(gym.Env):
 
     @classmethod
     def _share_rows(cls, envs: list[HumanoidEnv]) -> None:
-        """Make each world's ``ROW_ARRAYS`` and style history rows (views) of one array over ``envs`` (row i:
-        ``envs[i]``), held in ``env._rows`` by path (the history as "amp"). A batched env does so once;
+        """Make each world's ``ROW_ARRAYS``, style history and action map rows (views) of one array over ``envs``
+        (row i: ``envs[i]``), held in ``env._rows`` by path (the history as "amp"). A batched env does so once;
         ``_finish_batch(envs, rows=...)`` then reads and writes the carry of a group of worlds by their rows
         (``_take_carry``, ``_put_carry``) instead of world by world. A world's own code keeps working on its
         views."""
@@ -571,6 +572,12 @@ class HumanoidEnv(gym.Env):
             for i, env in enumerate(envs):
                 _set_attribute(env, path, array[i:i + 1])
         amp = shared["amp"] = np.array([env._amp.frames for env in envs])
+        # the action map too (read only; set when the model is compiled, which such a class does once), so that
+        # the PD targets of a group are two row reads, not two stacks of the worlds' arrays
+        for name in ("_ctrl_offset", "_ctrl_scale"):
+            array = shared[name] = np.array([getattr(env, name) for env in envs])
+            for i, env in enumerate(envs):
+                setattr(env, name, array[i])
         for i, env in enumerate(envs):
             env._amp.frames = amp[i]
             env._rows = shared
@@ -797,8 +804,12 @@ class HumanoidEnv(gym.Env):
             self._viewer = None
 
 
-def _pd_targets(envs: list[HumanoidEnv], actions: np.ndarray) -> np.ndarray:
-    """Each world's PD targets ``offset + scale * action`` (``_apply_action``'s map), one row per world."""
+def _pd_targets(envs: list[HumanoidEnv], actions: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """Each world's PD targets ``offset + scale * action`` (``_apply_action``'s map), one row per world; the
+    worlds' maps read by ``rows`` where they are shared (``_share_rows``)."""
+    if rows is not None:
+        shared = envs[0]._rows
+        return shared["_ctrl_offset"][rows] + shared["_ctrl_scale"][rows] * actions
     return np.array([env._ctrl_offset for env in envs]) + np.array([env._ctrl_scale for env in envs]) * actions
 
 

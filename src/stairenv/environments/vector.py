@@ -254,10 +254,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
         on_device = self._state_on_device
+        rows = np.array(stepping, dtype=np.int64) if self._shared_rows else None
         if on_device:    # the PD targets go to the device as one array
-            ctrl = type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping]) if stepping else None
+            ctrl = type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping], rows) if stepping else None
         else:
-            type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping])
+            type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping], rows)
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             if len(resetting):
