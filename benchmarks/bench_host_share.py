@@ -27,6 +27,12 @@ array operations would be. Per round:
   device back-end's batched env makes them (``mj_kinematics``, ``HumanoidEnv._reset_forward``), the
   figure per world-step being the device's.
 
+- ``device host`` (with ``--device-worlds W``, and the ``gpu`` extra): the host's share of a step with the
+  state on the device (``physics="warp", state_on_device=True``: the ctrl up as one array, the state down
+  and converted, the task over arrays, the info), W worlds on Warp's CPU device with its kernels replaced
+  by nothing, so that only the host's work is timed (the state stays as the reset left it: no episode ends,
+  no reset is in it), us per world-step.
+
 Printed per round: the figures, host / arrays and the 3.3 us budget; at the end the medians. Results on
 our machine are in ``docs/gpu.md`` ("Where the targets stand", "Measured on one NVIDIA H200").
 """
@@ -140,6 +146,32 @@ def reset_us(venv, obs: np.ndarray, count: int, group: int, device: bool = False
     return (time.perf_counter() - start) / count * 1e6
 
 
+def device_host_env(worlds: int, seed: int):
+    """A state-on-device batched env on Warp's CPU device whose device work is stubbed out (see the module
+    docstring), or None without MuJoCo Warp."""
+    import importlib.util
+    if importlib.util.find_spec("mujoco_warp") is None:
+        return None
+    venv = gym.make_vec("InterLevel-v0", num_envs=worlds, vectorization_mode="vector_entry_point", physics="warp",
+                        state_on_device=True, physics_device="cpu")
+    venv.reset(seed=seed)
+    venv.step(np.zeros((worlds, 28)))    # kernels loaded, the device's buffers filled once
+    physics = venv.physics
+    # the substeps and the kinematics do nothing: what is left of the step is the host's
+    physics._launch = lambda nstep: None
+    physics._mjw = type("NoKernels", (), {"kinematics": staticmethod(lambda model, data: None),
+                                          "OverflowType": physics._mjw.OverflowType})
+    return venv
+
+
+def device_host_us(venv, steps: int) -> float:
+    actions = np.zeros((venv.num_envs, 28))
+    start = time.perf_counter()
+    for _ in range(steps):
+        venv.step(actions)
+    return (time.perf_counter() - start) / (steps * venv.num_envs) * 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--worlds", type=int, default=256, help="worlds of the batched env")
@@ -151,6 +183,8 @@ def main() -> None:
                         help="world-steps per episode end, to put the resets per world-step")
     parser.add_argument("--reset-group", type=int, default=None,
                         help="worlds reset together (default: --worlds / --episode-steps, the ended worlds of a step)")
+    parser.add_argument("--device-worlds", type=int, default=0,
+                        help="worlds of the state-on-device step whose host share is timed (0: not timed)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     group = args.reset_group or max(1, round(args.worlds / args.episode_steps))
@@ -163,7 +197,10 @@ def main() -> None:
     *_, obs = host_us(venv, physics, policy, obs, 5)    # warm-up: compiled kernels loaded
     step = array_step(venv.envs, args.array_worlds)
     step()
-    hosts, arrays, alone, grouped, on_device = [], [], [], [], []
+    device_env = device_host_env(args.device_worlds, args.seed) if args.device_worlds else None
+    if args.device_worlds and device_env is None:
+        print("device host: not timed (MuJoCo Warp is not installed: pip install 'stairenv[gpu]')")
+    hosts, arrays, alone, grouped, on_device, device_hosts = [], [], [], [], [], []
     for r in range(args.rounds):
         host, physics_us, obs = host_us(venv, physics, policy, obs, args.steps)
         array = arrays_us(step, args.array_worlds, max(1, args.steps // 10))
@@ -174,6 +211,9 @@ def main() -> None:
         arrays.append(array)
         alone.append(one)
         on_device.append(reset)
+        if device_env is not None:
+            device_hosts.append(device_host_us(device_env, max(1, args.steps // 5)))
+            print(f"round {r}: device host {device_hosts[-1]:.2f} us per world-step ({args.device_worlds} worlds)")
         print(f"round {r}: host {host:.1f} us per world-step ({args.worlds} worlds; physics {physics_us:.0f} "
               f"on one thread), arrays {array:.2f} "
               f"({args.array_worlds} worlds), host / arrays {host / array:.0f}x; budget at 300k env steps/s "
@@ -186,6 +226,10 @@ def main() -> None:
           f"arrays / budget {array / BUDGET_US:.2f}; a reset {one:.0f} us alone, {together:.0f} in groups of "
           f"{group} ({one / together:.1f}x), {reset:.0f} as on a device ({one / reset:.1f}x), "
           f"{reset / args.episode_steps:.1f} per world-step at one end per {args.episode_steps:g}")
+    if device_env is not None:
+        print(f"median: device host {float(np.median(device_hosts)):.2f} us per world-step "
+              f"({args.device_worlds} worlds, the state on the device, no resets)")
+        device_env.close()
     venv.close()
 
 

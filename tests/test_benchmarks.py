@@ -24,7 +24,8 @@ CASES = {
     "bench_vector": ["--ids", "InterLevel-v0", "--n-envs", "2", "--steps", "5", "--rounds", "1"],
     "bench_train": ["--steps", "256", "--rounds", "1", "--settings", "lean", "sb3",
                     "--extra", "--n-envs 2 --n-steps 64 --batch-size 64"],
-    "bench_host_share": ["--worlds", "4", "--steps", "3", "--rounds", "1", "--array-worlds", "16", "--resets", "6"],
+    "bench_host_share": ["--worlds", "4", "--steps", "3", "--rounds", "1", "--array-worlds", "16", "--resets", "6",
+                         "--device-worlds", "4"],
     # two torchrun ranks on the C back-end: exits 1 unless the run completes and logs a timed iteration
     "bench_ranks": ["--physics", "mujoco", "--ranks", "2", "--worlds", "4", "--iterations", "3", "--device", "cpu"],
 }
