@@ -144,13 +144,14 @@ def __getattr__(name: str):
 class HumanoidEnv(gym.Env):
     """Base class: owns the episode template; subclasses supply their world, task and info.
 
-    ``reset``: gymnasium's seeding -> ``_build_world(rng, options)`` (a new staircase, terrain or
-    scene; may recompile the model with ``_compile``) -> ``mj_resetData`` ->
+    ``reset`` (``_reset_worlds`` of one world; a batched env resets many together, each with its own
+    draws): gymnasium's seeding -> ``_build_world(rng, options)`` (a new staircase, terrain or scene; may
+    recompile the model with ``_compile``; ``_build_worlds`` over many) -> ``mj_resetData`` ->
     ``_place_character(rng, options)`` (returns whether it started from a reference state;
     ``_reference_pose`` draws one as ``init`` asks, ``_place_at`` places a standing or reference
-    character on a floor) -> ``_new_goal(rng, options)`` (what the task draws once the character
-    stands, optional) -> ``_begin_episode`` (bookkeeping, ``_start_tracking(state)``, the first
-    ``_step_outcome``, style features filled).
+    character on a floor; ``_reset_forward`` at the end) -> ``_new_goal(rng, options)`` (what the task
+    draws once the character stands, optional) -> ``_begin_episodes`` (bookkeeping,
+    ``_start_tracking(state)``, the first ``_step_outcomes``, style features filled).
 
     ``step``: ``_check_action`` (wrong shapes, non-real dtypes and NaN/inf raise ``ValueError``, a needed reset
     ``ResetNeeded``) -> ``_apply_action`` (PD targets ``offset + scale * a``, the range

@@ -12,9 +12,10 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
 3. the physics of all worlds in one ``BatchPhysics.step`` call (``batch_physics``: a pool of
    ``os.cpu_count()`` threads taking the worlds one at a time and calling ``mujoco.mj_step``, GIL
    released). Meanwhile, in the calling thread: the worlds whose episode ended at the last step are
-   reset (``NEXT_STEP``), then each group of worlds whose physics is done is finished while the pool
-   steps the rest (``collect``): the divergence and speed check, ``_step_outcome``, the style features,
-   ``info``, the episode limit, and with ``SAME_STEP`` the reset of a world whose episode just ended.
+   reset together (``NEXT_STEP``; ``reset_worlds``), then each group of worlds whose physics is done is
+   finished while the pool steps the rest (``collect``): the divergence and speed check,
+   ``_step_outcome``, the style features, ``info``, the episode limit, and with ``SAME_STEP`` the reset of
+   the group's worlds whose episode just ended, together.
    For InterLevel, PlaMo and SIMS (``BATCH_OUTCOMES``) a group is finished batch-first, ``HumanoidEnv._finish_batch``:
    the divergence and speed check over the batch (``_sound_worlds``: the times, MuJoCo's warnings and the
    speeds as arrays; each world's body poses were brought up to its ``qpos`` by ``mj_kinematics`` in the
@@ -29,8 +30,13 @@ staircase into, and ``MjData``) and runs the phases of ``HumanoidEnv.step`` over
    per world in the physics thread right after its physics. Either way the code of the single env's
    ``step``, so a world's trajectory is bit-identical to a single env's with the same seed.
 
+Resets: ``HumanoidEnv._reset_worlds`` over the worlds reset together; each world draws from its own
+generator in the order of its own ``reset`` (so a world is the same reset alone or with others), and what
+needs no draw goes over them (InterLevel: the staircases' geometry and goals as one ``StairsLayout``, the
+first step outcomes in one call).
+
 Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
-``_before_physics``, ``reset``, the reads of each world's ``MjData`` (its time, warnings, speeds and state
+``_before_physics``, a reset's draws, ``mj_resetData`` and start pose, the reads of each world's ``MjData`` (its time, warnings, speeds and state
 views); for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel ``mj_kinematics`` (in
 the physics threads) and a few attribute reads (step count, start flags); for PlaMo also its
 heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
