@@ -222,6 +222,11 @@ def test_worlds_reset_together_equal_worlds_reset_one_by_one(kwargs):
         assert_same(together.step(action), one_by_one.step(action), f"step {t}")
     obs, infos = together.reset_worlds([])
     assert obs.shape == (0, *together.single_observation_space.shape) and infos == []
+    for worlds in ([1, 1], [5], [-1]):    # a world twice, out of range (a negative index would wrap)
+        with pytest.raises(ValueError, match="distinct world indices in \\[0, 4\\]"):
+            together.reset_worlds(worlds)
+    with pytest.raises(ValueError, match="one seed and one options per world"):
+        together.reset_worlds([0, 1], seeds=[3])
     together.close()
     one_by_one.close()
 

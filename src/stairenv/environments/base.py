@@ -8,8 +8,8 @@ import operator
 import os
 import warnings
 import zipfile
-from pathlib import Path
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import gymnasium as gym
@@ -439,7 +439,8 @@ class HumanoidEnv(gym.Env):
             env._after_action()
 
     @classmethod
-    def _action_targets(cls, envs: list[HumanoidEnv], actions: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    def _action_targets(cls, envs: list[HumanoidEnv], actions: np.ndarray,
+                        rows: np.ndarray | None = None) -> np.ndarray:
         """The PD targets of many worlds as one array (row k: world k), for a back-end that takes the ctrl
         of all worlds at once (``WarpPhysics(state_on_device=True)``): ``_prepare_worlds``' action map with
         no world's ctrl written. Only for classes with the plain action map and no ``_before_physics``."""

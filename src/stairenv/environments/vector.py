@@ -36,13 +36,14 @@ needs no draw goes over them (InterLevel: the staircases' geometry and goals as 
 first step outcomes in one call).
 
 Per-world parts (Python, one world at a time): the copy of each world's PD targets into its ctrl,
-``_before_physics``, a reset's draws, ``mj_resetData`` and start pose, the reads of each world's ``MjData`` (its time, warnings, speeds and state
-views); for PlaMoScene (its worlds' models differ) the whole finish; for InterLevel ``mj_kinematics`` (in
-the physics threads) and a few attribute reads (step count, start flags); for PlaMo also its
-heightmap and path targets (compiled, on the world's own height field and path) and reward terms; for SIMS
-also its goal targets and heightmap (compiled, on the world's own goal and scene heights), the reward's
-scalars and the ends. Batched: the action checks, the action map, the physics, the divergence and speed
-check (InterLevel, PlaMo, SIMS), their step outcomes, the assembly of obs / reward / flags / info.
+``_before_physics``, a reset's draws, ``mj_resetData`` and start pose, the reads of each world's
+``MjData`` (its time, warnings, speeds and state views); for PlaMoScene (its worlds' models differ) the
+whole finish; for InterLevel ``mj_kinematics`` (in the physics threads) and a few attribute reads (step
+count, start flags); for PlaMo also its heightmap and path targets (compiled, on the world's own height
+field and path) and reward terms; for SIMS also its goal targets and heightmap (compiled, on the world's
+own goal and scene heights), the reward's scalars and the ends. Batched: the action checks, the action
+map, the physics, the divergence and speed check (InterLevel, PlaMo, SIMS), their step outcomes, the
+assembly of obs / reward / flags / info.
 
 Autoreset follows Gymnasium 1.x: by default ``AutoresetMode.NEXT_STEP`` (the step after a world's
 episode ends resets that world and returns its reset observation with reward 0, terminated and
@@ -198,7 +199,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         """A full reset with a seed and options per world (SB3's ``VecEnv`` convention); returns the
         observations and the list of per-world infos."""
         self.check_open()
-        obs, infos = self.reset_worlds(range(self.num_envs), seeds, [world_options or None for world_options in options])
+        obs, infos = self.reset_worlds(range(self.num_envs), seeds, [each or None for each in options])
         self._was_reset = True
         return obs, infos
 
@@ -213,8 +214,13 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         needs no draw done over them at once; their observations (row k: ``worlds[k]``) and infos."""
         self.check_open()
         worlds = [int(i) for i in worlds]
+        if any(not 0 <= i < self.num_envs for i in worlds) or len(set(worlds)) != len(worlds):
+            raise ValueError(f"reset_worlds needs distinct world indices in [0, {self.num_envs - 1}], got {worlds}")
         seeds = [None] * len(worlds) if seeds is None else list(seeds)
         options = [None] * len(worlds) if options is None else list(options)
+        if len(seeds) != len(worlds) or len(options) != len(worlds):
+            raise ValueError(f"reset_worlds needs one seed and one options per world ({len(worlds)}), got "
+                             f"{len(seeds)} seeds and {len(options)} options")
         results = type(self.envs[0])._reset_worlds([self.envs[i] for i in worlds], seeds, options)
         obs = np.array([result[0] for result in results], dtype=self.single_observation_space.dtype)
         obs = obs.reshape(len(worlds), *self.single_observation_space.shape)
@@ -262,7 +268,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         on_device = self._state_on_device
         rows = np.array(stepping, dtype=np.int64) if self._shared_rows else None
         if on_device:    # the PD targets go to the device as one array
-            ctrl = type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping], rows) if stepping else None
+            ctrl = (type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping], rows)
+                    if stepping else None)
         else:
             type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping], rows)
 
