@@ -458,6 +458,13 @@ def test_world_infos_read_as_the_per_world_dicts():
     infos.put(np.array([3]), {"x": np.array([9.0]), "ok": np.array([True]), "n": np.array([5]),
                               "v": np.ones((1, 3)), "nest": {"h": np.array([0.3])}})
     infos[1] = {"x": 7.0, "extra": "reset", "nest": {"h": 0.5, "k": 1}}
+    # value(i, key): a world's dict.get, read from its row without making the dict
+    asked = ((2, "x"), (2, "ok"), (3, "n"), (2, "nest"), (2, "extra"), (1, "extra"), (1, "ok"))
+    got = [infos.value(i, key, "absent") for i, key in asked]
+    assert np.array_equal(infos.value(3, "v"), [1.0, 1.0, 1.0]) and infos._dicts[2] is None    # no dict made
+    for (i, key), value in zip(asked, got):
+        want = infos[i].get(key, "absent")
+        assert type(value) is type(want) and value == want, (i, key)
     world = infos[0]
     assert world == {"x": 1.5, "ok": True, "n": 3, "v": world["v"], "nest": {"h": 0.1}}
     assert [type(world[key]) for key in ("x", "ok", "n")] == [float, bool, int]

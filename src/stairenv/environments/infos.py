@@ -56,6 +56,16 @@ class WorldInfos(Sequence):
             info = self._dicts[i] = _row(self.columns, i) if self.in_columns[i] else {}
         return info
 
+    def value(self, i: int, key: str, default: Any = None) -> Any:
+        """``infos[i].get(key, default)`` without making world i's dict (read from its row of the columns)."""
+        if self._dicts[i] is None and self.in_columns[i]:
+            values = self.columns.get(key)
+            if values is None:
+                return default
+            return _row(values, i) if isinstance(values, dict) else (
+                values.item(i) if values.ndim == 1 else values[i])
+        return self[i].get(key, default)
+
     def __setitem__(self, i: int, info: dict[str, Any]) -> None:
         self._dicts[i] = info
         self._explicit[i] = True

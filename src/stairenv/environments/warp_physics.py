@@ -178,6 +178,12 @@ class WarpPhysics:
                             for name in PER_WORLD_MODEL_FIELDS}
         self._geom_pose_host = {name: np.stack([getattr(d, name) for _, d in worlds]).astype(np.float32)
                                 for name in GEOM_POSE_FIELDS}
+        # each world's fields as views, looked up once (the buffers of an MjModel and an MjData never move): a
+        # changed world's rows are copied from them, not from a field looked up again per world and reset
+        self._model_views = {name: [getattr(m, name) for m, _ in worlds] for name in PER_WORLD_MODEL_FIELDS}
+        self._geom_pose_views = {name: [getattr(d, name) for _, d in worlds] for name in GEOM_POSE_FIELDS}
+        self._state_views = {name: [getattr(d, name) for _, d in worlds] for name in STATE_FIELDS}
+        self._ctrl_views = [d.ctrl for _, d in worlds]
         self._state_host = {name: np.zeros((n, getattr(data0, name).size), dtype=np.float32)
                             for name in STATE_FIELDS}
         self._ctrl_host = np.zeros((n, model0.nu), dtype=np.float32)
@@ -271,12 +277,13 @@ class WarpPhysics:
             raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
         self._upload_model_rows()
         changed = np.flatnonzero(self._state_changed).tolist()
-        for k in changed:    # reset (or announced) worlds: their MjData into the host rows
-            data = self.worlds[k][1]
-            for name, host in self._state_host.items():
-                if host.shape[1]:
-                    host[k] = getattr(data, name)
-            self._time_host[k] = data.time
+        for name, host in self._state_host.items():    # reset (or announced) worlds: their MjData into the host rows
+            if host.shape[1]:
+                views = self._state_views[name]
+                for k in changed:
+                    host[k] = views[k]
+        for k in changed:
+            self._time_host[k] = self.worlds[k][1].time
         self._state_changed[:] = False
         if changed:    # else the device holds these fields already (the host rows are its last download)
             for name, host in self._state_host.items():
@@ -323,25 +330,30 @@ class WarpPhysics:
         changed = np.flatnonzero(self._changed)
         if changed.size:
             for name, host in self._model_host.items():
-                for k in changed:
-                    host[k] = getattr(self.worlds[k][0], name)
+                views = self._model_views[name]
+                for k in changed.tolist():
+                    host[k] = views[k]
                 self._assign(getattr(self.model, name), host)
             for name, host in self._geom_pose_host.items():    # the treads' poses (see GEOM_POSE_FIELDS)
-                for k in changed:
-                    host[k] = getattr(self.worlds[k][1], name)
+                views = self._geom_pose_views[name]
+                for k in changed.tolist():
+                    host[k] = views[k]
                 self._assign(getattr(self.data, name), host)
             self._changed[:] = False
 
     def _upload(self, worlds: Sequence[World], slots: np.ndarray) -> None:
         self._upload_model_rows()
         datas = [data for _, data in worlds]
+        order = slots.tolist()
         for name, host in self._state_host.items():    # the host's state is the truth (resets, pushes)
             if host.shape[1]:
-                host[slots] = np.stack([getattr(data, name) for data in datas])
+                views = self._state_views[name]
+                host[slots] = np.array([views[k] for k in order])
                 self._assign(getattr(self.data, name), host)
         self._time_host[slots] = np.fromiter((data.time for data in datas), dtype=np.float64, count=len(datas))
         self._assign(self.data.time, self._time_host)
-        self._ctrl_host[slots] = np.stack([data.ctrl for data in datas])
+        views = self._ctrl_views
+        self._ctrl_host[slots] = np.array([views[k] for k in order])
         self._assign(self.data.ctrl, self._ctrl_host)
 
     @staticmethod
@@ -384,22 +396,22 @@ class WarpPhysics:
         bad = _diverged(qpos, qvel, warm)
         full = self._overflowed(overflow[slots])
         self.overflows += int(full.sum())
-        dt = self._timestep
+        times = np.fromiter((data.time for _, data in worlds), dtype=np.float64, count=len(worlds))
+        for _ in range(nstep):    # as mj_step advances it, in float64
+            times += self._timestep
+        views = self._state_views
         has_act = act.shape[1] > 0
-        for k, (_, data) in enumerate(worlds):
-            data.qpos[:] = qpos[k]
-            data.qvel[:] = qvel[k]
-            data.qacc_warmstart[:] = warm[k]
+        for k, ((_, data), slot) in enumerate(zip(worlds, slots.tolist())):
+            views["qpos"][slot][:] = qpos[k]
+            views["qvel"][slot][:] = qvel[k]
+            views["qacc_warmstart"][slot][:] = warm[k]
             if has_act:
-                data.act[:] = act[k]
-            t = data.time
-            for _ in range(nstep):    # as mj_step advances it, in float64
-                t += dt
-            data.time = t
-            if bad[k]:
-                data.warning[_BADQACC].number += 1
-            if full[k]:
-                data.warning[_CONTACTFULL].number += 1
+                views["act"][slot][:] = act[k]
+            data.time = times[k]
+        for k in np.flatnonzero(bad).tolist():
+            worlds[k][1].warning[_BADQACC].number += 1
+        for k in np.flatnonzero(full).tolist():
+            worlds[k][1].warning[_CONTACTFULL].number += 1
 
     def close(self) -> None:
         self._graphs = {}

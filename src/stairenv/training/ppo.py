@@ -44,7 +44,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stairenv.environments.infos import column
+from stairenv.environments.infos import WorldInfos, column
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
@@ -57,6 +57,7 @@ from stairenv.training.distributed import LOCAL, Local
 EPISODE_KEYS = ("progress", "success", "fell", "stalled", "off_path", "grounded", "z_off_path", "z_above_path",
                 "contact_error", "xy_error", "z_error")
 CHECKPOINT_FORMAT = "stairenv-ppo-amp/1"
+_ABSENT = object()
 
 
 class CheckpointError(ValueError):
@@ -219,17 +220,23 @@ class EpisodeLog:
     def step(self, task_reward: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         self.task_return += task_reward
         self.length += 1
-        for i in np.flatnonzero(dones):
+        # an ended world's values read one by one (a batched env's WorldInfos: from its columns, no dict made)
+        if isinstance(infos, WorldInfos):
+            value = infos.value
+        else:
+            def value(i: int, key: str, default: Any = None) -> Any:
+                return infos[i].get(key, default)
+        for i in np.flatnonzero(dones).tolist():
             self._add("episode/task_return", self.task_return[i])
             self._add("episode/length", self.length[i])
-            info = infos[i]
             # starts on the stairs or at the furniture (training aids) are not the evaluation's
-            aided = info.get("stairs_start") or info.get("interaction_start")
+            aided = value(i, "stairs_start") or value(i, "interaction_start")
             groups = ("episode",) if aided else ("episode", "episode_floor_start")
             for key in EPISODE_KEYS:
-                if key in info:
+                result = value(i, key, _ABSENT)
+                if result is not _ABSENT:
                     for group in groups:
-                        self._add(f"{group}/{key}", float(info[key]))
+                        self._add(f"{group}/{key}", float(result))
         self.task_return[dones] = 0.0
         self.length[dones] = 0
 
