@@ -147,7 +147,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         self.render_mode = first.render_mode
         self.physics = make_physics(physics, physics_threads, physics_device, state_on_device)
         if hasattr(self.physics, "bind"):    # a device back-end: every world's model and data, once
-            self.physics.bind([(env.model, env.data) for env in self.envs])
+            #: the worlds as the device back-end holds them (one structure, never recompiled): what a step of
+            #: every world hands it
+            self._bound_worlds = [(env.model, env.data) for env in self.envs]
+            self.physics.bind(self._bound_worlds)
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
         self._world_changed = getattr(self.physics, "world_changed", None)
         #: a device back-end that keeps the state (``WarpPhysics(state_on_device=True)``): the step hands it the
@@ -265,13 +268,14 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         resetting = np.flatnonzero(self._autoreset)
         stepping = np.flatnonzero(~self._autoreset).tolist()
         envs = self.envs
+        everyone = len(stepping) == n    # the usual step (SAME_STEP always): no per-world lists to make
+        stepping_envs = envs if everyone else [envs[i] for i in stepping]
         on_device = self._state_on_device
         rows = np.array(stepping, dtype=np.int64) if self._shared_rows else None
         if on_device:    # the PD targets go to the device as one array
-            ctrl = (type(envs[0])._action_targets([envs[i] for i in stepping], actions[stepping], rows)
-                    if stepping else None)
+            ctrl = type(envs[0])._action_targets(stepping_envs, actions[stepping], rows) if stepping else None
         else:
-            type(envs[0])._prepare_worlds([envs[i] for i in stepping], actions[stepping], rows)
+            type(envs[0])._prepare_worlds(stepping_envs, actions[stepping], rows)
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             if len(resetting):
@@ -289,7 +293,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             if self.batch_outcomes:    # the task over this group of worlds in one call
                 state = None if not on_device else self.physics.state if len(ks) == len(stepping) else {
                     key: value[ks] for key, value in self.physics.state.items()}
-                finished = type(envs[0])._finish_batch([envs[i] for i in group.tolist()], poses_current=True,
+                whole = len(ks) == len(stepping) and ks == list(range(len(stepping)))
+                group_envs = stepping_envs if whole else [envs[i] for i in group.tolist()]
+                finished = type(envs[0])._finish_batch(group_envs, poses_current=True,
                                                        rows=group if self._shared_rows else None,
                                                        device_state=state)
             else:
@@ -316,7 +322,10 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
                 for k, i in enumerate(ended.tolist()):
                     finals[i] = (final_obs[k], reset_infos[k])
 
-        worlds = [(envs[i].model, envs[i].data) for i in stepping]
+        if on_device and everyone:
+            worlds = self._bound_worlds
+        else:    # a world's model and data as they are now (SIMS compiles a new model at a reset)
+            worlds = [(envs[i].model, envs[i].data) for i in stepping]
 
         def finish(k: int) -> None:    # per world, in the physics thread, right after its physics
             results[k] = envs[stepping[k]]._finish_step()

@@ -149,6 +149,7 @@ class WarpPhysics:
         self.model = self.data = None
         self.worlds: list[World] = []
         self._slot: dict[int, int] = {}
+        self._bound: Sequence[World] | None = None
         self._graphs: dict[int, object] = {}
         #: world-steps whose device buffers overflowed (contacts or constraint rows dropped; a full contact
         #: pool flags every world of that step), since construction
@@ -168,6 +169,7 @@ class WarpPhysics:
                 raise ValueError(f"physics='warp' needs one model structure in every world; world {k} differs")
         n = len(worlds)
         self.worlds = list(worlds)
+        self._bound, self._every_slot = worlds, np.arange(n)    # a step of the list bound: every world, in order
         self._slot = {id(data): k for k, (_, data) in enumerate(worlds)}
         with wp.ScopedDevice(self.device):
             self.model = mjw.put_model(model0, batch_sizes=dict.fromkeys(PER_WORLD_MODEL_FIELDS, n))
@@ -245,10 +247,7 @@ class WarpPhysics:
         if self.model is None:
             raise RuntimeError("WarpPhysics.bind(worlds) must be called before step")
         wp = self._wp
-        try:
-            slots = np.fromiter((self._slot[id(data)] for _, data in worlds), dtype=np.int64, count=len(worlds))
-        except KeyError:
-            raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
+        slots = self._slots(worlds)
         self._upload(worlds, slots)
         with wp.ScopedDevice(self.device):
             self.data.overflow.zero_()
@@ -271,10 +270,7 @@ class WarpPhysics:
         if ctrl is None:
             raise ValueError("WarpPhysics(state_on_device=True).step needs the worlds' ctrl as one array (ctrl=)")
         wp, mjw = self._wp, self._mjw
-        try:
-            slots = np.fromiter((self._slot[id(data)] for _, data in worlds), dtype=np.int64, count=len(worlds))
-        except KeyError:
-            raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
+        slots = self._slots(worlds)
         self._upload_model_rows()
         changed = np.flatnonzero(self._state_changed).tolist()
         for name, host in self._state_host.items():    # reset (or announced) worlds: their MjData into the host rows
@@ -318,6 +314,15 @@ class WarpPhysics:
                 then(k)
         if collect is not None:
             collect(list(range(len(worlds))))
+
+    def _slots(self, worlds: Sequence[World]) -> np.ndarray:
+        """The device rows of ``worlds`` (those of the list ``bind`` got, without a lookup per world)."""
+        if worlds is self._bound:
+            return self._every_slot
+        try:
+            return np.fromiter((self._slot[id(data)] for _, data in worlds), dtype=np.int64, count=len(worlds))
+        except KeyError:
+            raise ValueError("WarpPhysics.step got a world it was not bound to (bind all worlds first)") from None
 
     def _overflowed(self, overflow: np.ndarray) -> np.ndarray:
         """Which worlds' contacts or constraint rows overflowed the device's buffers."""
@@ -418,6 +423,7 @@ class WarpPhysics:
         self.model = self.data = None
         self.worlds = []
         self._slot = {}
+        self._bound = None
 
 
 def _diverged(qpos: np.ndarray, qvel: np.ndarray, warm: np.ndarray) -> np.ndarray:
