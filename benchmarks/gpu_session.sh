@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Issue #27's measurements for one short GPU session, in order of value, each under its own time limit
-# (at most 9.4 minutes in all, within the device tool's 10-minute call), so that a session with little
+# (at most 8.9 minutes in all, within the device tool's 10-minute call), so that a session with little
 # device time gets the most from one call:
 #
 #   OUT=results bash benchmarks/gpu_session.sh        # PYTHON=... picks the interpreter (default python)
@@ -28,10 +28,15 @@ nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu
 # below pays it: on an H200 a cold compile took over 3 minutes (session 31), which ran a measurement out of time
 step compile 240 "$PY" benchmarks/bench_warp.py --sizes 64 --c-size 0 --train-size 0 --train-c-size 0 --budget 1 \
     --deadline 230 --state-on-device --out "$OUT/compile.json"
-# 1 and 8 ranks sharing the GPU over 4,096 worlds, the state on the device: the host's per-world task on 8 cores
-# (session 31 measured 8 ranks with the host's MjData the truth, 16k env steps/s end to end; 1 rank then
-# failed, its cause not kept: bench_ranks now keeps each rank's stderr)
-step ranks_warp 270 "$PY" benchmarks/bench_ranks.py --ranks 1,8 --state-on-device --timeout 125 \
+# the env and the lean trainer at 4,096 worlds with the state on the device, after session 32's grouped resets
+# (session 31 on an H200: env 16-20k env steps/s, trainer 8.8k; session 32 projects ~40k for the env)
+step env_warp 100 "$PY" benchmarks/bench_warp.py --sizes 4096 --c-size 0 --train-size 4096 --train-c-size 0 \
+    --train-iterations 3 --budget 5 --deadline 80 --state-on-device --out "$OUT/env_warp.json"
+# 8 ranks sharing the GPU over 4,096 worlds, the state on the device: the host's per-world task on 8 cores
+# (session 31 measured 8 ranks with the host's MjData the truth, 16k env steps/s end to end). One rank under
+# torchrun failed in session 31, its cause not kept (bench_ranks now keeps each rank's stderr): `--ranks 1`
+# is the next call's, with what time is left
+step ranks_warp 140 "$PY" benchmarks/bench_ranks.py --ranks 8 --state-on-device --timeout 125 \
     --out "$OUT/ranks_warp.json"
 # the lean trainer on CUDA against the CPU (skipped where torch sees no GPU)
 step tests_cuda 50 "$PY" -m pytest -q -p no:cacheprovider tests/test_training.py -k cuda
