@@ -131,7 +131,7 @@ def arrays_us(step, worlds: int, calls: int) -> float:
 def reset_us(venv, obs: np.ndarray, count: int, group: int, device: bool = False) -> float:
     """us per world reset, ``group`` worlds at a time (``reset_worlds``; one: ``reset_world``), the worlds
     in turn; each reset world's first observation written into ``obs``. ``device``: ending as on a device
-    back-end (``mj_kinematics``)."""
+    back-end (``mj_kinematics``; the C back-end's ``mj_forward`` again afterwards)."""
     worlds = np.arange(count) % venv.num_envs
     for env in venv.envs:
         env._reset_forward = mujoco.mj_kinematics if device else mujoco.mj_forward
@@ -143,7 +143,10 @@ def reset_us(venv, obs: np.ndarray, count: int, group: int, device: bool = False
         for at in range(0, count, group):
             rows = np.unique(worlds[at:at + group])
             obs[rows] = venv.reset_worlds(rows)[0]
-    return (time.perf_counter() - start) / count * 1e6
+    seconds = time.perf_counter() - start
+    for env in venv.envs:
+        env._reset_forward = mujoco.mj_forward
+    return seconds / count * 1e6
 
 
 def device_host_env(worlds: int, seed: int):

@@ -275,7 +275,8 @@ class StairsLayout(NamedTuple):
 
     @classmethod
     def of(cls, stairs: Sequence[Staircase], slots: int) -> StairsLayout:
-        """The layout of ``stairs`` over ``slots`` tread slots (at least each staircase's ``num_steps``)."""
+        """The layout of ``stairs`` over ``slots`` tread slots: at least each staircase's ``num_steps`` for its
+        treads (fewer keep the first ``slots``; 0: the markers and frames alone)."""
         numbers = _numbers(stairs)
         step_height, step_depth, width, num_steps, landing_depth, yaw, distance = numbers
         # math's cos and sin, as Staircase's frame and the quaternion have always used (numpy's may differ in
