@@ -343,7 +343,8 @@ class HumanoidEnv(gym.Env):
             env._build_world(env.np_random, world_options)
 
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
-        """The episode's world: write it into the model, or rebuild the model (``_compile``)."""
+        """The episode's world: write it into the model, or rebuild the model (``_compile``). A class that
+        writes many worlds at once overrides ``_build_worlds`` instead."""
         raise NotImplementedError
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
@@ -382,7 +383,7 @@ class HumanoidEnv(gym.Env):
         state = envs[0]._read_state() if len(envs) == 1 else cls._read_worlds(envs)
         features = amp_features(state)
         for k, env in enumerate(envs):
-            world = state if len(envs) == 1 else _row(state, k)
+            world = state if len(envs) == 1 else row_of(state, k)
             env._amp.fill_features(features[k])
             env._start_tracking(world)
         outcomes = cls._step_outcomes(envs, state)
@@ -576,12 +577,10 @@ class HumanoidEnv(gym.Env):
         amp = shared["amp"] = np.array([env._amp.frames for env in envs])
         # the action map too (read only; set when the model is compiled, which such a class does once), so that
         # the PD targets of a group are two row reads, not two stacks of the worlds' arrays
-        for name in ("_ctrl_offset", "_ctrl_scale"):
-            array = shared[name] = np.array([getattr(env, name) for env in envs])
-            for i, env in enumerate(envs):
-                setattr(env, name, array[i])
+        offset = shared["_ctrl_offset"] = np.array([env._ctrl_offset for env in envs])
+        scale = shared["_ctrl_scale"] = np.array([env._ctrl_scale for env in envs])
         for i, env in enumerate(envs):
-            env._amp.frames = amp[i]
+            env._amp.frames, env._ctrl_offset, env._ctrl_scale = amp[i], offset[i], scale[i]
             env._rows = shared
 
     @classmethod
@@ -623,7 +622,7 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _step_outcomes(cls, envs: list[HumanoidEnv], state) -> list[StepOutcome]:
         """``_step_outcome`` of each world of ``envs`` (row k of the batch ``state`` is world k's state)."""
-        return [env._step_outcome(_row(state, k)) for k, env in enumerate(envs)]
+        return [env._step_outcome(row_of(state, k)) for k, env in enumerate(envs)]
 
     def _before_physics(self) -> None:
         """Called by ``step`` after the action is applied, before the physics."""
@@ -849,6 +848,7 @@ def _set_attribute(env: HumanoidEnv, path: str, value) -> None:
     setattr(_attribute(env, owner) if owner else env, name, value)
 
 
-def _row(state, k: int):
-    """Row ``k`` of a batch state, as a batch of one (views)."""
-    return type(state)(*(field[k:k + 1] for field in state))
+def row_of(batch, k: int):
+    """Row ``k`` of a batch (a NamedTuple of arrays, row i: world i: a state, a goal), as a batch of one
+    (views)."""
+    return type(batch)(*(field[k:k + 1] for field in batch))

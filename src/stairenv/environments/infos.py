@@ -7,8 +7,9 @@ single env would give: ``infos[i]`` builds world i's dict (Python numbers, as th
 first time it is asked for. A world whose info is not in the columns (a reset, an unstable step, a
 task that finishes world by world) has its dict set whole: ``infos[i] = {...}``.
 
-Consumers that need one key of every world (the trainer's ``amp_obs``) read ``column(infos, key)``, and
-the gymnasium ``step`` reads ``infos.stacked()``: both from the columns, with no dict per world.
+Consumers that need one key of every world (the trainer's ``amp_obs``) read ``column(infos, key)``, one
+key of one world ``value_of(infos, i, key)`` (the trainer's episode log), and the gymnasium ``step`` reads
+``infos.stacked()``: all from the columns, with no dict per world.
 ``stack_infos`` is the per-world route (``SyncVectorEnv``'s layout), used where there are no columns.
 Gymnasium has only that route (``VectorEnv._add_info``, world by world), hence this module.
 """
@@ -60,10 +61,7 @@ class WorldInfos(Sequence):
         """``infos[i].get(key, default)`` without making world i's dict (read from its row of the columns)."""
         if self._dicts[i] is None and self.in_columns[i]:
             values = self.columns.get(key)
-            if values is None:
-                return default
-            return _row(values, i) if isinstance(values, dict) else (
-                values.item(i) if values.ndim == 1 else values[i])
+            return default if values is None else _cell(values, i)
         return self[i].get(key, default)
 
     def __setitem__(self, i: int, info: dict[str, Any]) -> None:
@@ -93,6 +91,11 @@ def column(infos: Sequence[dict[str, Any]], key: str) -> np.ndarray:
             values[i] = infos[i][key]
         return values
     return np.stack([info[key] for info in infos])
+
+
+def value_of(infos: Sequence[dict[str, Any]], i: int, key: str, default: Any = None) -> Any:
+    """``infos[i].get(key, default)``, read from the columns where ``infos`` has them (no dict made)."""
+    return infos.value(i, key, default) if isinstance(infos, WorldInfos) else infos[i].get(key, default)
 
 
 def stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:
@@ -181,8 +184,12 @@ def _scatter(into: Columns, columns: Columns, rows, n: int) -> None:
 
 def _row(columns: Columns, i: int) -> dict[str, Any]:
     """World i's dict: numbers as Python numbers (``item()``), array rows as arrays, nested dicts alike."""
-    return {key: _row(values, i) if isinstance(values, dict) else
-            (values.item(i) if values.ndim == 1 else values[i]) for key, values in columns.items()}
+    return {key: _cell(values, i) for key, values in columns.items()}
+
+
+def _cell(values, i: int) -> Any:
+    """World i's value of one column (or nested columns), as its dict holds it."""
+    return _row(values, i) if isinstance(values, dict) else (values.item(i) if values.ndim == 1 else values[i])
 
 
 def _masked(columns: Columns, mask: np.ndarray) -> dict[str, Any]:

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.base import HumanoidEnv, StepOutcome
+from stairenv.environments.base import HumanoidEnv, StepOutcome, row_of
 from stairenv.environments.config import KEYWORD_NAMES, InterLevelConfig, document_keywords, keyword_signature, resolve
 from stairenv.environments.config import REWARDS  # noqa: F401 (importable from here, as before)
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
@@ -189,12 +189,10 @@ class InterLevelEnv(HumanoidEnv):
         checkpoint), not ended by the task: the step-height curriculum does not judge it."""
         return super().reset(seed=seed, options=options)
 
-    def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
-        self._set_stairs([self], [self._draw_stairs(rng, options)])
-
     @classmethod
     def _build_worlds(cls, envs: list[InterLevelEnv], options: Sequence[dict[str, Any] | None]) -> None:
-        """Each world's staircase drawn with its own generator, then all written as one layout."""
+        """Each world's staircase drawn with its own generator, then all written as one layout (this class's
+        ``_build_world``: a single env's reset is a group of one)."""
         cls._set_stairs(envs, [env._draw_stairs(env.np_random, world_options)
                                for env, world_options in zip(envs, options)])
 
@@ -360,7 +358,7 @@ class InterLevelEnv(HumanoidEnv):
         for k, (env, world_stairs) in enumerate(zip(envs, stairs)):
             env.stairs = world_stairs
             env._slots.place_layout(env.model, layout, k)
-            env._goal = goals if len(envs) == 1 else task.StairsGoal(*(field[k:k + 1] for field in goals))
+            env._goal = goals if len(envs) == 1 else row_of(goals, k)
             env._packed_goal[...] = packed[k]
             env._stairs_info = world_stairs.as_dict()
             env._camera_azimuth = math.degrees(world_stairs.yaw) + CAMERA_AZIMUTH_FROM_STAIRS

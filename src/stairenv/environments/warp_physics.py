@@ -126,10 +126,10 @@ class WarpPhysics:
     ``state_on_device`` (opt-in; default False, the host's ``MjData`` is the truth): the device's state is
     the truth between resets. A step then takes the worlds' ctrl as one array (``step(..., ctrl=...)``),
     reads only the ``MjData`` of worlds marked changed (``world_changed(k)``: a reset, or a write into a
-    world's ``MjData`` that must reach the device) and sends the state up only when one was (whole fields), runs the kinematics on the device and leaves the stepped
-    worlds' state in ``state`` as arrays (``qpos``, ``qvel``, ``xpos``, ``xmat``, ``diverged``)
-    instead of writing each world's ``MjData``; ``sync_worlds(ks)`` writes worlds' ``MjData`` on request
-    (rendering, reading a world's data)."""
+    world's ``MjData`` that must reach the device) and sends the state up only when one was (whole fields),
+    runs the kinematics on the device and leaves the stepped worlds' state in ``state`` as arrays (``qpos``,
+    ``qvel``, ``xpos``, ``xmat``, ``diverged``) instead of writing each world's ``MjData``; ``sync_worlds(ks)``
+    writes worlds' ``MjData`` on request (rendering, reading a world's data)."""
 
     def __init__(self, device: str | None = None, nconmax: int = 32, njmax: int = 128,
                  graph: bool | None = None, state_on_device: bool = False) -> None:
@@ -216,7 +216,7 @@ class WarpPhysics:
             model, data = self.worlds[k]
             for name, host in self._state_host.items():
                 if host.shape[1]:
-                    getattr(data, name)[:] = host[k]
+                    self._state_views[name][k][:] = host[k]
             data.time = self._time_host[k]
             mujoco.mj_kinematics(model, data)
             self._stale[k] = False

@@ -44,7 +44,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stairenv.environments.infos import WorldInfos, column
+from stairenv.environments.infos import column, value_of
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
@@ -220,20 +220,14 @@ class EpisodeLog:
     def step(self, task_reward: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         self.task_return += task_reward
         self.length += 1
-        # an ended world's values read one by one (a batched env's WorldInfos: from its columns, no dict made)
-        if isinstance(infos, WorldInfos):
-            value = infos.value
-        else:
-            def value(i: int, key: str, default: Any = None) -> Any:
-                return infos[i].get(key, default)
-        for i in np.flatnonzero(dones).tolist():
+        for i in np.flatnonzero(dones).tolist():    # an ended world's values read without making its dict
             self._add("episode/task_return", self.task_return[i])
             self._add("episode/length", self.length[i])
             # starts on the stairs or at the furniture (training aids) are not the evaluation's
-            aided = value(i, "stairs_start") or value(i, "interaction_start")
+            aided = value_of(infos, i, "stairs_start") or value_of(infos, i, "interaction_start")
             groups = ("episode",) if aided else ("episode", "episode_floor_start")
             for key in EPISODE_KEYS:
-                result = value(i, key, _ABSENT)
+                result = value_of(infos, i, key, _ABSENT)
                 if result is not _ABSENT:
                     for group in groups:
                         self._add(f"{group}/{key}", float(result))

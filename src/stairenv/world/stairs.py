@@ -171,7 +171,8 @@ class Staircase:
 
     def local_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """Centres and half sizes (n, 3) of the n tread blocks, in the stairs frame."""
-        centres, half = _tread_boxes(*_numbers([self]), self.num_steps)
+        step_height, step_depth, width, num_steps, landing_depth, _, _ = _numbers([self])
+        centres, half = _tread_boxes(step_height, step_depth, width, num_steps, landing_depth, self.num_steps)
         return centres[0], half[0]
 
     def world_boxes(self) -> tuple[np.ndarray, np.ndarray]:
@@ -231,7 +232,7 @@ def _numbers(stairs: Sequence[Staircase]) -> tuple[np.ndarray, ...]:
     return tuple(np.array([getattr(s, name) for s in stairs]) for name in _FIELDS)
 
 
-def _tread_boxes(step_height, step_depth, width, num_steps, landing_depth, yaw, distance,
+def _tread_boxes(step_height, step_depth, width, num_steps, landing_depth,
                  slots: int) -> tuple[np.ndarray, np.ndarray]:
     """Centres and half sizes (B, slots, 3) in the stairs frame of treads 1..slots of B staircases (the
     arrays of ``_numbers``): tread k is a solid block from the ground to ``k * step_height``, the last one
@@ -277,8 +278,7 @@ class StairsLayout(NamedTuple):
     def of(cls, stairs: Sequence[Staircase], slots: int) -> StairsLayout:
         """The layout of ``stairs`` over ``slots`` tread slots: at least each staircase's ``num_steps`` for its
         treads (fewer keep the first ``slots``; 0: the markers and frames alone)."""
-        numbers = _numbers(stairs)
-        step_height, step_depth, width, num_steps, landing_depth, yaw, distance = numbers
+        step_height, step_depth, width, num_steps, landing_depth, yaw, distance = _numbers(stairs)
         # math's cos and sin, as Staircase's frame and the quaternion have always used (numpy's may differ in
         # the last bit)
         cos = np.array([math.cos(s.yaw) for s in stairs])
@@ -291,7 +291,7 @@ class StairsLayout(NamedTuple):
         standing = np.full_like(cos, STANDING_ROOT_HEIGHT)
         bottom_local = np.stack((zero, zero, standing), axis=-1)
         top_local = np.stack((landing_start + landing_depth / 2, zero, top_height + STANDING_ROOT_HEIGHT), axis=-1)
-        centres, half = _tread_boxes(*numbers, slots)
+        centres, half = _tread_boxes(step_height, step_depth, width, num_steps, landing_depth, slots)
         parked = np.arange(slots) >= num_steps[:, None]
         world_centres = _on_centre_line(centres, axis, origin)
         world_centres[parked], half[parked] = _PARKED_POS, _PARKED_HALF
