@@ -515,9 +515,9 @@ def test_step_worlds_infos_are_the_single_envs(env_id):
 
 
 def test_shared_rows_are_the_worlds_own_carry():
-    """A batched InterLevel env holds its worlds' carry (last root, goal, stall clock, style history) and
-    action map as rows of one array each: a world's own reset writes its rows; a copy of a world holds its
-    own."""
+    """A batched InterLevel env holds its worlds' carry (last root, goal, stall clock, style history), action
+    map and bookkeeping (step count, reference start, last outcome) as rows of one array each: a world's
+    own reset writes its rows; a copy of a world holds its own."""
     import copy
 
     vec = batched("InterLevel-v0", 3)
@@ -532,12 +532,64 @@ def test_shared_rows_are_the_worlds_own_carry():
     vec.step(action)
     for env, world_action in zip(vec.envs, action):    # the PD targets read from the shared map
         assert np.array_equal(env.data.ctrl, env._ctrl_offset + env._ctrl_scale * world_action)
-    vec.step(np.zeros((3, 28)))
+    obs, reward, *_ = vec.step(np.zeros((3, 28)))
     assert np.array_equal(rows["_prev_root"][1], vec.envs[1].data.xpos[vec.envs[1]._idx.pelvis_id])
+    assert rows["_step_count"].tolist() == [2, 2, 2] and [env._steps for env in vec.envs] == [2, 2, 2]
+    assert rows["_reference_flag"].tolist() == [env._reference_start for env in vec.envs]
+    # the last outcome: the batch's, left in the rows; a world's own made when read, as a single env's
+    assert all(batch is not None for batch in rows["_outcome_batch"])
+    last = vec.envs[1]._outcome
+    assert rows["_outcome_batch"][1] is None and rows["_outcome_batch"][0] is not None
+    assert np.array_equal(last.obs, obs[1]) and type(last.reward) is float and last.reward == reward[1]
     vec.reset_world(2, seed=11)
     assert np.array_equal(rows["_packed_goal"][2:3], vec.envs[2]._goal.pack())
-    clone = copy.deepcopy(vec.envs[1])
-    assert not hasattr(clone, "_rows") and not np.shares_memory(clone._prev_root, rows["_prev_root"])
+    assert rows["_step_count"][2] == 0 and rows["_outcome_batch"][2] is None    # its reset's outcome, its own
+    clone = copy.deepcopy(vec.envs[0])    # its last outcome still in the rows: the copy takes it
+    assert clone._rows is None and not np.shares_memory(clone._prev_root, rows["_prev_root"])
+    assert np.array_equal(clone._outcome.obs, obs[0]) and clone._outcome.reward == reward[0]
     clone.step(np.zeros(28))
-    assert np.array_equal(rows["_prev_root"][1], vec.envs[1].data.xpos[vec.envs[1]._idx.pelvis_id])
+    assert clone._steps == 3 and vec.envs[0]._steps == 2
+    assert not np.shares_memory(clone._step_count, rows["_step_count"])
+    assert np.array_equal(rows["_prev_root"][0], vec.envs[0].data.xpos[vec.envs[0]._idx.pelvis_id])
     vec.close()
+
+
+def test_episode_infos_are_columns_over_the_worlds():
+    """A batched InterLevel env keeps its worlds' episode infos (the staircase, the stair start) as columns
+    written at their resets, and a step's infos read them; an episode info with other keys in one world
+    is refused, naming it (a step's infos are columns)."""
+    from stairenv.environments.infos import column
+    from stairenv.environments.interlevel import InterLevelEnv
+
+    class Tagged(InterLevelEnv):
+        tag = False
+
+        def _episode_info(self):
+            return {**super()._episode_info(), **({"tag": 1} if self.tag else {})}
+
+    vec = HumanoidVectorEnv(3, env_class=Tagged)
+    vec.reset(seed=0)
+    rows = vec.envs[0]._rows
+    vec.reset_world(1, seed=9)
+    _, _, _, _, infos, _ = vec.step_worlds(np.zeros((3, 28)))
+    assert np.array_equal(rows["_episode"]["stairs"]["num_steps"], [env.stairs.num_steps for env in vec.envs])
+    assert [infos[i]["stairs"] for i in range(3)] == [env.stairs.as_dict() for env in vec.envs]
+    assert np.array_equal(column(infos, "stairs_start"), [env._stairs_start for env in vec.envs])
+    vec.envs[1].tag = True
+    with pytest.raises(ValueError, match=r"same keys .*world\(s\) \[1\] gave other keys"):
+        vec.reset_world(1, seed=9)
+    vec.close()
+
+
+def test_episode_columns_widen_rather_than_cut():
+    """``write_rows``: a later group's values that the column's dtype cannot hold (floats into an int column)
+    widen the column instead of being cut; ``take_rows`` reads nested columns by rows."""
+    from stairenv.environments.infos import take_rows, write_rows
+
+    columns = {}
+    write_rows(columns, {"n": np.array([3, 4]), "nest": {"h": np.array([True, False])}}, np.array([0, 2]), 3)
+    write_rows(columns, {"n": np.array([2.5]), "nest": {"h": np.array([True])}}, np.array([1]), 3)
+    assert columns["n"].dtype == np.float64 and columns["n"].tolist() == [3.0, 2.5, 4.0]
+    assert columns["nest"]["h"].dtype == bool
+    taken = take_rows(columns, np.array([2, 1]))
+    assert taken["n"].tolist() == [4.0, 2.5] and taken["nest"]["h"].tolist() == [False, True]

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from stairenv.environments.infos import columns_of_rows, flatten
+from stairenv.environments.infos import columns_of_rows, flatten, take_rows, write_rows
 from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.placement import place_reference_state
@@ -179,19 +179,44 @@ class HumanoidEnv(gym.Env):
         ``num_frames`` of the reference windows a discriminator compares them with."""
         return len(self._amp.frames)
 
+    #: the arrays over a batched env's worlds that this world's bookkeeping is a row of (``_share_rows``; None:
+    #: the world's own), and its row
+    _rows: dict[str, Any] | None = None
+    _row = 0
+
     @property
     def _outcome(self) -> StepOutcome:
-        """The last step outcome. A batched finish leaves its batch's outcome and this world's row
+        """The last step outcome. A batched finish leaves its batch's outcome in the worlds' rows
         (``_finish_batch``); the world's own ``StepOutcome`` is made the first time it is read."""
-        last = self._last_outcome
-        if type(last) is tuple:
-            batch, k = last
-            last = self._last_outcome = batch.world(k)
-        return last
+        shared = self._rows
+        if shared is not None and shared["_outcome_batch"][self._row] is not None:
+            batch = shared["_outcome_batch"][self._row].outcome
+            self._outcome = batch.world(int(shared["_outcome_index"][self._row]))
+        return self._last_outcome
 
     @_outcome.setter
     def _outcome(self, outcome: StepOutcome) -> None:
         self._last_outcome = outcome
+        if self._rows is not None:
+            self._rows["_outcome_batch"][self._row] = None
+
+    @property
+    def _steps(self) -> int:
+        """The steps of the current episode (a row of the batch's counts where they are shared)."""
+        return int(self._step_count[0])
+
+    @_steps.setter
+    def _steps(self, steps: int) -> None:
+        self._step_count[0] = steps
+
+    @property
+    def _reference_start(self) -> bool:
+        """Whether the episode started from a reference state (``info["reference_start"]``)."""
+        return bool(self._reference_flag[0])
+
+    @_reference_start.setter
+    def _reference_start(self, flag: bool) -> None:
+        self._reference_flag[0] = flag
 
     # Isaac Lab's AMP convention (``amp_observation_space``, ``collect_reference_motions``, ``amp_obs`` in
     # the step's info), so that skrl's AMP agent and Isaac Lab-style trainers run against these envs.
@@ -236,7 +261,10 @@ class HumanoidEnv(gym.Env):
         self._camera: FollowCamera | None = None
         self._viewer: HumanViewer | None = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
-        self._reference_start = False
+        #: what ``_steps`` and ``_reference_start`` read: arrays of one row that ``_share_rows`` makes rows of the
+        #: batch's, so that a batched step counts and reports them as arrays
+        self._step_count = np.zeros(1, dtype=np.int64)
+        self._reference_flag = np.zeros(1, dtype=bool)
         self._reference_clip = None
         self.model: mujoco.MjModel | None = None
 
@@ -275,7 +303,10 @@ class HumanoidEnv(gym.Env):
         state = self.__dict__.copy()
         for name in self._DATA_VIEWS:
             state.pop(name, None)
-        state.pop("_rows", None)    # a copy holds its own carry, not its batch's rows
+        if self._rows is not None:    # a copy holds its own carry and last outcome, not its batch's rows
+            state.pop("_rows")
+            if "_last_outcome" in state:
+                state["_last_outcome"] = self._outcome
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -380,6 +411,8 @@ class HumanoidEnv(gym.Env):
             env._needs_reset = False
             env._steps = 0
             env._episode_paths, env._episode_values = flatten(env._episode_info())
+        if envs[0]._rows is not None:
+            _share_episode_infos(envs)
         state = envs[0]._read_state() if len(envs) == 1 else cls._read_worlds(envs)
         features = amp_features(state)
         for k, env in enumerate(envs):
@@ -509,9 +542,9 @@ class HumanoidEnv(gym.Env):
             return BatchStep.of_worlds(cls._finish_worlds(envs, poses_current))
         n = len(envs)
         sound = cls._sound_worlds(envs, poses_current) if device_state is None else cls._sound_arrays(envs, device_state)
-        unstable = _count_steps(envs, sound)
+        unstable = _count_steps(envs, sound, rows)
         obs = reward = terminated = truncated = None
-        stable = None if not unstable else np.array([k for k in range(n) if k not in unstable], dtype=np.int64)
+        stable = None if not unstable else np.flatnonzero(sound)
         worlds = envs if stable is None else [envs[k] for k in stable]
         columns: dict[str, Any] = {}
         if worlds:
@@ -527,16 +560,22 @@ class HumanoidEnv(gym.Env):
                 amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
             else:
                 amp_obs = FeatureHistory.push_rows(worlds[0]._rows["amp"], world_rows, amp_features(state))
-            for j, env in enumerate(worlds):
-                env._outcome = (outcome, j)    # made a StepOutcome only when read (see _outcome)
             first = worlds[0]
-            episode_columns = columns_of_rows(first._episode_paths, [env._episode_values for env in worlds])
-            steps = np.fromiter((env._steps for env in worlds), dtype=np.int64, count=len(worlds))
+            shared = first._rows
+            if world_rows is None:
+                for j, env in enumerate(worlds):
+                    env._outcome = outcome.world(j)
+                episode_columns = columns_of_rows(first._episode_paths, [env._episode_values for env in worlds])
+                steps = np.array([env._steps for env in worlds], dtype=np.int64)
+                reference_start = np.array([env._reference_start for env in worlds], dtype=bool)
+            else:    # the worlds' rows: no per-world Python
+                shared["_outcome_batch"][world_rows] = _OutcomeOfBatch(outcome)    # a world's made when read
+                shared["_outcome_index"][world_rows] = np.arange(len(worlds))
+                episode_columns = take_rows(shared["_episode"], world_rows)
+                steps, reference_start = shared["_step_count"][world_rows], shared["_reference_flag"][world_rows]
             columns = {**outcome.results, **episode_columns, "time": steps * first.dt,
                        "physics_unstable": np.zeros(len(worlds), dtype=bool), "amp_obs": amp_obs,
-                       "reference_start": np.fromiter((env._reference_start for env in worlds), dtype=bool,
-                                                      count=len(worlds)),
-                       **outcome.terms}
+                       "reference_start": reference_start, **outcome.terms}
             obs, reward, terminated = outcome.obs, outcome.reward, outcome.terminated
             truncated = np.zeros(len(worlds), dtype=bool)
         if unstable:    # the unstable worlds' rows, from their whole results
@@ -569,11 +608,18 @@ class HumanoidEnv(gym.Env):
         ``_finish_batch(envs, rows=...)`` then reads and writes the carry of a group of worlds by their rows
         (``_take_carry``, ``_put_carry``) instead of world by world. A world's own code keeps working on its
         views."""
-        shared: dict[str, np.ndarray] = {}
-        for path in cls.ROW_ARRAYS:
+        shared: dict[str, Any] = {}
+        for path in (*_WORLD_ROWS, *cls.ROW_ARRAYS):
             array = shared[path] = np.concatenate([_attribute(env, path) for env in envs])
             for i, env in enumerate(envs):
                 _set_attribute(env, path, array[i:i + 1])
+        # the last step outcome, as the batch's that a batched finish left (an ``_OutcomeOfBatch``) and the
+        # world's index into it; None: the world's own (see ``_outcome``)
+        shared["_outcome_batch"] = np.full(len(envs), None, dtype=object)
+        shared["_outcome_index"] = np.zeros(len(envs), dtype=np.int64)
+        #: the episode's info (``_episode_info``, the same keys in every world) as columns over the worlds,
+        #: written at their resets, and its flattened keys (None until the first reset)
+        shared["_episode"], shared["_episode_paths"] = {}, None
         amp = shared["amp"] = np.array([env._amp.frames for env in envs])
         # the action map too (read only; set when the model is compiled, which such a class does once), so that
         # the PD targets of a group are two row reads, not two stacks of the worlds' arrays
@@ -581,7 +627,7 @@ class HumanoidEnv(gym.Env):
         scale = shared["_ctrl_scale"] = np.array([env._ctrl_scale for env in envs])
         for i, env in enumerate(envs):
             env._amp.frames, env._ctrl_offset, env._ctrl_scale = amp[i], offset[i], scale[i]
-            env._rows = shared
+            env._rows, env._row = shared, i
 
     @classmethod
     def _take_carry(cls, envs: list[HumanoidEnv], rows: np.ndarray | None) -> dict[str, np.ndarray]:
@@ -717,22 +763,22 @@ class HumanoidEnv(gym.Env):
         return True
 
     @classmethod
-    def _sound_worlds(cls, envs: list[HumanoidEnv], poses_current: bool = False) -> list[bool]:
+    def _sound_worlds(cls, envs: list[HumanoidEnv], poses_current: bool = False) -> np.ndarray:
         """``_physics_sound(env._expected_time)`` of each of ``envs`` (worlds of one configuration), with the
         same effects: its checks as arrays over the batch where the class keeps them (else world by world).
         ``poses_current``: the worlds' ``mj_kinematics`` already ran (``_bring_up_poses``), so it is not run
         again for the stable worlds."""
         if cls._physics_sound is not HumanoidEnv._physics_sound or \
                 cls._speeds_plausible is not HumanoidEnv._speeds_plausible:
-            return [env._physics_sound(env._expected_time) for env in envs]
+            return np.array([env._physics_sound(env._expected_time) for env in envs], dtype=bool)
         times = np.array([env.data.time for env in envs])
         expected = np.array([env._expected_time for env in envs])
         warned = np.array([env._warning_counts for env in envs])[:, _DIVERGENCE_WARNINGS].any(axis=1)
         speeds = np.array([env._speeds for env in envs])
         # as _physics_sound's scalar tests: a NaN time or speed compares False
         plausible = (np.abs(speeds) <= envs[0]._speed_limits).all(axis=1)
-        sound = (~(times < expected - 1e-9) & ~warned & plausible).tolist()
-        for env, world_sound in zip(envs, sound):
+        sound = ~(times < expected - 1e-9) & ~warned & plausible
+        for env, world_sound in zip(envs, sound.tolist()):
             if not world_sound:
                 env._mark_unstable()
             elif not poses_current:
@@ -740,16 +786,15 @@ class HumanoidEnv(gym.Env):
         return sound
 
     @classmethod
-    def _sound_arrays(cls, envs: list[HumanoidEnv], device_state: dict[str, np.ndarray]) -> list[bool]:
+    def _sound_arrays(cls, envs: list[HumanoidEnv], device_state: dict[str, np.ndarray]) -> np.ndarray:
         """``_sound_worlds`` from a device back-end's arrays: a world is sound unless the device flagged it
         diverged (non-finite or beyond MuJoCo's bound) or it moves faster than a body can; an unsound world
         is marked as ``_physics_sound`` marks it."""
         idx = envs[0]._idx
         speeds = device_state["qvel"][:, idx.qvel_root.start:idx.qvel_joints.stop]
-        sound = (~device_state["diverged"] & (np.abs(speeds) <= envs[0]._speed_limits).all(axis=1)).tolist()
-        for env, world_sound in zip(envs, sound):
-            if not world_sound:
-                env._mark_unstable()
+        sound = ~device_state["diverged"] & (np.abs(speeds) <= envs[0]._speed_limits).all(axis=1)
+        for k in np.flatnonzero(~sound).tolist():
+            envs[k]._mark_unstable()
         return sound
 
     @staticmethod
@@ -814,14 +859,46 @@ def _pd_targets(envs: list[HumanoidEnv], actions: np.ndarray, rows: np.ndarray |
     return np.array([env._ctrl_offset for env in envs]) + np.array([env._ctrl_scale for env in envs]) * actions
 
 
-def _count_steps(envs: list[HumanoidEnv], sound: list[bool]) -> dict[int, tuple]:
-    """A batch's step counted in each world, and ``_unstable_step``'s result of each unsound world k."""
-    unstable = {}
-    for k, (env, world_sound) in enumerate(zip(envs, sound)):
-        env._steps += 1
-        if not world_sound:
-            unstable[k] = env._unstable_step()
-    return unstable
+def _count_steps(envs: list[HumanoidEnv], sound: np.ndarray, rows: np.ndarray | None = None) -> dict[int, tuple]:
+    """A batch's step counted in each world (by its ``rows`` where the counts are shared), then
+    ``_unstable_step``'s result of each unsound world k."""
+    if rows is None:
+        for env in envs:
+            env._steps += 1
+    else:
+        envs[0]._rows["_step_count"][rows] += 1
+    return {k: envs[k]._unstable_step() for k in np.flatnonzero(~sound).tolist()}
+
+
+#: each world's bookkeeping that a batched step reads or writes for every world (the episode's step count,
+#: whether it started from a reference state): arrays of one row, shared as rows like ``ROW_ARRAYS``
+_WORLD_ROWS = ("_step_count", "_reference_flag")
+
+
+class _OutcomeOfBatch:
+    """A batch's ``StepOutcome`` as one object (a NamedTuple would be spread over an object array's rows)."""
+
+    __slots__ = ("outcome",)
+
+    def __init__(self, outcome: StepOutcome) -> None:
+        self.outcome = outcome
+
+
+def _share_episode_infos(envs: list[HumanoidEnv]) -> None:
+    """The worlds' episode infos (flattened by ``_begin_episodes``) into their rows of the batch's columns
+    (``_share_rows``), which ``_finish_batch`` then reads by rows. A step's infos are columns, so every
+    world's episode info must have the same keys: ``ValueError`` naming the worlds whose keys differ."""
+    shared = envs[0]._rows
+    if shared["_episode_paths"] is None:
+        shared["_episode_paths"] = envs[0]._episode_paths
+    paths = shared["_episode_paths"]
+    differ = [env._row for env in envs if env._episode_paths != paths]
+    if differ:
+        raise ValueError(f"{type(envs[0]).__name__}._episode_info must give every world of a batched env the same "
+                         f"keys {['.'.join(path) for path in paths]}; world(s) {differ} gave other keys")
+    rows = np.array([env._row for env in envs], dtype=np.int64)
+    write_rows(shared["_episode"], columns_of_rows(paths, [env._episode_values for env in envs]), rows,
+               len(shared["_step_count"]))
 
 
 def _rows_into(n: int, rows_a, values_a, rows_b, values_b) -> np.ndarray:

@@ -169,6 +169,29 @@ def columns_of_rows(paths: tuple[tuple[str, ...], ...], rows: list[tuple]) -> Co
     return columns
 
 
+def write_rows(into: Columns, columns: Columns, rows: np.ndarray, n: int) -> None:
+    """``columns`` (a group's: row k for world ``rows[k]``) into those rows of ``into``, columns of ``n``
+    rows made at the first write (with the group's dtypes). A column whose dtype cannot hold a later
+    group's values exactly is widened first (``np.result_type``: an int column given floats becomes float),
+    so that no value is cut."""
+    for key, values in columns.items():
+        if isinstance(values, dict):
+            write_rows(into.setdefault(key, {}), values, rows, n)
+            continue
+        column = into.get(key)
+        if column is None:
+            column = into[key] = np.zeros((n, *values.shape[1:]), dtype=values.dtype)
+        elif not np.can_cast(values.dtype, column.dtype, "safe"):
+            column = into[key] = column.astype(np.result_type(column.dtype, values.dtype))
+        column[rows] = values
+
+
+def take_rows(columns: Columns, rows: np.ndarray) -> Columns:
+    """Rows ``rows`` of every column (nested columns alike), as new arrays."""
+    return {key: take_rows(values, rows) if isinstance(values, dict) else values[rows]
+            for key, values in columns.items()}
+
+
 # --- helpers -------------------------------------------------------------------------------------
 def _scatter(into: Columns, columns: Columns, rows, n: int) -> None:
     if into and into.keys() != columns.keys():

@@ -312,7 +312,8 @@ class InterLevelEnv(HumanoidEnv):
             terms = results[:, :task.NUM_REWARD_TERMS]
         else:
             terms = interscene.interscene_reward_terms(state, prev_root, goal.target, first.dt)
-        steps = np.fromiter((env._steps for env in envs), dtype=np.int64, count=len(envs))
+        steps = (envs[0]._rows["_step_count"][rows] if rows is not None else
+                 np.array([env._steps for env in envs], dtype=np.int64))
         reward, terms, flags = task.interlevel_reward_and_end(
             terms, results, steps, carry["_stall.approach"], carry["_stall.approach_at"], first._end_parameters)
         prev_root[...] = state.body_pos[:, PELVIS]

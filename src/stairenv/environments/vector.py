@@ -271,7 +271,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         everyone = len(stepping) == n    # the usual step (SAME_STEP always): no per-world lists to make
         stepping_envs = envs if everyone else [envs[i] for i in stepping]
         on_device = self._state_on_device
-        rows = np.array(stepping, dtype=np.int64) if self._shared_rows else None
+        stepping_rows = np.array(stepping, dtype=np.int64)
+        rows = stepping_rows if self._shared_rows else None
         if on_device:    # the PD targets go to the device as one array
             ctrl = type(envs[0])._action_targets(stepping_envs, actions[stepping], rows) if stepping else None
         else:
@@ -289,11 +290,11 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         def collect(ks: list[int]) -> None:    # in the calling thread, while other worlds' physics runs
             if not ks:
                 return
-            group = np.array([stepping[k] for k in ks], dtype=np.int64)
+            whole = len(ks) == len(stepping) and ks == list(range(len(stepping)))
+            group = stepping_rows if whole else stepping_rows[ks]
             if self.batch_outcomes:    # the task over this group of worlds in one call
                 state = None if not on_device else self.physics.state if len(ks) == len(stepping) else {
                     key: value[ks] for key, value in self.physics.state.items()}
-                whole = len(ks) == len(stepping) and ks == list(range(len(stepping)))
                 group_envs = stepping_envs if whole else [envs[i] for i in group.tolist()]
                 finished = type(envs[0])._finish_batch(group_envs, poses_current=True,
                                                        rows=group if self._shared_rows else None,

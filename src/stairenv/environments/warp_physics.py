@@ -304,7 +304,9 @@ class WarpPhysics:
             times += self._timestep
         self._time_host[slots] = times
         self._stale[slots] = True
-        rows = {name: down[name].reshape(n, -1)[slots].astype(np.float64) for name in (*STATE_FIELDS, "xpos", "xmat")}
+        every = slots is self._every_slot    # then each field's rows are the whole array, converted once
+        rows = {name: (down[name].reshape(n, -1) if every else down[name].reshape(n, -1)[slots]).astype(np.float64)
+                for name in (*STATE_FIELDS, "xpos", "xmat")}
         bad = _diverged(rows["qpos"], rows["qvel"], rows["qacc_warmstart"])
         self.overflows += int(self._overflowed(overflow[slots]).sum())
         self.state = {"qpos": rows["qpos"], "qvel": rows["qvel"], "xpos": rows["xpos"].reshape(len(slots), -1, 3),
