@@ -278,6 +278,9 @@ class HumanoidEnv(gym.Env):
         self._geoms = humanoid_geoms(self.model, self._idx)
         low, high = self.model.actuator_ctrlrange.T.copy()
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
+        #: the servo targets' and the actuated joints' ranges as (low, high), for the start pose
+        self._ctrl_limits = (low, high)
+        self._joint_limits = tuple(self.model.jnt_range[self.model.actuator_trnid[:, 0]].T.copy())
         self._bind_data_views()
         self._speed_limits = speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip
@@ -416,9 +419,8 @@ class HumanoidEnv(gym.Env):
         state = envs[0]._read_state() if len(envs) == 1 else cls._read_worlds(envs)
         features = amp_features(state)
         for k, env in enumerate(envs):
-            world = state if len(envs) == 1 else row_of(state, k)
             env._amp.fill_features(features[k])
-            env._start_tracking(world)
+        cls._start_tracking_worlds(envs, state)
         outcomes = cls._step_outcomes(envs, state)
         results = []
         for env, outcome in zip(envs, outcomes):
@@ -428,6 +430,16 @@ class HumanoidEnv(gym.Env):
 
     def _start_tracking(self, state) -> None:
         """Reset what ``_step_outcome`` carries from step to step (the previous root position...)."""
+
+    @classmethod
+    def _start_tracking_worlds(cls, envs: list[HumanoidEnv], state) -> None:
+        """``_start_tracking`` of each of ``envs`` (row k of the batch ``state``: world k's); a class may do it
+        over the batch."""
+        if len(envs) == 1:
+            envs[0]._start_tracking(state)
+            return
+        for k, env in enumerate(envs):
+            env._start_tracking(row_of(state, k))
 
     def _step_outcome(self, state) -> StepOutcome:
         """The task's view of ``state`` (``read_state``): observation, reward, end, named results."""
@@ -632,10 +644,12 @@ class HumanoidEnv(gym.Env):
     @classmethod
     def _take_carry(cls, envs: list[HumanoidEnv], rows: np.ndarray | None) -> dict[str, np.ndarray]:
         """The ``ROW_ARRAYS`` of ``envs``, one array per path (row k: world k), for the task to read and write in
-        place: a single world's own arrays, else the worlds' rows of the shared arrays (``rows``) or each
-        world's own, concatenated; ``_put_carry`` writes the latter back."""
+        place: a single world's own arrays, else the worlds' rows of the shared arrays (``rows``; by default
+        their own rows where they share them, as at a batched env's resets) or each world's own, concatenated;
+        ``_put_carry`` writes the latter back."""
         if rows is None and len(envs) == 1:
             return {path: _attribute(envs[0], path) for path in cls.ROW_ARRAYS}
+        rows = _shared_rows_of(envs) if rows is None else rows
         if rows is not None:
             shared = envs[0]._rows
             return {path: shared[path][rows] for path in cls.ROW_ARRAYS}
@@ -646,6 +660,7 @@ class HumanoidEnv(gym.Env):
         """Write ``carry`` (``_take_carry``'s, changed) back to the worlds (nothing to do for a single world's own)."""
         if rows is None and len(envs) == 1:
             return
+        rows = _shared_rows_of(envs) if rows is None else rows
         for path, values in carry.items():
             if rows is not None:
                 envs[0]._rows[path][rows] = values
@@ -723,7 +738,8 @@ class HumanoidEnv(gym.Env):
 
     def _hold_pose_ctrl(self) -> None:
         """Servo targets = the current joint angles (an episode starts holding its pose)."""
-        self.data.ctrl[:] = np.clip(self.data.qpos[self._idx.qpos_joints], *self.model.actuator_ctrlrange.T)
+        low, high = self._ctrl_limits    # np.clip's operations, without its wrapper's cost
+        np.minimum(np.maximum(self.data.qpos[self._idx.qpos_joints], low), high, out=self._ctrl)
 
     def _check_action(self, action) -> np.ndarray:
         """``action`` as float64 (28,); ``ValueError`` for a wrong shape, a non-numeric dtype (complex,
@@ -870,6 +886,11 @@ def _count_steps(envs: list[HumanoidEnv], sound: np.ndarray, rows: np.ndarray | 
     return {k: envs[k]._unstable_step() for k in np.flatnonzero(~sound).tolist()}
 
 
+def _shared_rows_of(envs: list[HumanoidEnv]) -> np.ndarray | None:
+    """The rows of ``envs`` in the arrays they share (``_share_rows``; a batched env's resets), else None."""
+    return None if envs[0]._rows is None else np.array([env._row for env in envs], dtype=np.int64)
+
+
 #: each world's bookkeeping that a batched step reads or writes for every world (the episode's step count,
 #: whether it started from a reference state): arrays of one row, shared as rows like ``ROW_ARRAYS``
 _WORLD_ROWS = ("_step_count", "_reference_flag")
@@ -896,7 +917,7 @@ def _share_episode_infos(envs: list[HumanoidEnv]) -> None:
     if differ:
         raise ValueError(f"{type(envs[0]).__name__}._episode_info must give every world of a batched env the same "
                          f"keys {['.'.join(path) for path in paths]}; world(s) {differ} gave other keys")
-    rows = np.array([env._row for env in envs], dtype=np.int64)
+    rows = _shared_rows_of(envs)
     write_rows(shared["_episode"], columns_of_rows(paths, [env._episode_values for env in envs]), rows,
                len(shared["_step_count"]))
 

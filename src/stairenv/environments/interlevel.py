@@ -251,20 +251,22 @@ class InterLevelEnv(HumanoidEnv):
             return True
         data.qpos[self._idx.qpos_root] = (*start_xy, STANDING_ROOT_HEIGHT, *yaw_to_quat_wxyz(heading))
         noise = rng.uniform(-self.reset_noise_scale, self.reset_noise_scale, NUM_DOFS)
-        joint_range = model.jnt_range[model.actuator_trnid[:, 0]]
-        data.qpos[self._idx.qpos_joints] = np.clip(noise, joint_range[:, 0], joint_range[:, 1])
+        low, high = self._joint_limits
+        data.qpos[self._idx.qpos_joints] = np.minimum(np.maximum(noise, low), high)    # np.clip's operations
         self._hold_pose_ctrl()
         self._reset_forward(model, data)
         return False
 
-    def _start_tracking(self, state) -> None:
-        self._prev_root[...] = state.body_pos[:, PELVIS]
-        stall = self._stall    # the env's settings as they are now, the clock from zero
-        stall.seconds, stall.distance, stall.dt = self.stall_seconds, self.stall_distance, self.dt
-        stall.restart()
-        self._end_parameters = task.end_parameters(self.stall_distance, self.stall_seconds, self.dt,
-                                                   self.success_reward, self.failure_reward,
-                                                   self.terminate_on_success)
+    @classmethod
+    def _start_tracking_worlds(cls, envs: list[InterLevelEnv], state) -> None:
+        for env, root in zip(envs, state.body_pos[:, PELVIS]):
+            env._prev_root[...] = root
+            stall = env._stall    # the env's settings as they are now, the clock from zero
+            stall.seconds, stall.distance, stall.dt = env.stall_seconds, env.stall_distance, env.dt
+            stall.restart()
+            env._end_parameters = task.end_parameters(env.stall_distance, env.stall_seconds, env.dt,
+                                                      env.success_reward, env.failure_reward,
+                                                      env.terminate_on_success)
 
     BATCH_OUTCOMES = True
     ROW_ARRAYS = ("_prev_root", "_packed_goal", "_stall.approach", "_stall.approach_at")

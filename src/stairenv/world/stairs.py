@@ -221,10 +221,10 @@ class Staircase:
         return self._markers[1]
 
     def as_dict(self) -> dict[str, float | int]:
-        return {field.name: getattr(self, field.name) for field in fields(self)}
+        return {name: getattr(self, name) for name in _FIELDS}
 
 
-_FIELDS = ("step_height", "step_depth", "width", "num_steps", "landing_depth", "yaw", "distance")
+_FIELDS = tuple(field.name for field in fields(Staircase))
 
 
 def _numbers(stairs: Sequence[Staircase]) -> tuple[np.ndarray, ...]:
@@ -272,6 +272,7 @@ class StairsLayout(NamedTuple):
     marker_top: np.ndarray      # (B, 3) M_T, world
     centres: np.ndarray         # (B, slots, 3) treads' centres, world; unused slots parked
     half: np.ndarray            # (B, slots, 3) treads' half sizes; unused slots parked
+    rbound: np.ndarray          # (B, slots) treads' bounding radii (the half sizes' norms)
     quat: np.ndarray            # (B, 4) the treads' orientation (a yaw), wxyz
 
     @classmethod
@@ -299,7 +300,8 @@ class StairsLayout(NamedTuple):
                          np.array([math.sin(s.yaw / 2) for s in stairs])), axis=-1)
         return cls(step_height, step_depth, width, num_steps, landing_depth, yaw, distance, axis, across, origin,
                    bottom_local, top_local, _on_centre_line(bottom_local, axis, origin),
-                   _on_centre_line(top_local, axis, origin), world_centres, half, quat)
+                   _on_centre_line(top_local, axis, origin), world_centres, half,
+                   np.sqrt(np.add.reduce(half * half, axis=-1)), quat)    # np.linalg.norm's operations
 
 
 def _on_centre_line(local: np.ndarray, axis: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -380,6 +382,7 @@ class StairsSlots:
                 group=2,
             )
         self._body_ids: np.ndarray | None = None
+        self._field_views: tuple | None = None
 
     def bind(self, model: mujoco.MjModel) -> None:
         """Look up ids in the compiled model (call once after compile)."""
@@ -412,20 +415,35 @@ class StairsSlots:
     def place_layout(self, model: mujoco.MjModel, layout: StairsLayout, i: int) -> None:
         """Write staircase ``i`` of ``layout`` (made by ``layout``) into ``model`` (call mj_forward afterwards)."""
         self._check_bound()
+        body_pos, body_quat, geom_size, geom_rbound, geom_aabb, bvh_aabb = self._fields(model)
         half = layout.half[i]
         bodies, geoms = self._body_rows, self._geom_rows
-        model.body_pos[bodies] = layout.centres[i]
-        model.body_quat[bodies] = layout.quat[i]
-        model.geom_size[geoms] = half
-        model.geom_rbound[geoms] = np.linalg.norm(half, axis=1)
-        model.geom_aabb[geoms, :3] = 0.0
-        model.geom_aabb[geoms, 3:] = half
+        body_pos[bodies] = layout.centres[i]
+        body_quat[bodies] = layout.quat[i]
+        geom_size[geoms] = half
+        geom_rbound[geoms] = layout.rbound[i]
+        geom_aabb[geoms, :3] = 0.0
+        geom_aabb[geoms, 3:] = half
         # The body's bounding volume (used when the other body has several geoms, e.g. the
         # torso) is computed at compile time: resize it with the box (geom at the body origin).
         bvh = self._bvh_rows
-        model.bvh_aabb[bvh, :3] = 0.0
-        model.bvh_aabb[bvh, 3:] = half
-        model.body_pos[self._marker_ids] = (layout.marker_bottom[i], layout.marker_top[i])
+        bvh_aabb[bvh, :3] = 0.0
+        bvh_aabb[bvh, 3:] = half
+        body_pos[self._marker_ids] = (layout.marker_bottom[i], layout.marker_top[i])
+
+    def _fields(self, model: mujoco.MjModel) -> tuple[np.ndarray, ...]:
+        """The model fields ``place_layout`` writes, looked up once per model (a model's buffers never move;
+        each lookup makes a new view)."""
+        bound = self._field_views
+        if bound is None or bound[0] is not model:
+            bound = self._field_views = (model, (model.body_pos, model.body_quat, model.geom_size, model.geom_rbound,
+                                                 model.geom_aabb, model.bvh_aabb))
+        return bound[1]
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_field_views"] = None    # a copy's views would be arrays of their own, not its model's
+        return state
 
     def _check_bound(self) -> None:
         if self._body_ids is None:
