@@ -529,3 +529,25 @@ def test_auto_resume_goes_on_from_the_runs_newest_checkpoint_as_if_never_stopped
         assert torch.equal(restarted["model"][name], weights), name
     said = train_ppo.fails([*command, "--resume", str(run / "final_checkpoint.pt")], tmp_path)
     assert "--auto-resume finds the run's own checkpoint" in said
+
+
+def test_episode_log_reads_ended_worlds_from_columns_and_dicts():
+    """``EpisodeLog``: an ended world's return, length and results, read from the step's columns or from a
+    world's whole dict (an unstable step's, lacking a key); an aided start (on the stairs) counts in
+    ``episode/`` only, a floor start in ``episode_floor_start/`` too; worlds that did not end count nowhere."""
+    from stairenv.environments.infos import WorldInfos
+    from stairenv.training.ppo import EpisodeLog
+
+    log = EpisodeLog(4)
+    log.step(np.array([1.0, 2.0, 3.0, 4.0]), np.zeros(4, dtype=bool), WorldInfos(4))
+    infos = WorldInfos(4)
+    infos.put(np.array([0, 1, 3]), {"progress": np.array([0.5, 0.25, 0.75]), "success": np.array([True, False, False]),
+                                    "stairs_start": np.array([False, True, False])})
+    infos[2] = {"success": False, "stairs_start": False}    # no progress reported
+    log.step(np.array([1.0, 1.0, 1.0, 1.0]), np.array([True, True, True, False]), infos)
+    means = log.means()
+    assert means["episode/task_return"] == pytest.approx((2 + 3 + 4) / 3) and means["episode/length"] == 2
+    assert means["episode/progress"] == pytest.approx((0.5 + 0.25) / 2)
+    assert means["episode_floor_start/progress"] == 0.5    # world 1 started on the stairs; world 2 lacks it
+    assert means["episode/success"] == pytest.approx(1 / 3) and means["episode_floor_start/success"] == 0.5
+    assert log.length.tolist() == [0, 0, 0, 2] and log.task_return[3] == 5.0 and log.means() == {}

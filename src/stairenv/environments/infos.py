@@ -8,8 +8,8 @@ first time it is asked for. A world whose info is not in the columns (a reset, a
 task that finishes world by world) has its dict set whole: ``infos[i] = {...}``.
 
 Consumers that need one key of every world (the trainer's ``amp_obs``) read ``column(infos, key)``, one
-key of one world ``value_of(infos, i, key)`` (the trainer's episode log), and the gymnasium ``step`` reads
-``infos.stacked()``: all from the columns, with no dict per world.
+key of some worlds as numbers ``floats_of(infos, worlds, key)`` (the trainer's episode log), and the
+gymnasium ``step`` reads ``infos.stacked()``: all from the columns, with no dict per world.
 ``stack_infos`` is the per-world route (``SyncVectorEnv``'s layout), used where there are no columns.
 Gymnasium has only that route (``VectorEnv._add_info``, world by world), hence this module.
 """
@@ -93,9 +93,22 @@ def column(infos: Sequence[dict[str, Any]], key: str) -> np.ndarray:
     return np.stack([info[key] for info in infos])
 
 
-def value_of(infos: Sequence[dict[str, Any]], i: int, key: str, default: Any = None) -> Any:
-    """``infos[i].get(key, default)``, read from the columns where ``infos`` has them (no dict made)."""
-    return infos.value(i, key, default) if isinstance(infos, WorldInfos) else infos[i].get(key, default)
+def floats_of(infos: Sequence[dict[str, Any]], worlds: np.ndarray, key: str) -> tuple[np.ndarray, np.ndarray]:
+    """``float(infos[i][key])`` of each of ``worlds`` (0 where a world's info lacks the key) and which have it,
+    read from the columns where ``infos`` has them (no dict made), from the other worlds' dicts."""
+    values, present = np.zeros(len(worlds)), np.zeros(len(worlds), dtype=bool)
+    others = range(len(worlds))
+    if isinstance(infos, WorldInfos):    # a world in the columns has the key if the columns have it
+        in_columns = infos.in_columns[worlds]
+        columns = infos.columns.get(key)
+        if columns is not None:
+            values[in_columns], present[in_columns] = columns[worlds[in_columns]], True
+        others = np.flatnonzero(~in_columns).tolist()
+    for k in others:
+        value = infos[int(worlds[k])].get(key)
+        if value is not None:
+            values[k], present[k] = float(value), True
+    return values, present
 
 
 def stack_infos(infos: list[dict[str, Any]]) -> dict[str, Any]:

@@ -273,13 +273,12 @@ class WarpPhysics:
         slots = self._slots(worlds)
         self._upload_model_rows()
         changed = np.flatnonzero(self._state_changed).tolist()
-        for name, host in self._state_host.items():    # reset (or announced) worlds: their MjData into the host rows
-            if host.shape[1]:
-                views = self._state_views[name]
-                for k in changed:
-                    host[k] = views[k]
-        for k in changed:
-            self._time_host[k] = self.worlds[k][1].time
+        if changed:    # reset (or announced) worlds: their MjData into the host rows, one gathered copy per field
+            for name, host in self._state_host.items():
+                if host.shape[1]:
+                    views = self._state_views[name]
+                    host[changed] = np.array([views[k] for k in changed])
+            self._time_host[changed] = [self.worlds[k][1].time for k in changed]
         self._state_changed[:] = False
         if changed:    # else the device holds these fields already (the host rows are its last download)
             for name, host in self._state_host.items():
@@ -336,15 +335,14 @@ class WarpPhysics:
         """A changed world's staircase: its rows of the per-world model fields and its treads' poses."""
         changed = np.flatnonzero(self._changed)
         if changed.size:
-            for name, host in self._model_host.items():
+            ks = changed.tolist()
+            for name, host in self._model_host.items():    # each field's changed rows gathered in one copy
                 views = self._model_views[name]
-                for k in changed.tolist():
-                    host[k] = views[k]
+                host[changed] = np.array([views[k] for k in ks])
                 self._assign(getattr(self.model, name), host)
             for name, host in self._geom_pose_host.items():    # the treads' poses (see GEOM_POSE_FIELDS)
                 views = self._geom_pose_views[name]
-                for k in changed.tolist():
-                    host[k] = views[k]
+                host[changed] = np.array([views[k] for k in ks])
                 self._assign(getattr(self.data, name), host)
             self._changed[:] = False
 

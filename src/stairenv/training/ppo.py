@@ -44,7 +44,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stairenv.environments.infos import column, value_of
+from stairenv.environments.infos import column, floats_of
 from stairenv.environments.vector import HumanoidVectorEnv
 from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
@@ -57,7 +57,6 @@ from stairenv.training.distributed import LOCAL, Local
 EPISODE_KEYS = ("progress", "success", "fell", "stalled", "off_path", "grounded", "z_off_path", "z_above_path",
                 "contact_error", "xy_error", "z_error")
 CHECKPOINT_FORMAT = "stairenv-ppo-amp/1"
-_ABSENT = object()
 
 
 class CheckpointError(ValueError):
@@ -220,22 +219,25 @@ class EpisodeLog:
     def step(self, task_reward: np.ndarray, dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         self.task_return += task_reward
         self.length += 1
-        for i in np.flatnonzero(dones).tolist():    # an ended world's values read without making its dict
-            self._add("episode/task_return", self.task_return[i])
-            self._add("episode/length", self.length[i])
+        ended = np.flatnonzero(dones)
+        if ended.size:    # the ended worlds' values read key by key, without making their dicts
+            self._add("episode/task_return", self.task_return[ended])
+            self._add("episode/length", self.length[ended])
             # starts on the stairs or at the furniture (training aids) are not the evaluation's
-            aided = value_of(infos, i, "stairs_start") or value_of(infos, i, "interaction_start")
-            groups = ("episode",) if aided else ("episode", "episode_floor_start")
+            aided = np.zeros(len(ended), dtype=bool)
+            for key in ("stairs_start", "interaction_start"):
+                values, present = floats_of(infos, ended, key)
+                aided |= present & (values != 0.0)
             for key in EPISODE_KEYS:
-                result = value_of(infos, i, key, _ABSENT)
-                if result is not _ABSENT:
-                    for group in groups:
-                        self._add(f"{group}/{key}", float(result))
+                values, present = floats_of(infos, ended, key)
+                self._add(f"episode/{key}", values[present])
+                self._add(f"episode_floor_start/{key}", values[present & ~aided])
         self.task_return[dones] = 0.0
         self.length[dones] = 0
 
-    def _add(self, key: str, value: float) -> None:
-        self.sums.setdefault(key, []).append(float(value))
+    def _add(self, key: str, values: np.ndarray) -> None:
+        if len(values):
+            self.sums.setdefault(key, []).extend(values.astype(np.float64).tolist())
 
     def means(self, parallel: Local = LOCAL) -> dict[str, float]:
         """The means since the last call (of every rank's episodes), then forgotten."""
