@@ -265,6 +265,9 @@ def test_layout_is_the_frame_transform_to_the_last_bit():
         assert np.array_equal(layout.quat[k], [math.cos(s.yaw / 2), 0.0, 0.0, math.sin(s.yaw / 2)])
 
 
+    assert np.array_equal(layout.rbound, np.linalg.norm(layout.half, axis=-1))
+
+
 # --- MuJoCo slots ---------------------------------------------------------------------------------
 def _expected_world_boxes(s: Staircase):
     """Centres and half sizes of the treads in the world, by hand."""
@@ -420,3 +423,20 @@ def test_humanoid_torso_collides_with_landing_off_centre(interlevel_env):
     s = Staircase(step_height=0.2, step_depth=0.4, width=2.0, num_steps=8, landing_depth=2.0, yaw=0.4, distance=2.0)
     landing_centre = (s.num_steps - 1) * s.step_depth + s.landing_depth / 2
     assert "stairs_step7" in _torso_step_contacts(interlevel_env, s, landing_centre + 0.5, 0.4)
+
+
+def test_a_copy_of_an_env_writes_its_staircases_into_its_own_model():
+    """``StairsSlots`` looks its model's fields up once; a copy of the env (``replicate``, as a device back-end's
+    batched env makes its worlds) writes its staircases into its own model, and the original into its own."""
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=1)
+    clone = env.replicate()
+    clone.reset(seed=2)
+    env.reset(seed=3)
+    for world in (env, clone):
+        ids = [world.model.geom(f"stairs_step{i}").id for i in range(world.stairs.num_steps)]
+        _, halves = _expected_world_boxes(world.stairs)
+        np.testing.assert_allclose(world.model.geom_size[ids], halves, rtol=1e-12)
+        np.testing.assert_allclose(world.model.geom_rbound[ids], np.linalg.norm(halves, axis=1), rtol=1e-12)
+    assert env.stairs != clone.stairs
+    env.close()

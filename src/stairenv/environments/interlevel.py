@@ -257,6 +257,9 @@ class InterLevelEnv(HumanoidEnv):
         self._reset_forward(model, data)
         return False
 
+    def _start_tracking(self, state) -> None:
+        type(self)._start_tracking_worlds([self], state)
+
     @classmethod
     def _start_tracking_worlds(cls, envs: list[InterLevelEnv], state) -> None:
         for env, root in zip(envs, state.body_pos[:, PELVIS]):
