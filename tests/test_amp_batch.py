@@ -142,3 +142,28 @@ def test_pushing_a_batch_of_feature_histories_equals_one_by_one():
             alone.push_features(features[k])
             assert np.array_equal(history.frames, alone.frames)
             assert np.array_equal(flat[k], alone.flat())
+
+
+@pytest.mark.parametrize("rows", [[0, 1, 2, 3], [2, 0, 3], [1, 0, 2, 3]])
+def test_pushing_rows_of_shared_histories_equals_one_by_one(rows):
+    """``FeatureHistory.push_rows`` (the histories as rows of one array, a batched env's): every row in order
+    (shifted in place), some rows, all rows out of order; the pushed rows and their ``flat()`` as
+    ``push_features`` one by one, the other rows untouched, the flat rows a copy."""
+    from stairenv.style.features import AMP_FEATURE_SIZE, FeatureHistory
+
+    rng = np.random.default_rng(1)
+    frames = rng.normal(size=(4, 3, AMP_FEATURE_SIZE))
+    single = []
+    for row in frames:
+        history = FeatureHistory(3)
+        history.frames[:] = row
+        single.append(history)
+    for _ in range(3):
+        features = rng.normal(size=(len(rows), AMP_FEATURE_SIZE))
+        flat = FeatureHistory.push_rows(frames, np.array(rows), features)
+        for k, row in enumerate(rows):
+            single[row].push_features(features[k])
+            assert np.array_equal(flat[k], single[row].flat())
+        for row, alone in enumerate(single):
+            assert np.array_equal(frames[row], alone.frames)
+        assert not np.shares_memory(flat, frames)
