@@ -30,7 +30,7 @@ step compile 240 "$PY" benchmarks/bench_warp.py --sizes 64 --c-size 0 --train-si
     --deadline 230 --state-on-device --out "$OUT/compile.json"
 # the env and the lean trainer at 4,096 worlds with the state on the device, after session 32's grouped resets
 # and session 33's bookkeeping as rows (session 31 on an H200: env 16-20k env steps/s, trainer 8.8k; sessions
-# 32-33 project ~75k for the env)
+# 32-33 project 35-75k for the env)
 step env_warp 100 "$PY" benchmarks/bench_warp.py --sizes 4096 --c-size 0 --train-size 4096 --train-c-size 0 \
     --train-iterations 3 --budget 5 --deadline 80 --state-on-device --out "$OUT/env_warp.json"
 # 8 ranks sharing the GPU over 4,096 worlds, the state on the device: the host's per-world task on 8 cores
