@@ -448,8 +448,9 @@ def test_stacked_infos_equal_gymnasium_add_info_world_by_world():
 def test_world_infos_read_as_the_per_world_dicts():
     """``WorldInfos``: columns for some worlds, whole dicts for others (fewer keys, an extra key, a nested
     dict); ``stacked()`` equals ``stack_infos`` of its per-world dicts (arrays, dtypes, masks, cleared rows),
-    ``infos[i]`` gives Python numbers as a single env's dict does, ``column`` equals ``np.stack``."""
-    from stairenv.environments.infos import WorldInfos, column, stack_infos
+    ``infos[i]`` gives Python numbers as a single env's dict does, ``column`` equals ``np.stack``,
+    ``floats_of`` the worlds' values without making their dicts."""
+    from stairenv.environments.infos import WorldInfos, column, floats_of, stack_infos
 
     infos = WorldInfos(4)
     infos.put(np.array([0, 2]), {"x": np.array([1.5, 2.5]), "ok": np.array([True, False]),
@@ -458,13 +459,14 @@ def test_world_infos_read_as_the_per_world_dicts():
     infos.put(np.array([3]), {"x": np.array([9.0]), "ok": np.array([True]), "n": np.array([5]),
                               "v": np.ones((1, 3)), "nest": {"h": np.array([0.3])}})
     infos[1] = {"x": 7.0, "extra": "reset", "nest": {"h": 0.5, "k": 1}}
-    # value(i, key): a world's dict.get, read from its row without making the dict
-    asked = ((2, "x"), (2, "ok"), (3, "n"), (2, "nest"), (2, "extra"), (1, "extra"), (1, "ok"))
-    got = [infos.value(i, key, "absent") for i, key in asked]
-    assert np.array_equal(infos.value(3, "v"), [1.0, 1.0, 1.0]) and infos._dicts[2] is None    # no dict made
-    for (i, key), value in zip(asked, got):
-        want = infos[i].get(key, "absent")
-        assert type(value) is type(want) and value == want, (i, key)
+    # floats_of(worlds, key): the worlds' values as numbers, read from the rows without making their dicts
+    worlds, keys = np.array([2, 1, 3]), ("x", "ok", "n", "absent")
+    got = {key: floats_of(infos, worlds, key) for key in keys}
+    assert infos._dicts[2] is None and infos._dicts[3] is None    # no dict made
+    for key, (values, present) in got.items():
+        want = [infos[i].get(key) for i in worlds.tolist()]
+        assert present.tolist() == [value is not None for value in want], key
+        assert values.tolist() == [0.0 if value is None else float(value) for value in want], key
     world = infos[0]
     assert world == {"x": 1.5, "ok": True, "n": 3, "v": world["v"], "nest": {"h": 0.1}}
     assert [type(world[key]) for key in ("x", "ok", "n")] == [float, bool, int]

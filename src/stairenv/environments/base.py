@@ -20,6 +20,7 @@ from gymnasium import spaces
 from stairenv.environments.infos import columns_of_rows, flatten, take_rows, write_rows
 from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, HumanoidIndices
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
+from stairenv.humanoid.model import dof_ranges
 from stairenv.humanoid.placement import place_reference_state
 from stairenv.humanoid.state import read_state, stack_states, states_from_arrays
 from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_reference_library
@@ -280,7 +281,7 @@ class HumanoidEnv(gym.Env):
         self._ctrl_offset, self._ctrl_scale = 0.5 * (low + high), 0.5 * (high - low)
         #: the servo targets' and the actuated joints' ranges as (low, high), for the start pose
         self._ctrl_limits = (low, high)
-        self._joint_limits = tuple(self.model.jnt_range[self.model.actuator_trnid[:, 0]].T.copy())
+        self._joint_limits = tuple(dof_ranges(self.model).T.copy())    # DOF_NAMES order, the actuators' too
         self._bind_data_views()
         self._speed_limits = speed_limits(self._idx)
         self.dt = self.model.opt.timestep * self.frame_skip

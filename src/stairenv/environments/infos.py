@@ -57,13 +57,6 @@ class WorldInfos(Sequence):
             info = self._dicts[i] = _row(self.columns, i) if self.in_columns[i] else {}
         return info
 
-    def value(self, i: int, key: str, default: Any = None) -> Any:
-        """``infos[i].get(key, default)`` without making world i's dict (read from its row of the columns)."""
-        if self._dicts[i] is None and self.in_columns[i]:
-            values = self.columns.get(key)
-            return default if values is None else _cell(values, i)
-        return self[i].get(key, default)
-
     def __setitem__(self, i: int, info: dict[str, Any]) -> None:
         self._dicts[i] = info
         self._explicit[i] = True
@@ -220,12 +213,8 @@ def _scatter(into: Columns, columns: Columns, rows, n: int) -> None:
 
 def _row(columns: Columns, i: int) -> dict[str, Any]:
     """World i's dict: numbers as Python numbers (``item()``), array rows as arrays, nested dicts alike."""
-    return {key: _cell(values, i) for key, values in columns.items()}
-
-
-def _cell(values, i: int) -> Any:
-    """World i's value of one column (or nested columns), as its dict holds it."""
-    return _row(values, i) if isinstance(values, dict) else (values.item(i) if values.ndim == 1 else values[i])
+    return {key: _row(values, i) if isinstance(values, dict) else
+            (values.item(i) if values.ndim == 1 else values[i]) for key, values in columns.items()}
 
 
 def _masked(columns: Columns, mask: np.ndarray) -> dict[str, Any]:

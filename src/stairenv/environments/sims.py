@@ -521,8 +521,8 @@ class SIMSEnv(HumanoidEnv):
 
     def joint_limits(self) -> tuple[np.ndarray, np.ndarray]:
         """(low, high), each (28,): the joint angle ranges (rad) in ``DOF_NAMES`` order."""
-        low, high = self.model.jnt_range[self.model.dof_jntid[self._idx.qvel_joints]].T.copy()
-        return low, high
+        low, high = self._joint_limits
+        return low.copy(), high.copy()
 
     def planning_grid(self, body_radius: float | None = None) -> PlanningGrid:
         """The scene's floor as a ``stairenv.planning`` grid for a character of ``body_radius`` (m):

@@ -293,7 +293,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             whole = len(ks) == len(stepping) and ks == list(range(len(stepping)))
             group = stepping_rows if whole else stepping_rows[ks]
             if self.batch_outcomes:    # the task over this group of worlds in one call
-                state = None if not on_device else self.physics.state if len(ks) == len(stepping) else {
+                state = None if not on_device else self.physics.state if whole else {
                     key: value[ks] for key, value in self.physics.state.items()}
                 group_envs = stepping_envs if whole else [envs[i] for i in group.tolist()]
                 finished = type(envs[0])._finish_batch(group_envs, poses_current=True,

@@ -273,17 +273,16 @@ class WarpPhysics:
         slots = self._slots(worlds)
         self._upload_model_rows()
         changed = np.flatnonzero(self._state_changed).tolist()
-        if changed:    # reset (or announced) worlds: their MjData into the host rows, one gathered copy per field
+        # reset (or announced) worlds: their MjData into the host rows (one gathered copy per field), then up;
+        # otherwise the device holds these fields already (the host rows are its last download)
+        if changed:
             for name, host in self._state_host.items():
                 if host.shape[1]:
                     views = self._state_views[name]
                     host[changed] = np.array([views[k] for k in changed])
-            self._time_host[changed] = [self.worlds[k][1].time for k in changed]
-        self._state_changed[:] = False
-        if changed:    # else the device holds these fields already (the host rows are its last download)
-            for name, host in self._state_host.items():
-                if host.shape[1]:
                     self._assign(getattr(self.data, name), host)
+            self._time_host[changed] = [self.worlds[k][1].time for k in changed]
+            self._state_changed[:] = False
         self._assign(self.data.time, self._time_host)    # every step: the host keeps the time in float64
         self._ctrl_host[slots] = ctrl
         self._assign(self.data.ctrl, self._ctrl_host)
