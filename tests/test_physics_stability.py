@@ -78,3 +78,23 @@ def test_ordinary_fast_motion_is_not_flagged():
         if truncated:
             break
     assert peak > 10.0
+
+
+@pytest.mark.parametrize("mutate_at", ["reset", "step"])
+def test_a_caller_changing_the_returned_observation_changes_nothing_in_the_env(mutate_at):
+    """``reset`` and ``step`` hand out arrays of the caller's own: normalising one in place (as an observation
+    normaliser may) leaves the env's last observation, which an unstable step returns, as it was."""
+    env = gym.make("InterLevel-v0")
+    obs, _ = env.reset(seed=3)
+    if mutate_at == "step":
+        obs, *_ = env.step(np.zeros(28))
+    kept = obs.copy()
+    obs *= 0.0
+    unwrapped = env.unwrapped
+    unwrapped.data.qvel[unwrapped._idx.qvel_root.start] = MAX_ROOT_SPEED * 4    # an unstable step next
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        unstable_obs, _, _, truncated, info = env.step(np.zeros(28))
+    assert info["physics_unstable"] and truncated
+    np.testing.assert_array_equal(unstable_obs, kept)
+    assert info["distance_to_target"] > 0.0

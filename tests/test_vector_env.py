@@ -120,8 +120,11 @@ def test_next_step_autoreset_semantics(physics):
     assert (info["time"] == 0).all() and not np.array_equal(obs, last_obs)
     assert "reward_location" not in info                             # reset infos carry no reward terms
     # a world that ends alone resets alone
+    on_device = getattr(vec.physics, "state_on_device", False)
+    if on_device:
+        vec.physics.sync_worlds([2])                                 # its MjData brought up to the device's
     vec.envs[2].data.qvel[:] = 1e3                                   # speeds no body reaches: unstable
-    if getattr(vec.physics, "state_on_device", False):
+    if on_device:
         vec.physics.world_changed(2)                                 # a write into a world's MjData, announced
     _, _, _, truncated, info = vec.step(zeros)
     assert truncated.tolist() == [False, False, True]
@@ -595,3 +598,99 @@ def test_episode_columns_widen_rather_than_cut():
     assert columns["nest"]["h"].dtype == bool
     taken = take_rows(columns, np.array([2, 1]))
     assert taken["n"].tolist() == [4.0, 2.5] and taken["nest"]["h"].tolist() == [False, True]
+
+
+def test_episode_columns_hold_every_world_of_a_reset_group():
+    """Worlds reset together whose episode infos differ in type (a staircase given with integer sizes, another
+    with floats) share a column that holds both: each world's step info reports its own staircase, as the
+    single env does, not the first world's integers cutting the others' floats."""
+    from stairenv.environments.infos import columns_of_rows
+    from stairenv.environments.interlevel import InterLevelEnv
+    from stairenv.world.stairs import Staircase
+
+    columns = columns_of_rows((("n",), ("a",), ("same",)), [(3, np.array([1, 2]), 1.5), (2.5, np.array([0.5, 1.0]), 2.5)])
+    assert columns["n"].tolist() == [3.0, 2.5] and columns["a"].tolist() == [[1.0, 2.0], [0.5, 1.0]]
+    assert columns["same"].dtype == np.float64
+    assert columns_of_rows((("b",),), [(True,), (False,)])["b"].dtype == bool    # one type: stack_infos' dtype
+    ints = Staircase(step_height=0.15, step_depth=0.3, width=1, num_steps=4, landing_depth=2, yaw=0, distance=3)
+    floats = Staircase(step_height=0.15, step_depth=0.3, width=1.4, num_steps=4, landing_depth=2.5, yaw=0.7,
+                       distance=3.3)
+    vec = HumanoidVectorEnv(2, env_class=InterLevelEnv, physics="serial")
+    vec.reset_each([0, 1], [{"stairs": ints}, {"stairs": floats}])
+    _, _, _, _, infos, _ = vec.step_worlds(np.zeros((2, 28)))
+    single = InterLevelEnv()
+    single.reset(seed=1, options={"stairs": floats})
+    *_, info = single.step(np.zeros(28))
+    assert infos[1]["stairs"] == info["stairs"] == floats.as_dict()
+    assert infos[0]["stairs"] == ints.as_dict()
+    vec.close()
+
+
+def test_set_attr_keeps_one_configuration_over_the_worlds():
+    """A keyword of the env class set per world with different values (``set_attr``, SB3's ``indices``) is
+    refused, naming it: the task runs over the worlds as one batch with one configuration, so world 1's
+    own ``termination_height`` would be silently ignored. One value for every world, and values per world
+    of what is not a keyword (``curriculum_level``), are set."""
+    vec = batched("InterLevel-v0", 3, physics="serial")
+    with pytest.raises(ValueError, match=r"'termination_height' is a keyword of InterLevelEnv.*world 1 5\.0"):
+        vec.set_attr("termination_height", [0.3, 5.0, 0.3])
+    assert vec.get_attr("termination_height") == (vec.envs[0].termination_height,) * 3
+    vec.set_attr("termination_height", 0.5)
+    vec.set_attr("curriculum_level", [4, 2, 1])
+    assert vec.get_attr("termination_height") == (0.5,) * 3 and vec.get_attr("curriculum_level") == (4, 2, 1)
+    sb3 = SB3BatchedVecEnv(vec)
+    with pytest.raises(ValueError, match="one configuration"):
+        sb3.set_attr("stall_seconds", 9.0, indices=[1])
+    sb3.set_attr("curriculum_level", 0, indices=[1])
+    sb3.set_attr("stall_seconds", 9.0)
+    assert sb3.get_attr("curriculum_level") == [4, 0, 1] and sb3.get_attr("stall_seconds") == [9.0] * 3
+    sb3.close()
+
+
+@pytest.mark.parametrize("physics", ["serial", "mujoco"])
+def test_a_batched_env_refuses_to_be_copied_and_says_how(physics):
+    """A copy of a batched env would share its worlds' rows and physics back-end or lose them (a serial one's
+    copy used to fail at every step, a threaded one's inside pickle): refused with the way out; a world
+    alone still copies."""
+    import copy
+    import pickle
+
+    vec = batched("InterLevel-v0", 2, physics=physics)
+    vec.reset(seed=0)
+    for make_copy in (copy.deepcopy, copy.copy, pickle.dumps):
+        with pytest.raises(TypeError, match=r"cannot be copied or pickled.*gym\.make_vec"):
+            make_copy(vec)
+    clone = copy.deepcopy(vec.envs[1])
+    clone.step(np.zeros(28))
+    vec.step(np.zeros((2, 28)))
+    vec.close()
+
+
+def test_an_override_of_start_tracking_is_called_at_every_reset():
+    """InterLevel starts its worlds' tracking over the batch; a subclass that overrides ``_start_tracking`` has
+    it called for each world it resets (single or batched, with that world's row of the state), and the
+    trajectories stay those of InterLevel's own."""
+    from stairenv.environments.interlevel import InterLevelEnv
+    from stairenv.humanoid.state import PELVIS
+
+    class Tracked(InterLevelEnv):
+        roots: list = []
+
+        def _start_tracking(self, state):
+            type(self).roots.append(state.body_pos[0, PELVIS].copy())
+            super()._start_tracking(state)
+
+    single = Tracked()
+    single.reset(seed=0)
+    assert len(Tracked.roots) == 1
+    vec, plain = (HumanoidVectorEnv(3, env_class=cls, physics="serial") for cls in (Tracked, InterLevelEnv))
+    outs = [v.reset(seed=4)[0] for v in (vec, plain)]
+    assert len(Tracked.roots) == 4
+    assert [root.tolist() for root in Tracked.roots[1:]] == [env.data.xpos[env._idx.pelvis_id].tolist()
+                                                             for env in vec.envs]
+    for _ in range(3):
+        outs += [v.step(np.full((3, 28), 0.2))[0] for v in (vec, plain)]
+    for a, b in zip(outs[::2], outs[1::2]):
+        np.testing.assert_array_equal(a, b)
+    vec.close()
+    plain.close()

@@ -253,6 +253,17 @@ def test_a_captured_graph_steps_as_kernel_launches_do():
             np.testing.assert_array_equal(x, y)
 
 
+def test_a_world_is_diverged_where_c_would_reset_it():
+    """``_diverged``: a non-finite value or one beyond MuJoCo's bound (1e10) in the position, the velocity or
+    the acceleration (the warm start: C's ``mj_checkAcc`` reads the acceleration), row by row."""
+    from stairenv.environments.warp_physics import MAX_VALUE, _diverged
+
+    qpos, qvel, warm = np.zeros((7, 3)), np.zeros((7, 2)), np.zeros((7, 2))
+    qpos[1, 0], qvel[2, 1], warm[3, 0] = np.nan, 2 * MAX_VALUE, -2 * MAX_VALUE
+    qpos[4, 2], warm[5, 1], qvel[6, 0] = -2 * MAX_VALUE, np.inf, MAX_VALUE    # row 6: at the bound, not beyond
+    assert _diverged(qpos, qvel, warm).tolist() == [False, True, True, True, True, True, False]
+
+
 @warp_only
 def test_a_divergence_truncates_that_world_only():
     vec = batched(3, physics="warp")
@@ -279,7 +290,8 @@ def test_state_on_the_device_follows_the_host_truth_path():
     """``WarpPhysics(state_on_device=True)``: the same trajectories as with the host's ``MjData`` as the truth
     (the same physics on the device; only the kinematics the task reads run in float32 there), resets and
     ends included; the worlds' ``MjData`` lag until ``sync_worlds``; a write into a world's ``MjData``
-    announced with ``world_changed`` reaches the device (a diverged state: that world alone truncated)."""
+    announced with ``world_changed`` reaches the device (a diverged state: that world alone truncated), and one
+    announced for a world whose ``MjData`` lags is refused."""
     from stairenv.environments.warp_physics import WarpPhysics
 
     n, runs = 4, {}
@@ -301,6 +313,13 @@ def test_state_on_the_device_follows_the_host_truth_path():
             with pytest.warns(UserWarning, match="physics became unstable"):
                 *_, truncated, info = vec.step(np.zeros((n, 28)))
             assert info["physics_unstable"].tolist() == [False, True, False, False] and truncated[1]
+            # the worlds stepped, so their MjData lag again: a write into one would go into an old state and
+            # rewind the world when sent up, so announcing it is refused until the world is synced
+            assert physics._stale.all()
+            physics.sync_worlds([1])
+            with pytest.raises(RuntimeError, match=r"world\(s\) \[0, 2\]: the MjData lags.*sync_worlds\(\[0, 2\]\)"):
+                physics.world_changed([0, 1, 2])
+            physics.world_changed(1)
         vec.close()
     ends = 0
     for t, (host, device) in enumerate(zip(runs[False], runs[True])):

@@ -68,8 +68,7 @@ class SB3BatchedVecEnv(VecEnv):
         return [getattr(env, attr_name) for env in self._worlds(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        for env in self._worlds(indices):
-            setattr(env, attr_name, value)
+        self.venv.set_world_attrs(attr_name, dict.fromkeys(self._get_indices(indices), value))
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
         return [getattr(env, method_name)(*method_args, **method_kwargs) for env in self._worlds(indices)]

@@ -348,7 +348,8 @@ class HumanoidEnv(gym.Env):
 
     # --- the episode template ---------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        return type(self)._reset_worlds([self], [seed], [options])[0]
+        obs, info = type(self)._reset_worlds([self], [seed], [options])[0]
+        return obs.copy(), info    # the caller's own: the env keeps its last observation (an unstable step's)
 
     @classmethod
     def _reset_worlds(cls, envs: list[HumanoidEnv], seeds: Sequence[int | None],
@@ -457,7 +458,8 @@ class HumanoidEnv(gym.Env):
     def step(self, action):
         self._prepare_step(self._check_action(action))
         self._physics()
-        return self._finish_step()
+        obs, reward, terminated, truncated, info = self._finish_step()
+        return obs.copy(), reward, terminated, truncated, info    # as reset's: the caller's own array
 
     # The phases of ``step``: a batched env (``stairenv.environments.vector``) calls them over its
     # worlds, the physics of all worlds at once between ``_prepare_step`` and ``_finish_step``.

@@ -18,7 +18,7 @@ writes its staircase into it) and ``MjData`` (its warm start included), so a wor
 bit-identical to the same world stepped alone by ``mujoco.mj_step``. The GPU back-end (MuJoCo Warp,
 ``warp_physics.WarpPhysics``) launches the whole batch, runs ``meanwhile``, then calls ``then`` for each
 world and ``collect`` once with all of them; it also has ``bind(worlds)`` (every world of the batch, once)
-and ``world_changed(k)`` (world k was reset on the host), which the batched env calls where they exist.
+and ``world_reset(k)`` (world k was reset on the host), which the batched env calls where they exist.
 """
 
 from __future__ import annotations

@@ -159,7 +159,9 @@ def flatten(info: dict[str, Any], prefix: tuple[str, ...] = ()) -> tuple[tuple[t
 
 def columns_of_rows(paths: tuple[tuple[str, ...], ...], rows: list[tuple]) -> Columns:
     """Worlds' ``flatten``ed dicts (the same ``paths``; ``rows[k]`` world k's values) as columns, with the
-    dtype ``stack_infos`` would give (the first world's type decides)."""
+    dtype ``stack_infos`` would give (the first world's type) where every world's value has that type, else
+    one that holds them all (``np.result_type``: an int first and a float later make a float column), so
+    that no world's value is cut (``stack_infos`` would cut it)."""
     columns: Columns = {}
     for path, values in zip(paths, zip(*rows)):
         first = values[0]
@@ -167,9 +169,11 @@ def columns_of_rows(paths: tuple[tuple[str, ...], ...], rows: list[tuple]) -> Co
         for key in path[:-1]:
             node = node.setdefault(key, {})
         if type(first) in (int, float, bool) or isinstance(first, np.number):
-            node[path[-1]] = np.array(values, dtype=type(first))
+            kinds = {type(value) for value in values}
+            node[path[-1]] = np.array(values, dtype=type(first) if len(kinds) == 1 else np.result_type(*kinds))
         elif isinstance(first, np.ndarray):
-            node[path[-1]] = np.array(values, dtype=first.dtype)
+            kinds = {np.asarray(value).dtype for value in values}
+            node[path[-1]] = np.array(values, dtype=first.dtype if len(kinds) == 1 else np.result_type(*kinds))
         else:    # one object per world, as stack_infos keeps it
             node[path[-1]] = np.fromiter(values, dtype=object, count=len(values))
     return columns

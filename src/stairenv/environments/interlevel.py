@@ -258,10 +258,18 @@ class InterLevelEnv(HumanoidEnv):
         return False
 
     def _start_tracking(self, state) -> None:
-        type(self)._start_tracking_worlds([self], state)
+        self._start_tracking_batch([self], state)
 
     @classmethod
     def _start_tracking_worlds(cls, envs: list[InterLevelEnv], state) -> None:
+        if cls._start_tracking is not InterLevelEnv._start_tracking:    # a subclass's override is called
+            super()._start_tracking_worlds(envs, state)
+            return
+        cls._start_tracking_batch(envs, state)
+
+    @classmethod
+    def _start_tracking_batch(cls, envs: list[InterLevelEnv], state) -> None:
+        """``_start_tracking`` of each of ``envs`` over the batch ``state`` (row k: world k's)."""
         for env, root in zip(envs, state.body_pos[:, PELVIS]):
             env._prev_root[...] = root
             stall = env._stall    # the env's settings as they are now, the clock from zero

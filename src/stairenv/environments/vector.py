@@ -59,6 +59,8 @@ of arrays with ``_key`` masks, as ``SyncVectorEnv`` gives (``step_worlds`` gives
 
 from __future__ import annotations
 
+import functools
+import inspect
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -84,7 +86,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
     truncation limit (None: none); ``physics_device``: where "warp" runs ("cuda:1", "cpu"; default Warp's
     first GPU; a data-parallel rank of the trainer passes its own); ``state_on_device``: with "warp", the
     device's state is the truth between resets (opt-in: each world's ``MjData`` then lags until
-    ``physics.sync_worlds()``, and a write into one must be announced with ``physics.world_changed(i)``;
+    ``physics.sync_worlds()``, and a write into one must follow ``physics.sync_worlds([i])`` and be announced
+    with ``physics.world_changed(i)``;
     ``warp_physics.WarpPhysics``);
     ``batch_outcomes``: the task's step outcomes over the batch in one call (default: where the env class can;
     ``batch_evaluation`` is its older name, deprecated).
@@ -152,7 +155,7 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             self._bound_worlds = [(env.model, env.data) for env in self.envs]
             self.physics.bind(self._bound_worlds)
         #: tells a device back-end that a world was reset on the host (its new staircase is copied up)
-        self._world_changed = getattr(self.physics, "world_changed", None)
+        self._world_reset = getattr(self.physics, "world_reset", None)
         #: a device back-end that keeps the state (``WarpPhysics(state_on_device=True)``): the step hands it the
         #: ctrl as one array and finishes from its arrays; the worlds' ``MjData`` lag until ``sync_worlds``
         self._state_on_device = bool(getattr(self.physics, "state_on_device", False))
@@ -227,8 +230,8 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         results = type(self.envs[0])._reset_worlds([self.envs[i] for i in worlds], seeds, options)
         obs = np.array([result[0] for result in results], dtype=self.single_observation_space.dtype)
         obs = obs.reshape(len(worlds), *self.single_observation_space.shape)
-        if self._world_changed is not None:
-            self._world_changed(worlds)
+        if self._world_reset is not None:
+            self._world_reset(worlds)
         self._elapsed[worlds] = 0
         self._autoreset[worlds] = False
         self._last_obs[worlds] = obs
@@ -406,8 +409,25 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             values = [values] * self.num_envs
         if len(values) != self.num_envs:
             raise ValueError(f"set_attr needs one value per world ({self.num_envs}), got {len(values)}")
-        for env, value in zip(self.envs, values):
-            setattr(env, name, value)
+        self.set_world_attrs(name, dict(enumerate(values)))
+
+    def set_world_attrs(self, name: str, values: dict[int, Any]) -> None:
+        """``setattr(world i, name, values[i])`` for each world i given (``set_attr`` for all; SB3's ``indices``
+        for some). The worlds share one configuration, since the task runs over them as one batch: a keyword
+        of the env class (``termination_height``, ``stall_seconds``...) must end with one value in every
+        world, else a ``ValueError`` naming it (a value per world, such as ``curriculum_level``, is free)."""
+        env_class = type(self.envs[0])
+        if name in _keywords(env_class):
+            after = [values[i] if i in values else getattr(env, name, _UNSET) for i, env in enumerate(self.envs)]
+            for i, value in enumerate(after):
+                if not _equal(value, after[0]):
+                    raise ValueError(
+                        f"set_attr({name!r}): {name!r} is a keyword of {env_class.__name__}, and a batched env's "
+                        f"worlds share one configuration (the task runs over them as one batch), so it takes one "
+                        f"value for every world; world 0 would have {after[0]!r}, world {i} {value!r}. Give one "
+                        f"value, or build separate envs for separate settings")
+        for i, value in values.items():
+            setattr(self.envs[i], name, value)
 
     def call(self, name: str, *args, **kwargs) -> tuple:
         results = []
@@ -416,10 +436,34 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             results.append(attr(*args, **kwargs) if callable(attr) else attr)
         return tuple(results)
 
+    def __getstate__(self):
+        # a copy would share the worlds' rows of arrays (the batch's carry) and the physics back-end (threads,
+        # a device) with this env, or lose them: refused with the way out rather than made half-working
+        raise TypeError(f"a batched env ({type(self).__name__}) cannot be copied or pickled: its worlds share "
+                        f"arrays and a physics back-end; build another with gym.make_vec(...) (a single world, "
+                        f"venv.envs[i], can be copied)")
+
     def close_extras(self, **kwargs) -> None:
         self.physics.close()
         for env in self.envs:
             env.close()
+
+
+_UNSET = object()    # a world without the attribute: unequal to any value
+
+
+@functools.cache
+def _keywords(env_class: type[HumanoidEnv]) -> frozenset[str]:
+    """The keywords ``env_class`` is built with: its configuration, which a batched env's worlds share."""
+    return frozenset(name for name, parameter in inspect.signature(env_class.__init__).parameters.items()
+                     if name != "self" and parameter.kind is not inspect.Parameter.VAR_KEYWORD)
+
+
+def _equal(a, b) -> bool:
+    try:
+        return bool(np.array_equal(a, b))
+    except Exception:    # values numpy cannot compare as arrays
+        return a is b or a == b
 
 
 def _non_real_worlds(actions: np.ndarray) -> str:

@@ -13,11 +13,12 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
 - the fields a staircase writes (``StairsSlots.place``: ``body_pos``, ``body_quat``, ``geom_size``,
   ``geom_rbound``, ``geom_aabb``) have a world dimension, so each world keeps its own staircase (the same
   number of step boxes in every world, only their sizes and poses differ), rewritten without recompiling;
-- a world marked changed (``world_changed(k)``: the batched env calls it when it resets world k; every
-  world at ``bind``) has those model rows copied from its host ``MjModel`` before the next step, and the
-  poses of its geoms (``geom_xpos``, ``geom_xmat``) from its host ``MjData``: MuJoCo Warp's kinematics
-  computes the poses of geoms on moving bodies only, so a tread (a static body) would otherwise keep the
-  pose ``put_data`` gave it, and the character would walk through the staircase it stands on;
+- a world marked changed (``world_reset(k)``: the batched env calls it when it resets world k;
+  ``world_changed(k)``: a user's write; every world at ``bind``) has those model rows copied from its host
+  ``MjModel`` before the next step, and the poses of its geoms (``geom_xpos``, ``geom_xmat``) from its host
+  ``MjData``: MuJoCo Warp's kinematics computes the poses of geoms on moving bodies only, so a tread (a
+  static body) would otherwise keep the pose ``put_data`` gave it, and the character would walk through
+  the staircase it stands on;
 - each ``step``: the stepped worlds' state (``qpos``, ``qvel``, ``act``, ``qacc_warmstart``, ``time``)
   and ``ctrl`` up, one copy per field (the host state is the truth: a reset, a push an evaluation
   writes into ``qvel``, a test's forced divergence all reach the device without being announced);
@@ -28,10 +29,10 @@ one ``mujoco_warp.Model`` with ``nworld`` = the number of worlds and one ``Data`
   poses the task reads come from these ``qpos``.
 
 Opt-in, ``state_on_device=True`` (``WarpPhysics`` docstring): the device's state is the truth between resets.
-Only worlds marked changed (``world_changed``: a reset, or an announced write) are read from their
-``MjData``, the state goes up only after such a change, the ctrl comes as one array, the device runs the
-kinematics, and the stepped worlds' state stays in ``state`` as arrays that the env finishes from; the
-worlds' ``MjData`` are written only by ``sync_worlds``.
+Only worlds marked changed (``world_reset``, ``world_changed``: a reset, or an announced write) are read
+from their ``MjData``, the state goes up only after such a change, the ctrl comes as one array, the device
+runs the kinematics, and the stepped worlds' state stays in ``state`` as arrays that the env finishes from;
+the worlds' ``MjData`` are written only by ``sync_worlds`` (so a write into one follows its sync).
 
 Options (integrator, solver, iterations, line-search iterations, tolerances, timestep, cone) are the
 ``MjModel``'s: ``mujoco_warp.put_model`` reads them, and ``settings()`` reports both sides. MuJoCo Warp
@@ -125,9 +126,9 @@ class WarpPhysics:
 
     ``state_on_device`` (opt-in; default False, the host's ``MjData`` is the truth): the device's state is
     the truth between resets. A step then takes the worlds' ctrl as one array (``step(..., ctrl=...)``),
-    reads only the ``MjData`` of worlds marked changed (``world_changed(k)``: a reset, or a write into a
-    world's ``MjData`` that must reach the device) and sends the state up only when one was (whole fields),
-    runs the kinematics on the device and leaves the stepped worlds' state in ``state`` as arrays (``qpos``,
+    reads only the ``MjData`` of worlds marked changed (``world_reset(k)``: a reset; ``world_changed(k)``: a
+    write into a world's ``MjData`` that must reach the device, after ``sync_worlds``) and sends the state up
+    only when one was (whole fields), runs the kinematics on the device and leaves the stepped worlds' state in ``state`` as arrays (``qpos``,
     ``qvel``, ``xpos``, ``xmat``, ``diverged``) instead of writing each world's ``MjData``; ``sync_worlds(ks)``
     writes worlds' ``MjData`` on request (rendering, reading a world's data)."""
 
@@ -195,13 +196,29 @@ class WarpPhysics:
         self._stale = np.zeros(n, dtype=bool)    # state_on_device: worlds whose MjData lags the device
         self._graphs = {}
 
-    def world_changed(self, k: int | Sequence[int]) -> None:
-        """World ``k``'s (or worlds ``k``') staircase was written into its host ``MjModel`` (a reset): copy the
-        per-world model fields up before the next step (its state goes up at every step anyway; with
-        ``state_on_device``, its state goes up then too, as its ``MjData`` now holds it)."""
+    def world_reset(self, k: int | Sequence[int]) -> None:
+        """World ``k`` (or worlds ``k``) was reset on the host, its ``MjData`` and staircase written whole (the
+        batched env calls it): copy the per-world model fields up before the next step (its state goes up
+        at every step anyway; with ``state_on_device``, its state goes up then too, and its ``MjData`` no
+        longer lags)."""
         self._changed[k] = True
         self._state_changed[k] = True
         self._stale[k] = False
+
+    def world_changed(self, k: int | Sequence[int]) -> None:
+        """A write into world ``k``'s (or worlds ``k``') host ``MjData`` or staircase that must reach the device,
+        sent up before the next step as a reset's is. With ``state_on_device`` a world whose ``MjData`` lags
+        the device (stepped since ``sync_worlds``) is refused with a ``RuntimeError``: the write would have
+        gone into an old state, which would be sent up and rewind the world. Sync it, write, then announce."""
+        if self.state_on_device:
+            ks = np.atleast_1d(np.asarray(k, dtype=np.int64))
+            lagging = ks[self._stale[ks]].tolist()
+            if lagging:
+                raise RuntimeError(
+                    f"world(s) {lagging}: the MjData lags the device's state (state_on_device=True), so a write "
+                    f"into it went into an old state, which would rewind the world: call "
+                    f"physics.sync_worlds({lagging}) before writing into it, then world_changed")
+        self.world_reset(k)
 
     def sync_worlds(self, ks: Sequence[int] | None = None) -> None:
         """With ``state_on_device``: write worlds ``ks`` (default: every world whose ``MjData`` lags) from the
@@ -427,6 +444,7 @@ class WarpPhysics:
 
 def _diverged(qpos: np.ndarray, qvel: np.ndarray, warm: np.ndarray) -> np.ndarray:
     """Worlds (rows) whose state is non-finite or beyond MuJoCo's bound: those C would reset (see the module
-    docstring, "Divergence")."""
-    return ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
-             & (np.abs(qpos) <= MAX_VALUE).all(1) & np.isfinite(warm).all(1))
+    docstring, "Divergence"; the warm start is the last acceleration, which C's ``mj_checkAcc`` bounds)."""
+    return ~(np.isfinite(qpos).all(1) & np.isfinite(qvel).all(1) & np.isfinite(warm).all(1)
+             & (np.abs(qpos) <= MAX_VALUE).all(1) & (np.abs(qvel) <= MAX_VALUE).all(1)
+             & (np.abs(warm) <= MAX_VALUE).all(1))
