@@ -329,19 +329,23 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.config is not None:
         with args.config.open("rb") as f:
             config = tomllib.load(f)
-        known = {a.dest for a in parser._actions}
-        unknown = set(config) - known - {"env_kwargs"}
+        actions = {a.dest: a for a in parser._actions}
+        unknown = set(config) - set(actions) - {"env_kwargs"}
         if unknown:
-            raise SystemExit(f"--config {args.config}: unknown keys {sorted(unknown)}; valid: {sorted(known)}")
+            raise SystemExit(f"--config {args.config}: unknown keys {sorted(unknown)}; valid: {sorted(actions)}")
         for key, value in config.items():
             if key == "env_kwargs":
                 args.env_kwarg = list(value.items()) + args.env_kwarg
             elif key not in fixed:
+                convert = actions[key].type    # as the flag would take it (TOML has no paths)
+                if isinstance(value, str) and callable(convert):
+                    value = convert(value)
                 setattr(args, key, value)
                 fixed.add(key)
     for key, value in PRESETS[args.preset].items():
         if key not in fixed:
             setattr(args, key, value)
+    args.given = frozenset(fixed)    # set by a flag or a --config key, not a default or a preset
     if args.env not in gym.registry:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
     if args.n_envs < 1:
@@ -436,11 +440,15 @@ def reference_windows(args: argparse.Namespace, env_kwargs: dict) -> ReferenceWi
     return reference
 
 
+#: the discriminator's flags (``--disc-*``), each the ``TrainConfig`` field of its name
+DISC_FLAGS = tuple(f"disc_{name}" for name in (
+    "hidden", "loss", "lr", "grad_penalty", "grad_penalty_batch", "weight_decay", "logit_reg", "input_noise",
+    "batch_size", "replay_size", "update_interval", "updates", "background", "scoring"))
+
+
 def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
     """The flags as the lean trainer's ``TrainConfig``."""
-    disc = {f"disc_{name}": getattr(args, f"disc_{name}") for name in (
-        "hidden", "loss", "lr", "grad_penalty", "grad_penalty_batch", "weight_decay", "logit_reg", "input_noise",
-        "batch_size", "replay_size", "update_interval", "updates", "background", "scoring")}
+    disc = {name: getattr(args, name) for name in DISC_FLAGS}
     try:
         return TrainConfig(
             env_id=args.env, env_kwargs=env_kwargs, num_envs=args.n_envs, seed=args.seed,
@@ -543,8 +551,11 @@ def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None
         # the device and the state's place are this machine's flags (default cpu, host truth) whatever trained it
         machine = {name: getattr(args, name) for name in ("physics", "physics_threads")
                    if getattr(args, name) is not None}
+        # a fresh discriminator (--fresh-discriminator) is built with the --disc-* flags given, else the run's
+        fresh = {name: getattr(args, name) for name in DISC_FLAGS if name in getattr(args, "given", ())} \
+            if args.fresh_discriminator else {}
         try:
-            config = config.replace(**machine, device=args.device, state_on_device=args.state_on_device)
+            config = config.replace(**machine, **fresh, device=args.device, state_on_device=args.state_on_device)
         except ValueError as err:
             raise SystemExit(f"--resume: {err}") from None
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,

@@ -317,12 +317,16 @@ def test_amp_text_captions_all_trains_on_every_caption_against_the_styles_texts(
     assert resumed["config"]["env_kwargs"]["condition_captions"] == kwargs["condition_captions"]
 
 
-def test_resume_equals_an_uninterrupted_run(tmp_path):
+@pytest.mark.parametrize("scoring", ["auto", "bf16"])
+def test_resume_equals_an_uninterrupted_run(tmp_path, scoring):
     """Serial physics, PPO + AMP (discriminator trained in the background): training on from a checkpoint
     (and the replay buffer beside it) gives the same weights, statistics and discriminator as the run
-    that was never stopped."""
-    config = SMALL_AMP
-    trainer = amp_trainer
+    that was never stopped, whichever way the discriminator scores (the resumed run's own way: bf16 used
+    to fall back to "auto" at a resume)."""
+    config = SMALL_AMP.replace(disc_scoring=scoring)
+
+    def trainer():
+        return amp_trainer(config)
     whole = trainer()
     whole.learn(checkpoint_dir=tmp_path / "whole")
     assert (tmp_path / "whole" / "checkpoint_32.pt").exists() and (tmp_path / "whole" / "replay_64.npy").exists()
@@ -336,6 +340,7 @@ def test_resume_equals_an_uninterrupted_run(tmp_path):
     state = read_checkpoint(tmp_path / "first" / "checkpoint_32.pt")
     resumed.load_state(state)
     assert resumed.load_replay(tmp_path / "first" / "checkpoint_32.pt", state)
+    assert resumed.style.disc.scoring == scoring
     resumed.learn(checkpoint_dir=tmp_path / "resumed")
     assert resumed.steps == whole.steps == 64
     for a, b in zip(whole.model.parameters(), resumed.model.parameters()):
@@ -372,6 +377,120 @@ def test_the_last_step_is_a_checkpoint_and_a_final_checkpoint_finds_its_replay(t
     assert not fresh.load_replay(tmp_path / "final_checkpoint.pt", final)
     for t in (trainer, resumed, fresh):
         t.close()
+
+
+def test_a_kill_while_a_checkpoint_is_written_leaves_the_last_one_whole_with_its_replay(tmp_path, monkeypatch):
+    """The older replay buffer is removed only once the new checkpoint is whole: a run stopped while writing
+    ``checkpoint_64.pt`` leaves ``checkpoint_32.pt`` (the newest, which ``--auto-resume`` takes) with its
+    replay buffer, so the resume is exact."""
+    from stairenv.training import ppo
+
+    write = ppo._atomic
+
+    def killed_at_64(path, contents):
+        if path.name == "checkpoint_64.pt":
+            raise KeyboardInterrupt
+        write(path, contents)
+
+    monkeypatch.setattr(ppo, "_atomic", killed_at_64)
+    trainer = amp_trainer()
+    with pytest.raises(KeyboardInterrupt):
+        trainer.learn(checkpoint_dir=tmp_path)
+    trainer.close()
+    monkeypatch.setattr(ppo, "_atomic", write)
+    newest = ppo.checkpoints_in(tmp_path)[-1][1]
+    assert newest.name == "checkpoint_32.pt" and (tmp_path / "replay_32.npy").is_file()
+    resumed = amp_trainer()
+    state = read_checkpoint(newest)
+    resumed.load_state(state)
+    assert resumed.load_replay(newest, state)
+    resumed.close()
+
+
+def test_init_from_takes_this_runs_discriminator_settings_or_says_why_not(tmp_path):
+    """``load_state(weights_only=True)`` (``--init-from``): the discriminator's weights come from the checkpoint,
+    its training settings (the learning rate its optimiser uses too) and instance noise (seeded with this
+    rank's seed) from this run; other hidden layers than the weights' are refused, naming them (they used
+    to be recorded, so the run's own checkpoints could not be resumed)."""
+    first = amp_trainer(SMALL_AMP.replace(total_steps=16, checkpoint_every=16))
+    first.learn(checkpoint_dir=tmp_path)
+    first.close()
+    state = read_checkpoint(tmp_path / "checkpoint_16.pt")
+    config = SMALL_AMP.replace(seed=7, disc_lr=1e-3, disc_input_noise=0.5)
+    run = amp_trainer(config)
+    run.load_state(state, weights_only=True)
+    disc = run.style.disc
+    assert disc.config.learning_rate == 1e-3 and disc.config.input_noise == 0.5
+    assert [group["lr"] for group in disc.optimizer.param_groups] == [1e-3]
+    assert torch.equal(disc.noise_generator.get_state(), torch.Generator().manual_seed(7).get_state())
+    for a, b in zip(disc.state_dict().values(), first.style.disc.state_dict().values()):
+        assert torch.equal(a, b)
+    run.close()
+    other = amp_trainer(SMALL_AMP.replace(disc_hidden=(8,)))
+    with pytest.raises(ValueError, match=r"hidden layers \[16\], this run asks for \[8\] \(--disc-hidden\)"):
+        other.load_state(state, weights_only=True)
+    other.close()
+
+
+def test_saved_curriculum_levels_fit_another_count_of_worlds():
+    """A checkpoint's curriculum levels, taken by a run of another world count (one rank or several), are
+    repeated or cut in order to its worlds (a 2-world run's into a 4-world run used to stop)."""
+    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=1, style="none",
+                         total_steps=16, hidden=(32, 32), env_kwargs={"step_height_levels": 4})
+    saved = Trainer(config)
+    saved.venv.set_attr("curriculum_level", [3, 1])
+    state = saved.state()
+    saved.close()
+    for n, levels in ((4, [3, 1, 3, 1]), (1, [3])):
+        run = Trainer(config.replace(num_envs=n))
+        run.load_state(state, weights_only=True)
+        assert run.curriculum_levels() == levels
+        run.close()
+
+
+def test_a_non_finite_reward_stops_training_before_it_reaches_the_statistics(tmp_path):
+    """A NaN reward (from a wrapper, say) stops the run with a ``FloatingPointError`` naming the world, before
+    the return normaliser keeps it and the update spreads it into every weight: the checkpoints written
+    before it stay sound (it used to train on and write an all-NaN checkpoint)."""
+    config = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=16, epochs=1, style="none",
+                         total_steps=32, checkpoint_every=16, hidden=(32, 32))
+    trainer = Trainer(config)
+    step_worlds, steps = trainer.venv.step_worlds, []
+
+    def nan_at_the_12th_step(*args, **kwargs):
+        out = list(step_worlds(*args, **kwargs))
+        steps.append(1)
+        if len(steps) == 12:    # after the checkpoint at 16 steps (8 steps of 2 worlds)
+            out[1] = np.where([False, True], np.nan, out[1])
+        return tuple(out)
+
+    trainer.venv.step_worlds = nan_at_the_12th_step
+    with pytest.raises(FloatingPointError, match=r"non-finite reward for world\(s\) \[1\] at step 22"):
+        trainer.learn(checkpoint_dir=tmp_path)
+    assert np.isfinite(trainer.normalizer.ret_rms.var).all()
+    assert all(torch.isfinite(p).all() for p in trainer.model.parameters())
+    state = read_checkpoint(tmp_path / "checkpoint_16.pt")
+    assert all(torch.isfinite(v).all() for v in state["model"].values())
+    trainer.close()
+
+
+def test_config_paths_are_paths_and_a_fresh_discriminator_takes_the_disc_flags(tmp_path, baseline_script):
+    """``--config`` keys are converted as their flags would be (``logdir = "runs"`` is a path, as
+    ``--logdir runs``); ``--resume --fresh-discriminator`` builds the new discriminator with the ``--disc-*``
+    flags given (they used to be ignored for the checkpoint's), the others staying the run's."""
+    train_ppo = baseline_script("train_ppo")
+    toml = tmp_path / "run.toml"
+    toml.write_text(f'logdir = "{tmp_path / "runs"}"\ninit_from = "{tmp_path / "x.pt"}"\n')
+    args = train_ppo.parse_args(["--config", str(toml)])
+    assert args.logdir == tmp_path / "runs" and isinstance(args.init_from, Path)
+    saved = amp_trainer(SMALL_AMP.replace(total_steps=16, disc_loss="bce"))
+    saved.save(tmp_path / "checkpoint_16.pt")
+    saved.close()
+    args = train_ppo.parse_args(["--resume", str(tmp_path / "checkpoint_16.pt"), "--fresh-discriminator",
+                                 "--disc-hidden", "8", "--disc-lr", "1e-3", "--logdir", str(tmp_path)])
+    resume, _, config, _, _ = train_ppo._lean_setup(args, print)
+    assert resume["style"] is None
+    assert (config.disc_hidden, config.disc_lr, config.disc_loss) == ((8,), 1e-3, "bce")
 
 
 def test_a_checkpoint_cut_is_not_judged_by_the_curriculum():

@@ -372,11 +372,13 @@ class AMPDiscriminator(nn.Module):
                 "model": cpu_tensors(self.state_dict()), "optimizer": cpu_tensors(optimizer)}
 
     @classmethod
-    def from_state(cls, state: dict, backend: str = "auto", device: str | torch.device = "cpu") -> "AMPDiscriminator":
-        """The discriminator ``state()`` wrote, on ``device`` (its optimiser's state moved there too)."""
+    def from_state(cls, state: dict, backend: str = "auto", device: str | torch.device = "cpu",
+                   scoring: str = "auto") -> "AMPDiscriminator":
+        """The discriminator ``state()`` wrote, on ``device`` (its optimiser's state moved there too), scoring
+        with ``scoring``."""
         config = dict(state["config"])
         config["hidden"] = tuple(config["hidden"])
-        disc = cls(state["input_dim"], DiscriminatorConfig(**config), backend=backend, device=device)
+        disc = cls(state["input_dim"], DiscriminatorConfig(**config), backend=backend, scoring=scoring, device=device)
         disc.load_state_dict(state["model"])
         disc.optimizer.load_state_dict(state["optimizer"])
         return disc

@@ -349,6 +349,11 @@ class Trainer:
                 style_sum += float(style.mean())
             else:
                 reward = np.asarray(task_reward, dtype=np.float64)
+            if not np.isfinite(reward).all():    # the return normaliser would keep it, and the update spread it
+                raise FloatingPointError(
+                    f"a non-finite reward for world(s) {np.flatnonzero(~np.isfinite(reward)).tolist()} at step "
+                    f"{self.steps} (task reward {np.asarray(task_reward)[~np.isfinite(reward)].tolist()}): training "
+                    f"stops before it reaches the statistics or the weights, so the checkpoints written are sound")
             task_sum += float(np.mean(task_reward))
             self.episodes.step(task_reward, dones, infos)
             norm_obs = self.normalizer.observations(obs)
@@ -542,14 +547,16 @@ class Trainer:
         if self.parallel.rank != 0:
             return path
         path.parent.mkdir(parents=True, exist_ok=True)
+        targets = []
         if buffers is not None:
             targets = [replay_beside(path, self.steps, rank) for rank in range(len(buffers))]
             for target, windows in zip(targets, buffers):
                 _atomic(target, lambda tmp, windows=windows: np.save(tmp, windows))
+        _atomic(path, lambda tmp: torch.save(state, tmp))
+        if buffers is not None:    # only now: until the new checkpoint is whole, the last one needs its buffers
             for older in path.parent.glob("replay_*.npy"):
                 if older not in targets:
                     older.unlink()
-        _atomic(path, lambda tmp: torch.save(state, tmp))
         return path
 
     def load_state(self, state: dict[str, Any], weights_only: bool = False) -> None:
@@ -567,14 +574,22 @@ class Trainer:
         self.normalizer.obs_rms.load(state["obs_rms"])
         self.normalizer.ret_rms.load(state["ret_rms"])
         if self.style is not None and state.get("style") is not None:
-            disc = AMPDiscriminator.from_state(state["style"]["discriminator"], device=self.device)
+            own = self.style.disc    # this run's: how it scores (a machine's choice), its seeded noise
+            disc = AMPDiscriminator.from_state(state["style"]["discriminator"], backend=own.backend,
+                                               scoring=own.scoring, device=self.device)
+            disc.scoring_threads, disc.noise_generator = own.scoring_threads, own.noise_generator
             if disc.input_dim != self.style.reference.dim:
                 raise ValueError(f"the checkpoint's discriminator judges {disc.input_dim} numbers, "
                                  f"this run's reference windows have {self.style.reference.dim}")
             keep = self.style.config
+            if weights_only and tuple(keep.hidden) != tuple(disc.config.hidden):
+                raise ValueError(f"the checkpoint's discriminator has hidden layers {list(disc.config.hidden)}, "
+                                 f"this run asks for {list(keep.hidden)} (--disc-hidden); its weights fix them")
             self.style.disc = disc
-            if weights_only:    # this run's settings of the discriminator's training
+            if weights_only:    # this run's settings of the discriminator's training, its learning rate too
                 disc.config = keep
+                for group in disc.optimizer.param_groups:
+                    group["lr"] = keep.learning_rate
             self.style.config = disc.config
             self.style.rounds = int(state["style"]["rounds"])
             disc.parallel = self._style_parallel
@@ -595,7 +610,7 @@ class Trainer:
         if state.get("curriculum_level") and self.curriculum_levels() and same_curriculum:
             levels = list(state["curriculum_level"])    # every world's, when both runs have a curriculum
             n, p = self.config.num_envs, self.parallel
-            if int(state.get("world_size", 1)) != p.world_size:    # another rank count: repeated or cut
+            if len(levels) != n * p.world_size:    # another count of worlds or ranks: repeated or cut
                 levels = [levels[i % len(levels)] for i in range(n * p.world_size)]
             if p.world_size > 1:
                 levels = levels[p.rank * n:(p.rank + 1) * n]
@@ -658,10 +673,13 @@ def replay_beside(checkpoint: Path, steps: int, rank: int = 0) -> Path:
 
 
 def _atomic(path: Path, write) -> None:
-    """``write(tmp)`` then rename to ``path``: a file is whole or absent, never half-written."""
+    """``write(tmp)`` then rename to ``path``: a file is whole or absent, never half-written (its bytes are on
+    the disk before the rename, so a crash of the machine cannot leave a newest file that is empty)."""
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as f:
         write(f)
+        f.flush()
+        os.fsync(f.fileno())
     tmp.replace(path)
 
 
