@@ -157,6 +157,10 @@ def test_schema_root_type_error():
          "keyframes[1].skill: sit on the chair #1 must be preceded by a walk to the chair #1"),
         # a script that starts lying must begin with its getup
         ([("walk", "bed")], "lying", "keyframes[0].skill: a script that starts lying must begin with a getup"),
+        # ... from what one can lie on (it used to pass, then stop in the env: "cannot lie on a chair")
+        ([("getup", "chair")], "lying", "keyframes[0].furniture: a script that starts lying gets up from what one can "
+                                        "lie on (['bed', 'double bed', 'sofa']), not a chair"),
+        ([("getup", "lamp")], "sitting", "keyframes[0].furniture: a script that starts sitting gets up from what one"),
     ],
 )
 def test_semantic_rules(keyframes, start_pose, expected):

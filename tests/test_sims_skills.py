@@ -278,6 +278,49 @@ def test_success_flag_when_the_pelvis_is_on_the_seat():
     assert info["reward_near"] > 0.6 * math.exp(-10 * 0.2 ** 2)
 
 
+def test_room_goals_stand_on_free_floor_and_the_heightmap_sees_the_walls():
+    """In a room: a get-up goal is on free floor (in front of a chair at a table it used to lie inside the
+    table), the arrays the env hands out are the caller's own, and the heightmap holds the walls (which stand
+    outside the interior: a character facing a wall used to see flat floor)."""
+    from stairenv.environments.sims_config import host_families
+
+    env = SIMSEnv(skill="sit", scene="room", scene_resample_every=1, **FAST)
+    at_table = moved = 0
+    for seed in range(8):
+        env.reset(seed=seed)
+        free = env.room.free_space()
+        for name, placed in env.furniture.items():
+            if placed.family not in host_families("getup"):
+                continue
+            env.set_task("getup", name)
+            target = env.goal.root_target
+            assert free.label_at(target[None, :2])[0] > 0, (seed, name)
+            assert not np.shares_memory(target, env.goal.points[task.JOINT["pelvis"]])
+            plain = task.standing_point(placed, task.resolve_part(placed.family, None, "getup"))
+            at_table += free.label_at(plain[None, :2])[0] == 0
+            moved += not np.allclose(plain[:2], target[:2])
+        point = env.approach_point(placed)
+        point += 100.0
+        assert not np.array_equal(env.approach_point(placed), point)
+    assert at_table > 0 and moved == at_table    # only the points off free floor move
+    x0, y0, x1, y1 = env.room.bounds
+    mid = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    walls = np.array([[x0 - 0.05, mid[1]], [x1 + 0.05, mid[1]], [mid[0], y0 - 0.05], [mid[0], y1 + 0.05]])
+    assert (env._heights.sample(walls) >= 2.0).all()
+
+
+def test_a_sofa_sit_asks_for_no_hands_on_armrests_out_of_reach():
+    """Both hands go to the armrests of an armchair; a sofa's are 1.4-2.2 m apart, where seated in its middle
+    each hand would be 0.6-0.8 m from its armrest and the near term ~0 whatever the character did: its sit goal
+    is the pelvis on the seat and the torso at the backrest."""
+    rng = np.random.default_rng(0)
+    for family, hands in (("armchair", True), ("sofa", False)):
+        placed = PlacedFurniture(family, make_furniture(family, rng), (0.0, 0.0, 0.3))
+        goal = task.contact_goal("sit", placed, rng)
+        names = {name for name, k in task.JOINT.items() if goal.mask[k]}
+        assert ({"left_hand", "right_hand"} <= names) == hands and {"pelvis", "torso"} <= names, (family, names)
+
+
 def test_room_scene_and_set_task():
     room = generate_room(RoomConfig(), np.random.default_rng(0), categories=["chair", "table", "bed"])
     env = SIMSEnv(skill="walk", room=room, **FAST)

@@ -279,11 +279,16 @@ class SIMSEnv(HumanoidEnv):
             self.room = room
             placed = list(room.furniture)
             walls = room.walls
-            self._heights = task.SceneHeights.build(placed, walls, bounds=room.bounds)
+            # the interior and the walls around it (which stand outside the interior's bounds): a character
+            # near a wall sees it
+            corners = np.concatenate([np.reshape(room.bounds, (2, 2)), *(w.corners_xy() for w in walls)])
+            bounds = (*corners.min(axis=0), *corners.max(axis=0))
+            self._heights = task.SceneHeights.build(placed, walls, bounds=bounds)
             free = room.free_space()
             ii, jj = np.nonzero(free.free)
             self._free_xy = np.column_stack((free.origin[0] + (jj + 0.5) * free.cell_size,
                                              free.origin[1] + (ii + 0.5) * free.cell_size))
+            self._free_cell = float(free.cell_size)
         else:
             family = self.families[int(rng.integers(0, len(self.families)))]
             piece = PlacedFurniture(family, make_furniture(family, rng), (0.0, 0.0, float(rng.uniform(-math.pi, math.pi))))
@@ -393,7 +398,7 @@ class SIMSEnv(HumanoidEnv):
         """The contact goal, a caption of the skill and the target speed."""
         target = self._target
         if self.skill == "getup":
-            goal = task.contact_goal("getup", target, rng, details=self.details)
+            goal = task.contact_goal("getup", target, rng, details=self.details, stand_at=self.free_floor_point)
         elif self._start_goal is not None:  # drawn before the character was placed (a reach start)
             goal = self._start_goal
         else:
@@ -426,7 +431,7 @@ class SIMSEnv(HumanoidEnv):
                 raise ValueError("a walk needs walk_target or furniture")
             walk_target = self.approach_point(placed)
         goal = task.contact_goal(skill, placed, rng, part=part, hand=hand, walk_target=walk_target,
-                                 details=self.details)
+                                 details=self.details, stand_at=self.free_floor_point)
         # self.skill stays the episode skill that reset() draws; the goal carries the current one
         speed = float(np.mean(self.speed_range(style))) if target_speed is None else float(target_speed)
         self._set_goal(goal, caption if caption is not None else skill, style, speed)
@@ -441,12 +446,22 @@ class SIMSEnv(HumanoidEnv):
             return (0.8 * speed, 1.2 * speed)
         return self.target_speed
 
+    def free_floor_point(self, xy: np.ndarray) -> np.ndarray:
+        """``xy`` where it is on free floor (or the scene has no free map: an object scene), else the centre of
+        the nearest free cell of the room: where a character getting up from a chair at a table stands (the
+        point in front of the chair lies in the table)."""
+        if self._free_xy is None or not len(self._free_xy):
+            return np.array(xy, dtype=float)
+        d = np.sum(np.square(self._free_xy - xy), axis=1)
+        k = int(np.argmin(d))
+        return np.array(xy, dtype=float) if d[k] <= 0.5 * self._free_cell ** 2 else self._free_xy[k].copy()
+
     def approach_point(self, placed: PlacedFurniture, distance: float = 0.45) -> np.ndarray:
         """(x, y) where a character stands to use ``placed``: in front of it, on free floor if known."""
         point = task.standing_point(placed, task.resolve_part(placed.family, None, "reach"), distance)[:2]
         if self._free_xy is not None and len(self._free_xy):
             d = np.sum(np.square(self._free_xy - point), axis=1)
-            point = self._free_xy[int(np.argmin(d))]
+            point = self._free_xy[int(np.argmin(d))].copy()    # the caller's own, not a row of the free cells
         return np.asarray(point, dtype=float)
 
     def _set_goal(self, goal: task.ContactGoal, caption: str, style: str, speed: float) -> None:

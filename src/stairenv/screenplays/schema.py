@@ -46,7 +46,8 @@ Two layers of checks:
   5. ``part`` is allowed for the skill (sit, lie: seat or bed_surface; reach: any
      part) and exists on the furniture (:data:`FURNITURE_PARTS`); walk and getup take none;
   6. ``hand`` only on reach;
-  7. ``start_pose`` sitting/lying needs a first keyframe getup with a furniture.
+  7. ``start_pose`` sitting/lying needs a first keyframe getup with a furniture that affords it (one
+     sits on what rule 4 lets sit, lies on what it lets lie).
 
   A script may end seated or lying (stories insert a getup between scripts, see
   :mod:`stairenv.screenplays.story`).
@@ -340,8 +341,14 @@ def semantic_errors(keyframes: Sequence[Any], start_pose: str = "standing",
         if first is None or _kf_get(first, "skill") != "getup" or not _kf_get(first, "furniture"):
             errors.append(f"{path}[0].skill: a script that starts {start_pose} must begin with a getup "
                           "from a named furniture")
-        elif at is None:
-            at = (_kf_get(first, "furniture"), int(_kf_get(first, "instance", 0) or 0))
+        else:
+            skill = {"sitting": "sit", "lying": "lie"}.get(start_pose)
+            cat = _kf_get(first, "furniture")
+            if skill is not None and cat in FURNITURE and cat not in AFFORDANCES[skill]:
+                errors.append(f"{path}[0].furniture: a script that starts {start_pose} gets up from what one can "
+                              f"{skill} on ({sorted(AFFORDANCES[skill])}), not a {cat}")
+            if at is None:
+                at = (cat, int(_kf_get(first, "instance", 0) or 0))
     for i, kf in enumerate(keyframes):
         p = f"{path}[{i}]"
         skill = _kf_get(kf, "skill")

@@ -33,7 +33,7 @@ batch; ``walk_reward_terms`` and ``contact_reward_terms`` are one world's reward
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -397,6 +397,10 @@ def resolve_part(family: str, part: str | None, skill: str) -> str:
     return table[family]
 
 
+#: the farthest apart (m, centre to centre) two armrests are for a sit goal to put a hand on each
+ARMREST_SPAN = 1.0
+
+
 def standing_point(placed: PlacedFurniture, label: str, distance: float = 0.35) -> np.ndarray:
     """Where a character stands after getting up from ``label``: in front of the surface's front edge."""
     # several parts of a label (two armrests, four shelves): their mean centre, furniture frame
@@ -413,8 +417,9 @@ def standing_point(placed: PlacedFurniture, label: str, distance: float = 0.35) 
 
 def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Generator, *,
                  part: str | None = None, hand: str | None = None, walk_target: Sequence[float] | None = None,
-                 details: bool = True) -> ContactGoal:
-    """The goal of ``skill`` on ``placed`` (walk: ``walk_target`` (x, y) instead).
+                 details: bool = True, stand_at: Callable[[np.ndarray], np.ndarray] | None = None) -> ContactGoal:
+    """The goal of ``skill`` on ``placed`` (walk: ``walk_target`` (x, y) instead; getup: ``stand_at`` maps the
+    standing point's (x, y) to where the character can stand, e.g. free floor in a room).
 
     sit: pelvis on the seat (with ``details``: torso at the backrest and hands on the
     armrests when the piece has them); lie: pelvis on the bed surface / sofa seat and head on
@@ -427,7 +432,7 @@ def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Gene
         if walk_target is None:
             raise ValueError("a walk goal needs walk_target (x, y)")
         target = np.array([float(walk_target[0]), float(walk_target[1]), STANDING_ROOT_HEIGHT])
-        return ContactGoal("walk", _joint_points(pelvis=target), JOINT["pelvis"], target)
+        return ContactGoal("walk", _joint_points(pelvis=target), JOINT["pelvis"], target.copy())
     if placed is None:
         raise ValueError(f"a {skill} goal needs a furniture")
     family = placed.family
@@ -436,7 +441,9 @@ def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Gene
         raise ValueError(f"{family} has no part {label!r} ({skill}); its parts: {list(placed.furniture.labels)}")
     if skill == "getup":
         target = standing_point(placed, label)
-        return ContactGoal("getup", _joint_points(pelvis=target), JOINT["pelvis"], target, placed.name, label)
+        if stand_at is not None:
+            target[:2] = stand_at(target[:2])
+        return ContactGoal("getup", _joint_points(pelvis=target), JOINT["pelvis"], target.copy(), placed.name, label)
     if skill == "reach":
         hand = hand if hand is not None else ("right_hand", "left_hand")[int(rng.integers(0, 2))]
         hand = hand if hand.endswith("_hand") else f"{hand}_hand"
@@ -460,7 +467,9 @@ def contact_goal(skill: str, placed: PlacedFurniture | None, rng: np.random.Gene
         if "backrest" in placed.furniture.labels and len(placed.furniture.parts("backrest")) == 1:
             extra["torso"] = _surface_points(placed, "backrest", CONTACT_CLEARANCE["torso"], 3)
         armrests = placed.furniture.contact_surfaces("armrest") if "armrest" in placed.furniture.labels else []
-        if len(armrests) == 2:
+        # both hands on the armrests where a seated person reaches both (an armchair's, not a sofa's: seated
+        # in a sofa's middle each hand would be 0.6-0.8 m from its armrest, and the near term ~0 whatever it did)
+        if len(armrests) == 2 and abs(armrests[0].center[1] - armrests[1].center[1]) <= ARMREST_SPAN:
             # facing the front (+x), the left hand is on the +y side
             left, right = sorted(armrests, key=lambda s: -s.center[1])
             for name, s in (("left_hand", left), ("right_hand", right)):
