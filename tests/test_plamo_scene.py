@@ -168,3 +168,42 @@ def test_what_can_only_fail_at_reset_names_the_keyword():
             break
     else:
         pytest.fail("no scene of 20 without a tree")
+
+
+def test_a_route_that_starts_from_a_named_landmark_starts_the_character_there():
+    """"Walk from the swing to the tree": the character stands at the swing, on its path (it used to stand at the
+    scene's first landmark, metres away, and the episode ended off the path at its first step)."""
+    env = PlaMoSceneEnv(scene={"landmark_names": ("tree", "swing", "car", "bench"), "num_landmarks": 4},
+                        instructions="Walk from the swing to the tree")
+    for seed in range(2):
+        _, info = env.reset(seed=seed)
+        assert np.array_equal(env._start_xy, env._plans[0].start_xy) and info["xy_error"] < 0.05
+        _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape))
+        assert not terminated and not info["off_path"]
+    env.close()
+
+
+def test_legs_that_do_not_join_are_refused_naming_them():
+    """A leg from another landmark than the one the leg before reaches would make the character jump between
+    them: refused with an ``InstructionError`` saying how to write it."""
+    from stairenv.planning.errors import InstructionError
+
+    env = PlaMoSceneEnv(scene={"landmark_names": ("tree", "swing", "car", "bench"), "num_landmarks": 4},
+                        instructions="Walk to the tree, then walk from the swing to the car")
+    with pytest.raises(InstructionError, match="leg 2 starts from the swing, but leg 1 ends at the tree: say 'from "
+                                               "the tree', or leave 'from' out"):
+        env.reset(seed=0)
+    env.close()
+
+
+def test_a_stop_turns_the_shorter_way_round():
+    """While the path stands still its direction turns from the last direction of travel to the next: across the
+    +-pi seam the short way (0.08 rad), not through due east; elsewhere as ``np.interp``; held at the ends."""
+    from stairenv.environments.plamo_scene import _direction_while_still
+
+    yaw = np.array([np.nan, 3.1, 3.1, np.nan, np.nan, np.nan, -3.1, np.nan, 0.5, np.nan, np.nan, 1.5, np.nan])
+    moving = ~np.isnan(yaw)
+    out = _direction_while_still(yaw, moving)
+    assert out[0] == 3.1 and out[-1] == 1.5 and np.array_equal(out[moving], yaw[moving])
+    assert (np.abs(out[3:6]) > 3.1).all() and np.all(np.abs(np.diff(np.unwrap(out[2:7]))) < 0.03)
+    np.testing.assert_array_equal(out[9:11], np.interp([9, 10], [8, 11], [0.5, 1.5]))

@@ -414,7 +414,8 @@ class PlaMoScenePlanner:
         'instruction text, e.g. "Walk to the tree, then crawl from the tree to the swing", checked against '
         "the scene's landmark names; None = random over the scene's landmarks")
     speed_profile: str = checked("planned", Check("choice", options=SPEED_PROFILES),
-                                 '"planned" (the speed QP) or "constant" (constant_speed along the same path)')
+                                 '"planned" (the speed QP) or "constant" (constant_speed along the same path; '
+                                 "a detour around the moving ball is timed by the speed QP)")
     constant_speed: float = checked(1.5, Check("float", 0.0, 10.0, low_open=True),
                                     'speed with speed_profile="constant" (m/s)')
     replan_horizon: float = checked(1.5, Check("float", 0.0, 10.0, low_open=True),

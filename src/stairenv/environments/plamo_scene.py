@@ -50,9 +50,7 @@ def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float)
     step = np.diff(xyz, axis=0, append=xyz[-1:] + (xyz[-1:] - xyz[-2:-1] if len(xyz) > 1 else 0))
     moving = np.hypot(step[:, 0], step[:, 1]) > 1e-6
     yaw = np.where(moving, np.arctan2(step[:, 1], step[:, 0]), np.nan)
-    # Hold the last direction of travel while standing still.
-    valid = np.flatnonzero(~np.isnan(yaw))
-    yaw = np.interp(np.arange(len(yaw)), valid, yaw[valid]) if len(valid) else np.zeros(len(yaw))
+    yaw = _direction_while_still(yaw, moving)
     pitch = np.where(moving, np.arctan2(step[:, 2], np.maximum(np.hypot(step[:, 0], step[:, 1]), 1e-9)), 0.0)
     head = xyz[:, 2] - ground_height(xyz[:, :2])
     return task.PathSamples(xyz, head, v, yaw, pitch, PATH_DT)
@@ -146,6 +144,7 @@ class PlaMoSceneEnv(PlaMoEnv):
                         else np.asarray(self.scene.landmark(self.scene.landmark_names[0]).center, dtype=float))
             try:
                 self._plans: list[Plan] = self._planner.route(text, start=start_xy)
+                _check_joined(self._plans)
                 break
             except (PlanningError, InstructionError) as error:
                 if self.instructions is not None:  # the user's own: say which keyword and scene
@@ -166,7 +165,9 @@ class PlaMoSceneEnv(PlaMoEnv):
         self._refresh_path()
         goal = self.scene.landmark(self._plans[-1].segment.target)
         self._goal_xy = np.asarray(goal.center, dtype=float)
-        self._start_xy = np.asarray(start_xy, dtype=float)
+        # where the route starts: "from the swing ..." starts at the swing, not where a route without one would
+        first = self._plans[0]
+        self._start_xy = first.start_xy if first.segment.source is not None else np.asarray(start_xy, dtype=float)
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Standing at the route's start, facing along it; the scene's moving obstacles at time 0."""
@@ -296,6 +297,36 @@ class _GroundTrack:
 
     def position(self, t):
         return np.asarray(self.obstacle.position(t))[..., :2]
+
+
+def _direction_while_still(yaw: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """The path's direction where it stands still: the last direction of travel held at the ends, and during a
+    stop (a wait for the ball) turned evenly from the direction before it to the one after, the shorter way
+    round (a stop between +3.1 and -3.1 rad turns 0.08 rad, not 6.2 through due east)."""
+    valid = np.flatnonzero(moving)
+    if not len(valid):
+        return np.zeros(len(yaw))
+    index = np.arange(len(yaw))
+    out = np.interp(index, valid, yaw[valid])
+    before = np.searchsorted(valid, index, side="right") - 1    # the last moving sample at or before each
+    stop = ~moving & (before >= 0) & (before < len(valid) - 1)
+    a, b = valid[before[stop]], valid[before[stop] + 1]
+    seam = np.abs(yaw[b] - yaw[a]) > np.pi    # across +-pi: np.interp would turn the long way round
+    if seam.any():
+        a, b, at = a[seam], b[seam], index[stop][seam]
+        turn = np.mod(yaw[b] - yaw[a] + np.pi, 2 * np.pi) - np.pi
+        out[at] = np.mod(yaw[a] + (at - a) / (b - a) * turn + np.pi, 2 * np.pi) - np.pi
+    return out
+
+
+def _check_joined(plans: list[Plan]) -> None:
+    """``InstructionError`` where a leg starts from another landmark than the one the leg before it reaches:
+    the character follows one path, and it would have to jump between them."""
+    for k in range(1, len(plans)):
+        source, reached = plans[k].segment.source, plans[k - 1].segment.target
+        if source is not None and source != reached:
+            raise InstructionError(f"leg {k + 1} starts from the {source}, but leg {k} ends at the {reached}: "
+                                   f"say 'from the {reached}', or leave 'from' out")
 
 
 def _constant_speed(plans: list[Plan], speed: float) -> list[Plan]:

@@ -114,6 +114,10 @@ class Plan:
         return self.trajectory.duration
 
     @property
+    def start_xy(self) -> np.ndarray:
+        return self.path.xy[0].copy()
+
+    @property
     def end_xy(self) -> np.ndarray:
         return self.path.xy[-1].copy()
 
