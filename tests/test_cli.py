@@ -153,3 +153,65 @@ def test_policy_captions_films_on_the_captions_the_policy_trained_on(tmp_path):
     assert record("SIMS-Walk-v0", policy=str(path), out=tmp_path / "b.mp4", **common)["captions"] is None
     assert record("SIMS-Walk-v0", policy="zero", out=tmp_path / "c.mp4", policy_captions=True,
                   **common)["captions"] is None
+
+
+def test_each_env_films_to_its_own_default_path_and_bad_ids_or_keywords_are_usage_errors(tmp_path, capsys):
+    """The default ``--out`` is the env's own (filming SIMS used to overwrite ``videos/interlevel.mp4``); an
+    unknown id is named before any policy is looked up for it; a keyword the film sets itself, or one of the
+    wrong type, is a usage error, not a traceback."""
+    from stairenv.__main__ import default_out, main
+
+    assert [default_out(i) for i in ("InterLevel-v0", "SIMS-Walk-v0", "PlaMoScene-v0")] == [
+        "videos/interlevel.mp4", "videos/sims-walk.mp4", "videos/plamoscene.mp4"]
+    for argv, message in ((["--env", "NoSuchEnv-v0", "--policy", "pretrained"], "registered env id"),
+                          (["--env-kwarg", "width=100"], "the film sets them itself"),
+                          (["--env-kwarg", "step_height_set=abc"], "step_height_set")):
+        with pytest.raises(SystemExit) as stop:
+            main([*argv, "--seconds", "0.2", "--out", str(tmp_path / "v.mp4"), "--no-progress"])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err and "no trained policy" not in err, err
+
+
+def test_a_policy_file_is_refused_on_other_text_embeddings_than_it_trained_on(tmp_path):
+    """Any policy file, not only ``--policy pretrained``: ``python -m stairenv`` resolves the shipped policy to
+    its path, and the shipped SIMS walker used to be filmed on another encoder's embeddings without a word."""
+    import gymnasium as gym
+
+    from stairenv.policy_loading import load_policy
+    from stairenv.pretrained import NumpyPolicy, PolicyFileError
+
+    env = gym.make("SIMS-Walk-v0", text_encoder="hashing")
+    size = env.observation_space.shape[0]
+    path = tmp_path / "walk.npz"
+    NumpyPolicy([np.zeros((28, size))], [np.zeros(28)], np.zeros(size), np.ones(size),
+                config={"env_id": "SIMS-Walk-v0", "text_encoder_id": "another-encoder"}).save(path)
+    with pytest.raises(PolicyFileError, match="trained on the text embeddings of 'another-encoder'"):
+        load_policy(str(path), env)
+    env.close()
+
+
+def test_frames_show_the_filmed_episodes_progress_and_the_camera_set_before_a_reset_holds(tmp_path, monkeypatch):
+    """Each frame's label gives the progress of the episode filmed (a new episode used to start with the
+    last one's best), and ``set_camera`` before a reset that rebuilds the scene (SIMS) still holds."""
+    import gymnasium as gym
+
+    import stairenv.__main__ as cli
+
+    labels = []
+    real = cli.caption_frame
+    monkeypatch.setattr(cli, "caption_frame", lambda frame, lines, banner=None: labels.append(lines) or
+                        real(frame, lines, banner))
+    summary = cli.record(policy="pretrained", seconds=11.0, out=tmp_path / "v.mp4", width=64, height=48,
+                         env_kwargs={"max_episode_steps": 150}, progress_bar=False)
+    assert summary["episodes"] >= 3 and summary["best_progress"] > 0.0
+    starts = [lines[1] for lines in labels if "t =  0.0 s" in lines[1]]
+    assert len({line.split("  t")[0] for line in starts}) == summary["episodes"]
+    assert all(line.endswith("progress 0%") for line in starts)
+    env = gym.make("SIMS-Sit-v0", render_mode="rgb_array", width=32, height=32, text_encoder="hashing")
+    env.unwrapped.set_camera(-20.0, 3.5)
+    env.reset(seed=0)
+    env.render()
+    camera = env.unwrapped._camera.camera
+    assert (camera.distance, camera.elevation) == (3.5, -20.0)
+    env.close()

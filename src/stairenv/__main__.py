@@ -34,7 +34,14 @@ from stairenv.policy_loading import PRETRAINED  # ``--policy`` for the policy sh
 DEFAULT_ENV = "InterLevel-v0"
 #: what ``--policy`` falls back to when the package ships no trained policy for the env
 FALLBACK_POLICY = "zero"
-DEFAULT_OUT = "videos/interlevel.mp4"
+def default_out(env_id: str) -> str:
+    """Where a film of ``env_id`` goes unless ``--out`` says: ``videos/<the id's name>.mp4`` (``interlevel.mp4``,
+    ``sims-walk.mp4``), so that filming one env does not overwrite another's film."""
+    return f"videos/{env_id.rsplit('-v', 1)[0].lower()}.mp4"
+
+
+#: keywords the film sets itself (``--width``, ``--height``; it renders offscreen)
+FILM_KEYWORDS = ("render_mode", "width", "height")
 #: a one-episode video stops here if the episode has not ended (envs without a time limit)
 MAX_EPISODE_SECONDS = 60.0
 #: the follow camera of a film: distance (m) from the pelvis and elevation (deg); a 1.7 m character
@@ -58,7 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seconds", type=float, default=None,
                         help="video length in seconds (default: one episode, filmed to its end)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
-    parser.add_argument("--out", default=DEFAULT_OUT, help="output .mp4 path (default: %(default)s)")
+    parser.add_argument("--out", default=None,
+                        help="output .mp4 path (default: videos/<env name>.mp4, e.g. videos/interlevel.mp4)")
     parser.add_argument("--width", type=int, default=640, help="frame width in pixels (default: %(default)s)")
     parser.add_argument("--height", type=int, default=480, help="frame height in pixels (default: %(default)s)")
     parser.add_argument("--env-kwarg", action="append", default=[], type=env_kwarg_argument, metavar="KEY=VALUE",
@@ -71,6 +79,16 @@ def build_parser() -> argparse.ArgumentParser:
                              "(a policy trained on few captions follows unseen ones worse) instead of the env's")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
+
+
+def check_env_id(env_id: str) -> None:
+    """``ValueError`` naming the registered ids unless ``env_id`` is one."""
+    import gymnasium as gym
+
+    import stairenv
+
+    if env_id not in gym.registry:
+        raise ValueError(f"env must be a registered env id such as {list(stairenv.ENV_IDS)}, got {env_id!r}")
 
 
 def resolve_policy(policy: str | None, env_id: str) -> tuple[str, str | None]:
@@ -141,7 +159,7 @@ def record(
     policy: str | None = None,
     seconds: float | None = None,
     seed: int = 0,
-    out: str | Path = DEFAULT_OUT,
+    out: str | Path | None = None,
     width: int = 640,
     height: int = 480,
     env_kwargs: dict[str, Any] | None = None,
@@ -179,9 +197,11 @@ def record(
             raise ValueError(f"{name} must be in [16, 4096] pixels, got {value!r}")
     if not (isinstance(camera_distance, (int, float)) and 0.5 <= camera_distance <= 50):
         raise ValueError(f"camera_distance must be in [0.5, 50] m, got {camera_distance!r}")
-    if env_id not in gym.registry:
-        raise ValueError(f"env must be a registered env id such as {list(stairenv.ENV_IDS)}, got {env_id!r}")
-    out = Path(out)
+    check_env_id(env_id)
+    taken = sorted(set(env_kwargs or {}) & set(FILM_KEYWORDS))
+    if taken:
+        raise ValueError(f"env keyword(s) {taken}: the film sets them itself (use --width and --height)")
+    out = Path(default_out(env_id) if out is None else out)
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"out must be an .mp4 path, got {str(out)!r}")
 
@@ -208,6 +228,7 @@ def record(
         # best_progress: InterLevel's stair progress; None for envs that report none (PlaMo, SIMS)
         stats = {"steps": 0, "episodes": 1, "best_progress": None, "successes": 0, "falls": 0, "unstable": 0,
                  "outcome": "still running"}
+        episode_progress: dict[str, float] = {}    # the filmed episode's best, which its frames show
         pngs: list[str] = []
         episode_seed = seed
         episode_step = 0
@@ -216,7 +237,8 @@ def record(
             if callable(getattr(act, "reset", None)):
                 act.reset(episode_seed)
             obs, info = env.reset(seed=episode_seed)
-            env.unwrapped.set_camera(FILM_CAMERA_ELEVATION, camera_distance)  # after a scene rebuild
+            env.unwrapped.set_camera(FILM_CAMERA_ELEVATION, camera_distance)
+            episode_progress.clear()
             note_progress(info)
             note_task(info)
             return obs
@@ -224,11 +246,12 @@ def record(
         def note_progress(info: dict) -> None:
             if "progress" in info and not info.get("physics_unstable", False):
                 stats["best_progress"] = max(stats["best_progress"] or 0.0, float(info["progress"]))
+                episode_progress["best"] = max(episode_progress.get("best", 0.0), float(info["progress"]))
 
         def labelled(frame: np.ndarray, banner: str | None = None) -> np.ndarray:
             lines = [f"{env_id}  |  {policy_name}", f"episode {stats['episodes']}  t = {episode_step / fps:4.1f} s"]
-            if stats["best_progress"] is not None:
-                lines[-1] += f"  |  progress {100 * stats['best_progress']:.0f}%"
+            if "best" in episode_progress:
+                lines[-1] += f"  |  progress {100 * episode_progress['best']:.0f}%"
             task = task_text.get("text")    # PlaMoScene's instructions, a SIMS caption
             if task:
                 lines.append(f'"{task}"')
@@ -295,6 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        check_env_id(args.env)    # before a policy is looked up for it
         policy, note = resolve_policy(args.policy, args.env)
         if note:
             print(note, flush=True)
@@ -312,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
             camera_distance=args.camera_distance,
             policy_captions=args.policy_captions,
         )
-    except ValueError as error:
+    except (ValueError, TypeError) as error:    # TypeError: an env keyword of the wrong type, which it names
         parser.error(str(error))
     print(f"wrote {summary['path']} ({summary['frames']} frames, {summary['frames'] / summary['fps']:.1f} s at {summary['fps']} fps)")
     if summary["pngs"]:

@@ -245,7 +245,9 @@ def shipped_policy(env_id: str, env: gym.Env) -> NumpyPolicy:
 
 
 def _numpy_policy(path: str, env: gym.Env) -> NumpyPolicy:
-    return load_file(path, env)  # PolicyFileError (a ValueError) naming the file unless the sizes are the env's
+    policy = load_file(path, env)  # PolicyFileError (a ValueError) naming the file unless the sizes are the env's
+    check_text_encoder(policy, env, path)    # a file's as the shipped one's: trained on this env's embeddings
+    return policy
 
 
 def policy_label(policy: Any, *, detailed: bool = False) -> str:

@@ -262,6 +262,7 @@ class HumanoidEnv(gym.Env):
         self._camera: FollowCamera | None = None
         self._viewer: HumanViewer | None = None
         self._camera_distance, self._camera_elevation, self._camera_azimuth = 4.5, -18.0, 135.0
+        self._camera_choice: tuple[float, float] | None = None    # set_camera's, kept over scene rebuilds
         #: what ``_steps`` and ``_reference_start`` read: arrays of one row that ``_share_rows`` makes rows of the
         #: batch's, so that a batched step counts and reports them as arrays
         self._step_count = np.zeros(1, dtype=np.int64)
@@ -840,8 +841,9 @@ class HumanoidEnv(gym.Env):
 
     def set_camera(self, elevation: float, distance: float) -> None:
         """Point the ``rgb_array`` follow camera: ``elevation`` (deg) and ``distance`` (m) from the
-        pelvis, now and after later camera rebuilds (a SIMS scene rebuild restores the scene's default)."""
-        self._camera_elevation, self._camera_distance = float(elevation), float(distance)
+        pelvis, now and after later rebuilds of the camera or the scene (over a scene's own default view)."""
+        self._camera_choice = (float(elevation), float(distance))
+        self._camera_elevation, self._camera_distance = self._camera_choice
         if self._camera is not None:
             self._camera.camera.elevation, self._camera.camera.distance = self._camera_elevation, self._camera_distance
 
@@ -855,6 +857,8 @@ class HumanoidEnv(gym.Env):
             self._viewer.sync()
             return None
         if self._camera is None:
+            if self._camera_choice is not None:    # the caller's view over the rebuilt scene's default
+                self._camera_elevation, self._camera_distance = self._camera_choice
             self._camera = FollowCamera(self.model, self._idx.pelvis_id, self.width, self.height,
                                         distance=self._camera_distance, elevation=self._camera_elevation)
         self._camera.camera.azimuth = self._camera_azimuth
