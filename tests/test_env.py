@@ -512,3 +512,38 @@ def test_staircase_frame_is_cached_read_only_and_fresh_after_replace():
     np.testing.assert_array_equal(turned.axis, [math.cos(-0.2), math.sin(-0.2), 0.0])
     assert turned == dataclasses.replace(stairs, yaw=-0.2) and turned.as_dict()["yaw"] == -0.2
     assert stairs.as_dict() == dataclasses.asdict(stairs)
+
+
+def test_a_step_that_is_both_success_and_fall_is_a_success():
+    """At M_T bent over (head at the hips): the step kernel finds both; the end is a success with its bonus
+    and the task terms, not also a fall's failure reward (it used to pay both, +9, and the evaluation counted
+    the episode as a success and an early termination)."""
+    params = task.end_parameters(0.2, None, 1 / 30, 10.0, -1.0, True)
+    columns = {name: k for k, name in enumerate(task.STEP_RESULTS)}
+    results = np.zeros((3, len(task.STEP_RESULTS)))
+    results[0, columns["fell"]] = results[0, columns["success"]] = 1.0    # both
+    results[1, columns["fell"]] = 1.0                                      # a fall alone
+    results[2, columns["success"]] = 1.0                                   # a success alone
+    terms = np.full((3, task.NUM_REWARD_TERMS), 0.25)
+    reward, out_terms, flags = task.interlevel_reward_and_end(terms, results, np.ones(3, dtype=np.int64),
+                                                               np.zeros(3), np.zeros(3), params)
+    ended = {name: k for k, name in enumerate(task.END_FLAGS)}
+    assert flags[:, ended["fell"]].tolist() == [False, True, False]
+    assert flags[:, ended["success"]].tolist() == [True, False, True] and flags[:, ended["ended"]].all()
+    expected_success = 0.25 * task.NUM_REWARD_TERMS + 10.0
+    assert reward.tolist() == pytest.approx([expected_success, -1.0, expected_success])
+
+
+@pytest.mark.parametrize("field, value", [("step_height", 0.0), ("step_depth", 0.0), ("width", -1.0),
+                                          ("num_steps", 3.7), ("num_steps", 0), ("landing_depth", 0.0),
+                                          ("distance", -1.0), ("yaw", math.nan), ("step_height", math.inf)])
+def test_a_given_staircase_outside_a_drawn_ones_ranges_is_refused_naming_the_field(field, value):
+    """``options={"stairs": ...}`` is checked as a drawn staircase is (a zero height used to stop the reset with
+    a ZeroDivisionError in the progress, a negative width build inverted boxes); a staircase at the origin
+    (distance 0, a clip's) is taken."""
+    good = dict(step_height=0.15, step_depth=0.3, width=1.5, num_steps=4, landing_depth=2.0, yaw=0.0, distance=2.5)
+    env = InterLevelEnv()
+    with pytest.raises(ValueError, match=rf"options\['stairs'\]\.{field} must be"):
+        env.reset(seed=0, options={"stairs": Staircase(**{**good, field: value})})
+    env.reset(seed=0, options={"stairs": Staircase(**{**good, "distance": 0.0})})
+    env.close()

@@ -39,6 +39,12 @@ def _named_results(results, flags) -> dict[str, Any]:
             "fell": flags[_FELL], "stalled": flags[_STALLED], "distance_to_target": results[_DISTANCE_TO_TARGET]}
 
 
+#: the ranges of a given staircase's fields (``options={"stairs": ...}``): those of a drawn one, ``StairsConfig``'s
+STAIRCASE_RANGES = {name: (field_check(field).low, field_check(field).high) for name, field in (
+    (name, next(f for f in dataclasses.fields(StairsConfig) if f.name == config_name)) for name, config_name in (
+        ("step_height", "step_height"), ("step_depth", "step_depth"), ("width", "step_width"),
+        ("num_steps", "num_steps"), ("landing_depth", "landing_depth"), ("distance", "distance")))}
+
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
@@ -354,13 +360,27 @@ class InterLevelEnv(HumanoidEnv):
         return stair_starts.grid_keys(config.height_range, config.step_depth, config.num_steps)
 
     def _check_stairs_option(self, stairs: Any) -> Staircase:
+        """A given staircase within the ranges a drawn one has (``StairsConfig``'s), else a ``ValueError`` naming
+        the field (a zero height or depth would divide by zero in the progress, a negative width build inverted
+        boxes), but for the distance, which may be 0 (a clip's staircase at the origin; the character is then
+        placed by the caller, as the start disc would overlap the treads)."""
         if not isinstance(stairs, Staircase):
             raise ValueError(f"options['stairs'] must be a Staircase, got {type(stairs).__name__}")
+        if isinstance(stairs.num_steps, bool) or not isinstance(stairs.num_steps, (int, np.integer)):
+            raise ValueError(f"options['stairs'].num_steps must be an integer, got {stairs.num_steps!r}")
         if stairs.num_steps > self.stairs_config.max_steps:
             raise ValueError(
                 f"options['stairs'] has {stairs.num_steps} steps; this env holds at most "
                 f"{self.stairs_config.max_steps} (the num_steps maximum)"
             )
+        for name, (low, high) in STAIRCASE_RANGES.items():
+            value = getattr(stairs, name)
+            if name == "distance":
+                low = 0.0
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not low <= value <= high:
+                raise ValueError(f"options['stairs'].{name} must be a number in [{low}, {high}], got {value!r}")
+        if not math.isfinite(stairs.yaw):
+            raise ValueError(f"options['stairs'].yaw must be finite, got {stairs.yaw!r}")
         return stairs
 
     @staticmethod

@@ -536,8 +536,9 @@ def _reward_and_end_kernel(terms, results, steps, approach, approach_at, params,
     terminate_on_success = params[_E_TERMINATE_ON_SUCCESS] > 0.5
     for b in range(terms.shape[0]):
         started = steps[b] > 0    # nothing has happened yet at an episode's start
-        fell = started and results[b, _R_FELL] != 0.0
         success = started and results[b, _R_SUCCESS] != 0.0
+        # a step at M_T bent over counts as the success it is, not also as a fall (one reward, one ending)
+        fell = started and results[b, _R_FELL] != 0.0 and not success
         total = 0.0
         for i in range(terms.shape[1]):    # a fall replaces the task terms by the failure reward
             out_terms[b, i] = 0.0 if fell else terms[b, i]
@@ -577,8 +578,8 @@ def interlevel_reward_and_end(terms: np.ndarray, results: np.ndarray, steps: np.
     clocks (``approach``, ``approach_at``: ``stairenv.tasks.stall``, updated in place); ``params`` is
     ``end_parameters(...)``. Returns ``(reward (B,), terms (B, T + 2), flags (B, 4))``: the terms' last two
     columns the success bonus and the failure reward, the flags ``END_FLAGS``. A fall replaces the task
-    terms by the failure reward; success adds the success reward; neither counts at an episode's first
-    outcome (``steps`` 0). The reward is the terms summed in order, the bonus and failure reward last. A
+    terms by the failure reward; success adds the success reward, and a step that is both (at M_T, bent
+    over) is a success, not a fall; neither counts at an episode's first outcome (``steps`` 0). The reward is the terms summed in order, the bonus and failure reward last. A
     stall counts only without a fall or success; the episode ends on a fall, a stall, or success where
     success terminates."""
     batch = terms.shape[0]
