@@ -579,9 +579,9 @@ def interlevel_reward_and_end(terms: np.ndarray, results: np.ndarray, steps: np.
     ``end_parameters(...)``. Returns ``(reward (B,), terms (B, T + 2), flags (B, 4))``: the terms' last two
     columns the success bonus and the failure reward, the flags ``END_FLAGS``. A fall replaces the task
     terms by the failure reward; success adds the success reward, and a step that is both (at M_T, bent
-    over) is a success, not a fall; neither counts at an episode's first outcome (``steps`` 0). The reward is the terms summed in order, the bonus and failure reward last. A
-    stall counts only without a fall or success; the episode ends on a fall, a stall, or success where
-    success terminates."""
+    over) is a success, not a fall; neither counts at an episode's first outcome (``steps`` 0). The reward
+    is the terms summed in order, the bonus and failure reward last. A stall counts only without a fall or
+    success; the episode ends on a fall, a stall, or success where success terminates."""
     batch = terms.shape[0]
     out_terms = np.empty((batch, terms.shape[1] + 2))
     reward = np.empty(batch)
