@@ -22,8 +22,7 @@ from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
-from stairenv.validation import field_check
-from stairenv.world.stairs import Staircase, StairsConfig, StairsSlots, generate_stairs
+from stairenv.world.stairs import STAIRS_CONFIG_RANGES, Staircase, StairsConfig, StairsSlots, generate_stairs
 
 # Columns of the step kernel's results (``task.STEP_RESULTS``) and of the end flags (``task.END_FLAGS``) that
 # a step outcome reports.
@@ -39,18 +38,19 @@ def _named_results(results, flags) -> dict[str, Any]:
             "fell": flags[_FELL], "stalled": flags[_STALLED], "distance_to_target": results[_DISTANCE_TO_TARGET]}
 
 
-#: the ranges of a given staircase's fields (``options={"stairs": ...}``): those of a drawn one, ``StairsConfig``'s
-STAIRCASE_RANGES = {name: (field_check(field).low, field_check(field).high) for name, field in (
-    (name, next(f for f in dataclasses.fields(StairsConfig) if f.name == config_name)) for name, config_name in (
-        ("step_height", "step_height"), ("step_depth", "step_depth"), ("width", "step_width"),
-        ("num_steps", "num_steps"), ("landing_depth", "landing_depth"), ("distance", "distance")))}
+#: the ranges of a given staircase's fields (``options={"stairs": ...}``): a drawn one's, but for the distance,
+#: which may be 0 (a clip's staircase at the origin; its caller places the character)
+STAIRCASE_RANGES = {name: STAIRS_CONFIG_RANGES[config_name] for name, config_name in (
+    ("step_height", "step_height"), ("step_depth", "step_depth"), ("width", "step_width"),
+    ("num_steps", "num_steps"), ("landing_depth", "landing_depth"))} | {
+    "distance": (0.0, STAIRS_CONFIG_RANGES["distance"][1])}
 
 # The follow camera looks along the ascent, turned 30 deg: character, stairs and M_T in view.
 CAMERA_AZIMUTH_FROM_STAIRS = 30.0
 # StairsConfig's valid ranges under the env's keyword names (its own errors say "distance", "yaw"),
 # read from its fields' checks.
-STAIRS_RANGES = {keyword: (field_check(field).low, field_check(field).high) for keyword, field in (
-    (KEYWORD_NAMES.get(("stairs", field.name), field.name), field) for field in dataclasses.fields(StairsConfig))
+STAIRS_RANGES = {keyword: bounds for keyword, bounds in (
+    (KEYWORD_NAMES.get(("stairs", name), name), bounds) for name, bounds in STAIRS_CONFIG_RANGES.items())
     if keyword in ("step_height", "step_depth", "step_width", "stairs_distance", "stairs_yaw")}
 
 
@@ -360,10 +360,8 @@ class InterLevelEnv(HumanoidEnv):
         return stair_starts.grid_keys(config.height_range, config.step_depth, config.num_steps)
 
     def _check_stairs_option(self, stairs: Any) -> Staircase:
-        """A given staircase within the ranges a drawn one has (``StairsConfig``'s), else a ``ValueError`` naming
-        the field (a zero height or depth would divide by zero in the progress, a negative width build inverted
-        boxes), but for the distance, which may be 0 (a clip's staircase at the origin; the character is then
-        placed by the caller, as the start disc would overlap the treads)."""
+        """A given staircase within ``STAIRCASE_RANGES``, else a ``ValueError`` naming the field (a zero height
+        or depth would divide by zero in the progress, a negative width build inverted boxes)."""
         if not isinstance(stairs, Staircase):
             raise ValueError(f"options['stairs'] must be a Staircase, got {type(stairs).__name__}")
         if isinstance(stairs.num_steps, bool) or not isinstance(stairs.num_steps, (int, np.integer)):
@@ -375,8 +373,6 @@ class InterLevelEnv(HumanoidEnv):
             )
         for name, (low, high) in STAIRCASE_RANGES.items():
             value = getattr(stairs, name)
-            if name == "distance":
-                low = 0.0
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not low <= value <= high:
                 raise ValueError(f"options['stairs'].{name} must be a number in [{low}, {high}], got {value!r}")
         if not math.isfinite(stairs.yaw):

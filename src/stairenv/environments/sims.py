@@ -452,16 +452,20 @@ class SIMSEnv(HumanoidEnv):
         point in front of the chair lies in the table)."""
         if self._free_xy is None or not len(self._free_xy):
             return np.array(xy, dtype=float)
+        k, squared = self._nearest_free_cell(xy)
+        return np.array(xy, dtype=float) if squared <= 0.5 * self._free_cell ** 2 else self._free_xy[k].copy()
+
+    def _nearest_free_cell(self, xy: np.ndarray) -> tuple[int, float]:
+        """The room's free cell nearest ``xy``: its index in ``_free_xy`` and squared distance."""
         d = np.sum(np.square(self._free_xy - xy), axis=1)
         k = int(np.argmin(d))
-        return np.array(xy, dtype=float) if d[k] <= 0.5 * self._free_cell ** 2 else self._free_xy[k].copy()
+        return k, float(d[k])
 
     def approach_point(self, placed: PlacedFurniture, distance: float = 0.45) -> np.ndarray:
         """(x, y) where a character stands to use ``placed``: in front of it, on free floor if known."""
         point = task.standing_point(placed, task.resolve_part(placed.family, None, "reach"), distance)[:2]
         if self._free_xy is not None and len(self._free_xy):
-            d = np.sum(np.square(self._free_xy - point), axis=1)
-            point = self._free_xy[int(np.argmin(d))].copy()    # the caller's own, not a row of the free cells
+            point = self._free_xy[self._nearest_free_cell(point)[0]].copy()    # the caller's own, not a row
         return np.asarray(point, dtype=float)
 
     def _set_goal(self, goal: task.ContactGoal, caption: str, style: str, speed: float) -> None:

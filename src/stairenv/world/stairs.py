@@ -74,7 +74,7 @@ class StairsConfig:
 
     def __post_init__(self) -> None:
         # Keyword values may arrive as lists (e.g. from TOML presets): store tuples.
-        bounds = {field.name: (field_check(field).low, field_check(field).high) for field in fields(self)}
+        bounds = STAIRS_CONFIG_RANGES
         for name in ("step_height", "step_depth", "step_width", "num_steps", "distance", "yaw"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         if self.step_height_set is not None:
@@ -106,6 +106,10 @@ class StairsConfig:
         if self.step_height_set is None:
             return self.step_height
         return min(self.step_height_set), max(self.step_height_set)
+
+
+#: each ``StairsConfig`` field's valid (low, high), from its declared check: what a drawn staircase keeps to
+STAIRS_CONFIG_RANGES = {field.name: (field_check(field).low, field_check(field).high) for field in fields(StairsConfig)}
 
 
 @dataclass(frozen=True)
