@@ -25,14 +25,15 @@ import gymnasium as gym
 
 import stairenv  # noqa: F401  (registers the env ids)
 from stairenv.evaluation.policies import load_policy
-from stairenv.pretrained import NumpyPolicy, check_sizes, from_sb3, load_file
+from stairenv.pretrained import NumpyPolicy, check_sizes, from_sb3, load_file, record_text_encoder, with_trained_captions
 
 SB3_DEFAULT_ENV = "InterLevel-v0"
 
 
 def from_lean_checkpoint(path: str, env_id: str | None) -> NumpyPolicy:
     """The policy of a lean checkpoint; ``ValueError`` if ``env_id`` is given and is not the run's. A
-    text-conditioned env's encoder is recorded (``text_encoder_id``), as the run's keywords make it here."""
+    text-conditioned env's encoder is recorded (``text_encoder_id``, and ``text_embeddings`` of the captions it
+    trained on), as the run's keywords make it here."""
     from stairenv.training.ppo import policy_from_checkpoint, read_checkpoint
 
     policy = policy_from_checkpoint(read_checkpoint(path))
@@ -40,11 +41,12 @@ def from_lean_checkpoint(path: str, env_id: str | None) -> NumpyPolicy:
     if env_id is not None and env_id != trained_on:
         raise ValueError(f"{path} was trained on {trained_on!r}, not --env {env_id!r}")
     text_encoder = policy.config["training"].get("env_kwargs", {}).get("text_encoder")
-    env = gym.make(trained_on, **({} if text_encoder is None else {"text_encoder": text_encoder}))
+    env = gym.make(trained_on, **with_trained_captions({} if text_encoder is None else {"text_encoder": text_encoder},
+                                                        policy))
     try:
         check_sizes(policy, env.unwrapped, path)
         if getattr(env.unwrapped, "text_conditioned", False):
-            policy.config["text_encoder_id"] = env.unwrapped.text_encoder_id
+            record_text_encoder(policy, env)
     finally:
         env.close()
     return policy

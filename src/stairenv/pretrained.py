@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import zipfile
 from importlib import resources
 from pathlib import Path
@@ -105,14 +106,58 @@ def check_sizes(policy: NumpyPolicy, env: Any, path: str | os.PathLike = "policy
                               f"{expected[0]} and {expected[1]}")
 
 
+#: how far (largest absolute difference) an env's embedding of a caption may lie from the one a policy
+#: recorded: MiniLM's vectors differ by ~1e-7 from CPU to CPU, another encoder's or projection's by ~0.1
+TEXT_EMBEDDING_TOLERANCE = 1e-3
+
+
 def check_text_encoder(policy: NumpyPolicy, env: Any, path: str | os.PathLike = "policy") -> None:
     """``PolicyFileError`` if ``policy`` was trained on another text encoder's embeddings than the
-    ones ``env`` observes (its config's ``text_encoder_id``; policies without one pass)."""
+    ones ``env`` observes: its config's ``text_encoder_id`` (the encoder by what it is: the model and
+    the projection file's digest) must be the env's, and the env's embedding of every caption it
+    recorded in ``text_embeddings`` must match the recorded one within ``TEXT_EMBEDDING_TOLERANCE``
+    (never compared bit for bit: another machine computes other low bits). Policies without a
+    ``text_encoder_id`` pass."""
     trained_with = policy.config.get("text_encoder_id")
-    here = getattr(getattr(env, "unwrapped", env), "text_encoder_id", None)
-    if trained_with is not None and trained_with != here:
+    if trained_with is None:
+        return
+    unwrapped = getattr(env, "unwrapped", env)
+    here = getattr(unwrapped, "text_encoder_id", None)
+    if trained_with != here:
+        legacy = ""
+        if re.fullmatch(r".+\+svd\d+-[0-9a-f]{12}", str(trained_with)):
+            legacy = (". An id like this one from before 2026-12-07 named a projection fitted at run time (its "
+                      "digest differs from machine to machine): export the policy again from its checkpoint "
+                      "(baselines/export_policy.py) to record the shipped projection's id")
         raise PolicyFileError(f"{path}: trained on the text embeddings of {trained_with!r}; the env embeds with "
-                              f"{here!r} (pip install 'stairenv[sims]' for the MiniLM encoder)")
+                              f"{here!r} (pip install 'stairenv[sims]' for the MiniLM encoder){legacy}")
+    recorded = policy.config.get("text_embeddings")
+    if recorded is None:
+        return
+    dim = getattr(unwrapped, "text_dim", None)
+    if not (isinstance(recorded, dict) and all(
+            isinstance(text, str) and isinstance(vector, list) and len(vector) == dim
+            and all(isinstance(x, (int, float)) for x in vector) for text, vector in recorded.items())):
+        raise PolicyFileError(f"{path}: config's text_embeddings must map captions to lists of {dim} numbers")
+    from stairenv.screenplays.embeddings import embeddings_match
+
+    for text, vector in recorded.items():
+        mine = unwrapped.embed_text(text)
+        if not embeddings_match(mine, vector, TEXT_EMBEDDING_TOLERANCE):
+            gap = float(np.max(np.abs(np.asarray(mine) - np.asarray(vector, dtype=np.float64))))
+            shown = text if len(text) <= 60 else text[:57] + "..."
+            raise PolicyFileError(f"{path}: the env ({here}) embeds the caption {shown!r} up to {gap:.3g} away from "
+                                  f"the embedding the policy was trained on (tolerance {TEXT_EMBEDDING_TOLERANCE:g})")
+
+
+def record_text_encoder(policy: NumpyPolicy, env: Any) -> None:
+    """Write into ``policy.config`` what a text-conditioned ``env`` (the one it was trained in, with its
+    captions) embeds with: ``text_encoder_id`` and ``text_embeddings``, every caption's embedding, which
+    :func:`check_text_encoder` compares within a tolerance wherever the policy is loaded."""
+    unwrapped = getattr(env, "unwrapped", env)
+    policy.config["text_encoder_id"] = unwrapped.text_encoder_id
+    texts = sorted({caption for _, caption in unwrapped.captions})
+    policy.config["text_embeddings"] = {text: [float(x) for x in unwrapped.embed_text(text)] for text in texts}
 
 
 def trained_captions(policy: NumpyPolicy, path: str | os.PathLike = "policy") -> tuple[tuple[str, str], ...] | None:

@@ -33,11 +33,19 @@ Why this one: caption embeddings occupy a low-dimensional part of the 384-d spac
 a random projection ignores (at 64 dims it loses much of the similarity structure) and
 which the text database spans well (it also holds for captions not in it); not centring
 keeps the direction all captions share, which the cosines of the full vectors include
-(centred PCA drops it and scores lower above). Stability: the
-projection is fitted on the *shipped* database only, deterministically (fixed component
-signs), and its id carries a hash of the matrix, so cached vectors can never mix two
-projections; a policy trained on z should record ``encoder.model_id``. Pass ``corpus=``
-to fit on your own texts. All outputs are L2-normalised (SIMS puts z on the unit sphere).
+(centred PCA drops it and scores lower above).
+
+Reproducible on any machine: the default projection is **shipped**, not fitted at run time.
+``data/minilm_svd_basis.npz`` holds the 384 right singular vectors of the shipped database's
+texts (fixed signs), fitted once; a ``dim``-d projection takes its first ``dim`` rows. Another
+CPU computes MiniLM's vectors with other low bits (~1e-7), and a fit on them would give other
+low bits again, so an id hashing a fitted matrix differed from machine to machine. An encoder
+is identified by what it is: the model and the shipped basis file's digest
+(``all-MiniLM-L6-v2+svd64-<digest>``), or, for a projection fitted on ``corpus=`` texts of your
+own, the model and the digest of those texts (``...+svd64-fit-<digest>``). Embeddings are
+compared with a tolerance (:func:`embeddings_match`), never by a hash of their floats; a
+policy trained on z records ``encoder.model_id`` and the embeddings of its captions. All
+outputs are L2-normalised (SIMS puts z on the unit sphere).
 
 :class:`CachedEncoder` keeps a memory and a disk cache keyed by (model id, dim, text) under
 ``$STAIRENV_CACHE`` (default ``~/.cache/stairenv``) / ``embeddings``.
@@ -307,16 +315,22 @@ class SubspaceProjection:
     default) is the truncated SVD of the raw vectors (uncentred PCA), ``center=True`` classic
     PCA. Component signs are fixed (largest-magnitude entry positive) so a fit is reproducible."""
 
-    def __init__(self, components: np.ndarray, mean: np.ndarray | None = None):
+    def __init__(self, components: np.ndarray, mean: np.ndarray | None = None, id: str | None = None):
         self.components = np.ascontiguousarray(components, dtype=np.float32)  # (out_dim, in_dim)
         self.out_dim, self.in_dim = self.components.shape
         self.mean = None if mean is None else np.asarray(mean, dtype=np.float32)
-        payload = self.components.tobytes() + (b"" if self.mean is None else self.mean.tobytes())
         kind = "svd" if self.mean is None else "pca"
-        self._id = f"{kind}{self.out_dim}-{hashlib.sha256(payload).hexdigest()[:12]}"
+        if id is None:  # a matrix given as data (a file): its digest names it
+            payload = self.components.tobytes() + (b"" if self.mean is None else self.mean.tobytes())
+            id = f"{kind}{self.out_dim}-{hashlib.sha256(payload).hexdigest()[:12]}"
+        self._id = str(id)
 
     @classmethod
-    def fit(cls, vectors: np.ndarray, out_dim: int, center: bool = False) -> SubspaceProjection:
+    def fit(cls, vectors: np.ndarray, out_dim: int, center: bool = False, id: str | None = None
+            ) -> SubspaceProjection:
+        """Fitted on ``vectors``. Give ``id`` naming what it was fitted on (as :func:`fit_reduction`
+        does): without one, the id is a digest of the fitted floats, which another machine computes
+        with other low bits (fine for a matrix you save and ship, not for one refitted elsewhere)."""
         x = np.asarray(vectors, dtype=np.float64)
         if not 0 < out_dim <= min(x.shape):
             raise ValueError(f"a {out_dim}-d subspace needs at least {out_dim} vectors of >= {out_dim} dims, "
@@ -325,7 +339,7 @@ class SubspaceProjection:
         _, _, vt = np.linalg.svd(x - mean if center else x, full_matrices=False)
         comps = vt[:out_dim]
         flip = np.sign(comps[np.arange(out_dim), np.abs(comps).argmax(axis=1)])
-        return cls(comps * flip[:, None], mean)
+        return cls(comps * flip[:, None], mean, id=id)
 
     @property
     def id(self) -> str:
@@ -338,7 +352,7 @@ class SubspaceProjection:
         return x @ self.components.T
 
     def save(self, path: str | Path) -> None:
-        arrays = {"components": self.components}
+        arrays = {"components": self.components, "id": np.array(self.id)}
         if self.mean is not None:
             arrays["mean"] = self.mean
         np.savez(path, **arrays)
@@ -346,7 +360,7 @@ class SubspaceProjection:
     @classmethod
     def load(cls, path: str | Path) -> SubspaceProjection:
         with np.load(path, allow_pickle=False) as z:
-            return cls(z["components"], z.get("mean"))
+            return cls(z["components"], z.get("mean"), id=str(z["id"]) if "id" in z.files else None)
 
 
 class ReducedEncoder:
@@ -491,23 +505,96 @@ def reduction_corpus(database=None) -> list[str]:
     return sorted(texts)
 
 
+#: the shipped SVD basis of the MiniLM vectors of :func:`reduction_corpus` (package data)
+SHIPPED_BASIS = "minilm_svd_basis.npz"
+
+
+def corpus_digest(texts: Sequence[str]) -> str:
+    """sha256 of ``texts`` joined by newlines: what a projection was fitted on, by name."""
+    return hashlib.sha256("\n".join(texts).encode("utf-8")).hexdigest()
+
+
+_basis_lock = threading.Lock()
+_basis: dict[str, object] = {}
+
+
+def shipped_basis() -> dict[str, object]:
+    """The shipped basis, read once: ``components`` (K, 384) float32 (rows in order of singular
+    value), ``model_id`` (the encoder it was fitted with), ``corpus_digest`` (the texts, by
+    :func:`corpus_digest`) and ``digest`` (sha256 of the components' bytes: the file's identity)."""
+    with _basis_lock:
+        if not _basis:
+            from importlib import resources
+
+            with resources.as_file(resources.files("stairenv.screenplays") / "data" / SHIPPED_BASIS) as path:
+                with np.load(path, allow_pickle=False) as z:
+                    components = np.ascontiguousarray(z["components"], dtype=np.float32)
+                    _basis.update(model_id=str(z["model_id"]), corpus_digest=str(z["corpus_digest"]))
+            components.setflags(write=False)
+            _basis.update(components=components, digest=hashlib.sha256(components.tobytes()).hexdigest())
+        return _basis
+
+
+def shipped_projection(model_id: str, dim: int, corpus: str | None = None) -> SubspaceProjection | None:
+    """The ``dim``-d projection of the shipped basis (its first ``dim`` rows) for encoder ``model_id``
+    and the texts of digest ``corpus`` (default: the shipped database's), or None where the basis is
+    of another encoder or other texts, or has fewer rows."""
+    basis = shipped_basis()
+    components = basis["components"]
+    if model_id != basis["model_id"] or not 0 < dim <= len(components):
+        return None
+    if corpus is not None and corpus != basis["corpus_digest"]:
+        return None
+    return SubspaceProjection(components[:dim], id=f"svd{dim}-{str(basis['digest'])[:12]}")
+
+
+def write_shipped_basis(path: str | Path | None = None, base: TextEncoder | None = None) -> Path:
+    """Fit the basis on :func:`reduction_corpus` with MiniLM and write it (default: the package's
+    ``data/`` file). Run it when the shipped database's texts change; every policy trained on the
+    old basis must then be retrained (its recorded ``text_encoder_id`` names the old one)."""
+    base = MiniLMEncoder() if base is None else base
+    texts = reduction_corpus()
+    vectors = base.encode(texts)
+    fitted = SubspaceProjection.fit(vectors, min(vectors.shape))
+    if path is None:
+        path = Path(__file__).with_name("data") / SHIPPED_BASIS
+    np.savez_compressed(path, components=fitted.components, model_id=np.array(base.model_id),
+                        corpus_digest=np.array(corpus_digest(texts)))
+    _basis.clear()
+    return Path(path)
+
+
+def embeddings_match(a: np.ndarray, b: np.ndarray, atol: float = 1e-3) -> bool:
+    """Whether two embeddings (or stacks of them) are the same up to the low bits another machine
+    computes: the largest absolute difference at most ``atol`` (MiniLM's vectors differ by ~1e-7
+    from CPU to CPU, another encoder or projection by ~0.1 and more)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return a.shape == b.shape and bool(np.all(np.isfinite(a))) and bool(np.all(np.abs(a - b) <= atol))
+
+
 def fit_reduction(base: TextEncoder, dim: int, corpus: Sequence[str] | None = None, *,
                   cache_dir: str | Path | None = None, cache: bool = True) -> SubspaceProjection:
-    """The :class:`SubspaceProjection` of ``base`` to ``dim`` dims fitted on ``corpus``
-    (default :func:`reduction_corpus`), stored under ``<cache>/projections`` keyed by the
-    base model, dim and a hash of the corpus."""
+    """The :class:`SubspaceProjection` of ``base`` to ``dim`` dims for ``corpus`` (default
+    :func:`reduction_corpus`): the shipped one (:func:`shipped_projection`) where it is of this
+    encoder and these texts, else fitted here on them and named by the digest of the texts
+    (``svd<dim>-fit-<digest>``: the same id on any machine, the same vectors up to rounding),
+    stored under ``<cache>/projections`` keyed by the base model, dim and that digest."""
     texts = list(reduction_corpus() if corpus is None else corpus)
-    digest = hashlib.sha256("\n".join(texts).encode("utf-8")).hexdigest()[:16]
+    digest = corpus_digest(texts)
+    shipped = shipped_projection(base.model_id, dim, digest)
+    if shipped is not None:
+        return shipped
+    name = f"svd{dim}-fit-{digest[:12]}"
     root = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = root / "projections" / f"{_safe(base.model_id)}-d{dim}-{digest}.npz"
+    path = root / "projections" / f"{_safe(base.model_id)}-d{dim}-{digest[:16]}.npz"
     if cache and path.is_file():
         try:
             proj = SubspaceProjection.load(path)
-            if proj.in_dim == base.dim and proj.out_dim == dim:
+            if proj.in_dim == base.dim and proj.out_dim == dim and proj.id == name:
                 return proj
         except (OSError, ValueError, KeyError):
             pass
-    proj = SubspaceProjection.fit(base.encode(texts), dim)
+    proj = SubspaceProjection.fit(base.encode(texts), dim, id=name)
     if cache:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
