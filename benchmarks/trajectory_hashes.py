@@ -11,8 +11,14 @@ body's, which the speed check catches, then a NaN joint angle that MuJoCo resets
 the divergence check catches), so that the unstable-physics branch is fingerprinted too. Hashed,
 separately: observations, rewards, terminated, truncated and every info value (numbers and arrays by
 dtype, shape and bytes; nested dicts and object arrays element by element).
-The hashes depend on the MuJoCo build and the CPU, so record and check on the same machine. To
-record an earlier commit's: ``git archive <commit> src envs xml | tar -x -C /tmp/before``, then run
+The hashes are comparable only on one machine with the same library builds: they hash the exact
+bits of floats that MuJoCo, NumPy (its SIMD kernels and BLAS), Numba and libm compute, and another
+CPU or another build of any of them gives other low bits (every hash then differs, and that says
+nothing about the code). Record and check on the same machine, with the same environment, minutes
+apart; never commit a recording as expected values, and no test compares these hashes to stored
+ones. A recording notes the machine and the library versions (``machine``); ``--check`` says so when
+they are not this one's.
+To record an earlier commit's: ``git archive <commit> src envs xml | tar -x -C /tmp/before``, then run
 this script with ``PYTHONPATH=/tmp/before/src``.
 """
 
@@ -21,6 +27,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import platform
 import sys
 import warnings
 
@@ -115,6 +122,24 @@ def batched_env(env_id: str, steps: int, seed: int, mode: AutoresetMode) -> dict
     return trajectory.hexdigests()
 
 
+def machine() -> dict[str, str]:
+    """What the hashes depend on besides the code: the host, its CPU and the numeric libraries' versions
+    (a recording is comparable only where all of these are the same)."""
+    import mujoco
+    import numba
+    import scipy
+
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {"host": platform.node(), "cpu": cpu, "arch": platform.machine(), "python": platform.python_version(),
+            "mujoco": mujoco.__version__, "numpy": np.__version__, "numba": numba.__version__,
+            "scipy": scipy.__version__}
+
+
 def all_hashes(ids, steps: int, seed: int) -> dict[str, dict[str, str]]:
     hashes = {}
     for env_id in ids:
@@ -138,13 +163,20 @@ def main() -> None:
     hashes = all_hashes(args.ids.split(","), args.steps, args.seed)
     if args.record:
         with open(args.record, "w") as f:
-            json.dump({"steps": args.steps, "seed": args.seed, "hashes": hashes}, f, indent=1)
+            json.dump({"steps": args.steps, "seed": args.seed, "machine": machine(), "hashes": hashes}, f, indent=1)
         print(f"recorded {len(hashes)} trajectories in {args.record}")
         return
     with open(args.check) as f:
         stored = json.load(f)
     if (stored["steps"], stored["seed"]) != (args.steps, args.seed):
         sys.exit(f"{args.check} was recorded with --steps {stored['steps']} --seed {stored['seed']}")
+    here, there = machine(), stored.get("machine")
+    if there != here:
+        changed = ("no machine recorded" if there is None else
+                   ", ".join(f"{k} {there.get(k)!r} -> {v!r}" for k, v in here.items() if there.get(k) != v))
+        print(f"NOTE: {args.check} was recorded on another machine or library build ({changed}): hashes are "
+              "comparable only on one machine with the same builds, so differences here say nothing about the code",
+              file=sys.stderr)
     differing = [f"{name}: {part}" for name, parts in hashes.items() for part, value in parts.items()
                  if stored["hashes"].get(name, {}).get(part) != value]
     for line in differing:

@@ -99,3 +99,37 @@ def test_gpu_session_script_runs_each_step_and_records_its_status(tmp_path):
     assert "--sizes 4096" in (out / "env_warp.log").read_text()
     assert "--ranks 8 --state-on-device" in (out / "ranks_warp.log").read_text()
     assert (out / "gpu.csv").exists()
+
+
+def test_trajectory_hashes_note_a_recording_from_another_machine(tmp_path, monkeypatch, capsys):
+    """The hashes are the exact bits of floats MuJoCo, NumPy and Numba compute, which another CPU or build
+    gives with other low bits: comparable only on one machine with the same builds. A recording names its
+    machine and libraries, and ``--check`` against one made elsewhere says that its differences mean
+    nothing (no test compares these hashes to stored ones: they are recorded and checked minutes apart)."""
+    import json
+
+    spec = importlib.util.spec_from_file_location("trajectory_hashes", BENCHMARKS / "trajectory_hashes.py")
+    hashes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hashes)
+    assert "comparable only on one machine with the same library builds" in " ".join(hashes.__doc__.split())
+    monkeypatch.setattr(hashes, "all_hashes", lambda ids, steps, seed: {"X single": {"obs": "0123"}})
+    recording = tmp_path / "h.json"
+
+    def run(*argv):
+        monkeypatch.setattr(sys, "argv", ["trajectory_hashes.py", "--ids", "X", *argv])
+        with pytest.raises(SystemExit) as done:
+            hashes.main()
+            raise SystemExit(0)
+        return done.value.code, capsys.readouterr().err
+
+    assert run("--record", str(recording)) == (0, "")
+    assert json.loads(recording.read_text())["machine"] == hashes.machine()
+    assert run("--check", str(recording)) == (0, "")        # this machine: no note
+    stored = json.loads(recording.read_text())
+    stored["machine"]["cpu"] = "another CPU"
+    recording.write_text(json.dumps(stored))
+    code, err = run("--check", str(recording))
+    assert code == 0 and "recorded on another machine or library build" in err and "another CPU" in err
+    del stored["machine"]                                      # a recording from before: no machine named
+    recording.write_text(json.dumps(stored))
+    assert "no machine recorded" in run("--check", str(recording))[1]

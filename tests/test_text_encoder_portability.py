@@ -121,7 +121,10 @@ def test_the_shipped_walker_loads_and_acts_alike_on_another_cpu(tmp_path, anothe
     env.close()
     x = np.array(observations)
     dim = len(z)
-    np.testing.assert_allclose(x[:, -dim:], np.broadcast_to(recorded[caption], (len(x), dim)), atol=1e-6)
+    # the env's embedding here against the one recorded on the machine that exported the walker: within
+    # what the loader allows (another CPU's MiniLM differs in the low bits), not the 1e-6 of this machine
+    np.testing.assert_allclose(x[:, -dim:], np.broadcast_to(recorded[caption], (len(x), dim)),
+                               atol=pretrained.TEXT_EMBEDDING_TOLERANCE, rtol=0)
     x_moved = x.copy()
     x_moved[:, -dim:] = z
     assert np.abs(x_moved - x).max() > 0                         # the embedding moved
