@@ -16,16 +16,24 @@ another. Each skill's policy is a Stable-Baselines3 .zip (``--sit PATH``, ``ALGO
 "zero", "random" or, by default, the KINEMATIC STAND-IN: a placeholder that writes the
 character's qpos (not physics-based; no trained skill policy exists yet). Writes an MP4 of the
 whole run (caption on every frame) and, with ``--json``, the per-keyframe results.
+
+Every setting accepted takes effect: an empty ``--theme``, a ``--length`` outside 1 to the
+database's size (a story uses each short script once) or ``--length`` with ``--script`` is a usage
+error; a story shorter than ``--length`` (no other script can follow) says so. ``--out`` and
+``--json`` are checked before the run, and each is written under a hidden name beside it and moved
+there once whole, so a run that stops leaves no half-written file.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
-from pathlib import Path
 
 SKILLS = ("walk", "sit", "lie", "reach", "getup")
+#: short scripts in a --theme story unless --length says
+DEFAULT_LENGTH = 3
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,7 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     what.add_argument("--theme", help="a story theme, e.g. 'a tired evening at home'")
     what.add_argument("--script", metavar="ID", help="a short script id of the database (see --list-scripts)")
     what.add_argument("--list-scripts", action="store_true", help="print the database's script ids and exit")
-    parser.add_argument("--length", type=int, default=3, help="short scripts in a --theme story (default: %(default)s)")
+    parser.add_argument("--length", type=int, default=None,
+                        help=f"short scripts in a --theme story, 1 to the database's size (default: {DEFAULT_LENGTH})")
     parser.add_argument("--encoder", default="auto", choices=("auto", "minilm", "hashing"),
                         help="text encoder of story retrieval (default: %(default)s)")
     parser.add_argument("--text-encoder", default="auto", choices=("auto", "minilm", "hashing"),
@@ -64,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
 
+    from stairenv.__main__ import check_output, written_whole
     from stairenv.screenplays import assemble_story, get_encoder, load_database
     from stairenv.stories import BindingError, MachineSettings, describe_policy, run_script
 
@@ -72,8 +82,22 @@ def main(argv: list[str] | None = None) -> int:
         for s in db:
             print(f"{s.id:32s} {s.difficulty:6s} {s.n_interactions} interactions  {s.title}")
         return 0
-    if args.length < 1:
-        parser.error(f"--length must be >= 1, got {args.length}")
+    if args.theme is not None and not args.theme.strip():
+        parser.error("--theme: an empty theme; give a few words, e.g. 'a tired evening at home'")
+    if args.length is not None and args.script is not None:
+        parser.error("--length: a --theme story's length; --script runs one short script")
+    length = DEFAULT_LENGTH if args.length is None else args.length
+    if not 1 <= length <= len(db):
+        parser.error(f"--length must be in [1, {len(db)}] (a story uses each of the database's {len(db)} short "
+                     f"scripts at most once), got {length}")
+    # the outputs, before any work (a run used to end in a traceback at its end)
+    try:
+        if not args.no_video and not args.out.lower().endswith(".mp4"):
+            raise ValueError(f"--out must be an .mp4 path, got {args.out!r}")
+        out = None if args.no_video else check_output("--out", args.out)
+        json_path = None if args.json is None else check_output("--json", args.json)
+    except ValueError as error:
+        parser.error(str(error))
     if args.video_every < 1:
         parser.error(f"--video-every must be >= 1, got {args.video_every}")
     try:
@@ -88,19 +112,25 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(str(error.args[0]))
         print(f"script {story.id!r} ({story.difficulty}): {story.summary}")
     else:
-        story = assemble_story(args.theme, db, get_encoder(args.encoder), length=args.length)
+        story = assemble_story(args.theme, db, get_encoder(args.encoder), length=length)
         print(f"story for {args.theme!r}: {' -> '.join(story.script_ids)}\n  {story.narrative}")
+        if len(story.script_ids) < length:
+            print(f"note: the story has {len(story.script_ids)} of the {length} short scripts asked for (--length): "
+                  "no other script can follow its last one")
 
     policies = {skill: getattr(args, skill) for skill in SKILLS}
     for skill, spec in policies.items():
         print(f"  {skill:6s} policy: {describe_policy(spec)}")
     env_kwargs = {"text_encoder": args.text_encoder, **dict(args.env_kwarg)}
-    video = None if args.no_video else args.out
     try:
-        result = run_script(story, policies, seed=args.seed, settings=settings, env_kwargs=env_kwargs, video=video,
-                            video_every=args.video_every, width=args.width, height=args.height)
+        with contextlib.ExitStack() as film:  # the video is moved to --out once whole, else removed
+            video = None if out is None else film.enter_context(written_whole(out))
+            result = run_script(story, policies, seed=args.seed, settings=settings, env_kwargs=env_kwargs,
+                                video=video, video_every=args.video_every, width=args.width, height=args.height)
     except (BindingError, ValueError) as error:
         parser.error(str(error))
+    if result.video:
+        result.video = str(out)
 
     print(f"room {result.room!r}: {[f['name'] for f in result.details['room_summary']['furniture']]}")
     for k in result.keyframes:
@@ -111,13 +141,12 @@ def main(argv: list[str] | None = None) -> int:
           f"/{len(result.keyframes)} keyframes, {result.seconds:.1f} s simulated")
     if result.video:
         print(f"wrote {result.video} ({result.frames} frames)")
-    if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        source = story.to_dict()
-        path.write_text(json.dumps({"theme": args.theme, "script": args.script, "story": source,
-                                    "result": result.to_dict()}, indent=2) + "\n")
-        print(f"wrote {path}")
+    if json_path is not None:
+        text = json.dumps({"theme": args.theme, "script": args.script, "story": story.to_dict(),
+                           "result": result.to_dict()}, indent=2) + "\n"
+        with written_whole(json_path) as partial:
+            partial.write_text(text)
+        print(f"wrote {json_path}")
     return 0
 
 

@@ -215,3 +215,104 @@ def test_frames_show_the_filmed_episodes_progress_and_the_camera_set_before_a_re
     camera = env.unwrapped._camera.camera
     assert (camera.distance, camera.elevation) == (3.5, -20.0)
     env.close()
+
+
+def _crafted_sb3_zip(path, marker):
+    """An SB3-looking .zip whose ``data`` carries a pickle that creates ``marker`` when unpickled (SB3's loader
+    unpickles every ":serialized:" value), and no weights."""
+    import base64
+    import json
+    import pickle
+    import zipfile
+
+    class Payload:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    serialized = {":type:": "<class 'abc.ABCMeta'>", ":serialized:": base64.b64encode(pickle.dumps(Payload())).decode()}
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("data", json.dumps({"policy_class": serialized, "observation_space": serialized}))
+    return path
+
+
+def test_a_crafted_sb3_zip_is_refused_without_running_its_payload(tmp_path):
+    """``python -m stairenv --policy x.zip`` used to run the zip's payload, then say "cannot read ... EOFError"."""
+    marker = tmp_path / "marker"
+    crafted = _crafted_sb3_zip(tmp_path / "x.zip", marker)
+    result = _run("--policy", str(crafted), "--seconds", "0.2", "--out", str(tmp_path / "v.mp4"), "--no-progress")
+    assert result.returncode == 2, result.stderr
+    assert "x.zip: not a Stable-Baselines3 model .zip: it has no 'policy.pth' member" in result.stderr
+    assert not marker.exists() and not (tmp_path / "v.mp4").exists()
+
+
+@pytest.fixture
+def nothing_built(monkeypatch):
+    """Makes building an env fail the test: the checks must come before any work."""
+    import gymnasium as gym
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("an env was built before the outputs were checked")
+
+    monkeypatch.setattr(gym, "make", refuse)
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["--out", "{file}/v.mp4"], "--out '{file}/v.mp4': '{file}' is a file, so no folder can be made in it"),
+    (["--out", "{file}/sub/v.mp4"], "--out '{file}/sub/v.mp4': '{file}' is a file, so no folder can be made in it"),
+    (["--out", "{folder}"], "--out '{folder}': is a folder; give a file path"),
+    (["--out", "/proc/stairenv-nowhere/v.mp4"], "--out '/proc/stairenv-nowhere/v.mp4': nothing can be written in "
+                                                "'/proc'"),
+    (["--frames-png", "{file}"], "--frames-png '{file}': is a file, not a folder"),
+    (["--frames-png", "{file}/stills"], "--frames-png '{file}/stills': '{file}' is a file, so no folder can be made"),
+    (["--frames-png", "/proc/stairenv-nowhere"], "--frames-png '/proc/stairenv-nowhere': nothing can be written in "
+                                                 "'/proc'"),
+])
+def test_outputs_are_checked_before_the_film(tmp_path, capsys, nothing_built, flags, message):
+    """An output that cannot be written used to cost the whole film, then an ffmpeg traceback at its end."""
+    from stairenv.__main__ import main
+
+    if "/proc" in message and not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc here")
+    file, folder = tmp_path / "a_file", tmp_path / "film.mp4"
+    file.write_text("x")
+    folder.mkdir()
+    names = {"file": file, "folder": folder}
+    argv = [flag.format(**names) for flag in flags]
+    if "--out" not in argv:
+        argv += ["--out", str(tmp_path / "v.mp4")]
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "--policy", "zero", "--seconds", "0.2", "--no-progress"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert message.format(**names) in err and "Traceback" not in err, err
+
+
+def test_a_film_that_stops_leaves_nothing_half_written(tmp_path, monkeypatch):
+    """A film that fails part-way leaves no file at --out (an older one stays as it was), no stills and no
+    folder made for them; a whole film is written under its own name."""
+    import stairenv.__main__ as cli
+
+    real, calls = cli.caption_frame, []
+
+    def failing(frame, lines, banner=None):
+        calls.append(1)
+        if len(calls) == 4:
+            raise RuntimeError("the renderer stopped")
+        return real(frame, lines, banner)
+
+    monkeypatch.setattr(cli, "caption_frame", failing)
+    out, stills = tmp_path / "new" / "v.mp4", tmp_path / "new" / "stills"
+    with pytest.raises(RuntimeError, match="the renderer stopped"):
+        cli.record(policy="zero", seconds=0.5, out=out, width=64, height=48, frames_png=stills, progress_bar=False)
+    assert list(tmp_path.iterdir()) == []
+    out.parent.mkdir()
+    out.write_bytes(b"an older film")
+    calls.clear()
+    with pytest.raises(RuntimeError, match="the renderer stopped"):
+        cli.record(policy="zero", seconds=0.5, out=out, width=64, height=48, progress_bar=False)
+    assert out.read_bytes() == b"an older film" and sorted(p.name for p in out.parent.iterdir()) == ["v.mp4"]
+    monkeypatch.setattr(cli, "caption_frame", real)
+    summary = cli.record(policy="zero", seconds=0.5, out=out, width=64, height=48, frames_png=stills,
+                         progress_bar=False)
+    assert iio.imread(out).shape[0] == summary["frames"] and len(list(stills.glob("*.png"))) == 1
+    assert sorted(p.name for p in out.parent.iterdir()) == ["stills", "v.mp4"]

@@ -432,3 +432,57 @@ def test_policy_sizes_are_checked_against_the_env(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="wide.npz"):
         load_policy(str(path), env)
     env.close()
+
+
+def _traced_peak(call) -> int:
+    """The peak of Python's and numpy's allocations (``tracemalloc``) while ``call()`` runs."""
+    import gc
+    import tracemalloc
+
+    gc.collect()
+    tracemalloc.start()
+    try:
+        call()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_a_zip_bomb_under_the_size_limit_is_refused_in_little_memory(tmp_path):
+    """A member declaring 256 MiB (under the 512 MiB limit) in a few hundred KB of deflated zeros was unpacked
+    whole, and copied once more (+0.5 GB peak; +1.2 GB at the limit): its ratio is refused before reading."""
+    import zipfile
+
+    from numpy.lib import format as npy
+
+    path = tmp_path / "bomb.npz"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("weight_0.npy", "w") as member:
+            npy.write_array_header_1_0(member, {"descr": "<f8", "fortran_order": False, "shape": (2**25,)})
+            chunk = bytes(2**20)
+            for _ in range(256):
+                member.write(chunk)
+    assert path.stat().st_size < 2**20
+
+    def read():
+        with pytest.raises(PolicyFileError, match=r"bomb\.npz: member 'weight_0\.npy' unpacks \d+ bytes to "
+                                                  r"268435\d+, over 50 times"):
+            load_file(path)
+
+    assert _traced_peak(read) < 16 * 2**20
+
+
+def test_a_large_member_is_read_without_a_second_copy(tmp_path):
+    """Members are read a chunk at a time into their arrays: reading 32 MiB of weights costs about 32 MiB
+    (it cost twice that: the member's bytes, then the array copied from them), and the arrays are the file's."""
+    from stairenv.pretrained import _read_arrays
+
+    weights = np.random.default_rng(0).normal(size=(2048, 2048)).astype(np.float64)
+    path = tmp_path / "large.npz"
+    np.savez(path, weight_0=weights, fortran=np.asfortranarray(weights[:3, :5]), text=np.array("config"))
+    arrays = {}
+    peak = _traced_peak(lambda: arrays.update(_read_arrays(path)))
+    assert peak < 1.25 * weights.nbytes, peak / weights.nbytes
+    np.testing.assert_array_equal(arrays["weight_0"], weights)
+    np.testing.assert_array_equal(arrays["fortran"], weights[:3, :5])
+    assert arrays["text"].item() == "config"

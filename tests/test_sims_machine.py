@@ -295,3 +295,82 @@ def test_run_script_names_a_bad_seed(seed, error, message):
     script = load_database()[0]
     with pytest.raises(error, match=message):
         run_script(script, seed=seed, env_kwargs={"text_encoder": "hashing"})
+
+
+# --- run_story.py: settings and outputs checked before the run ------------------------------------
+@pytest.fixture
+def no_run(monkeypatch):
+    """Makes a run fail the test: the checks must come before it."""
+    import stairenv.stories
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the story ran before its settings and outputs were checked")
+
+    monkeypatch.setattr(stairenv.stories, "run_script", refuse)
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--theme", ""], "--theme: an empty theme"),
+    (["--theme", "   "], "--theme: an empty theme"),
+    (["--theme", "a tired evening", "--length", "1000000"], "--length must be in [1, {n}]"),
+    (["--theme", "a tired evening", "--length", "0"], "--length must be in [1, {n}]"),
+    (["--script", "tired_bedtime", "--length", "2"], "--length: a --theme story's length; --script runs one"),
+    (["--script", "tired_bedtime", "--json", "{file}/story.json"],
+     "--json '{file}/story.json': '{file}' is a file, so no folder can be made in it"),
+    (["--script", "tired_bedtime", "--json", "{folder}"], "--json '{folder}': is a folder; give a file path"),
+    (["--script", "tired_bedtime", "--json", "/proc/stairenv-nowhere/s.json"],
+     "--json '/proc/stairenv-nowhere/s.json': nothing can be written in '/proc'"),
+    (["--script", "tired_bedtime", "--out", "{file}/story.mp4"],
+     "--out '{file}/story.mp4': '{file}' is a file, so no folder can be made in it"),
+    (["--script", "tired_bedtime", "--out", "{tmp}/story.avi"], "--out must be an .mp4 path"),
+])
+def test_run_story_refuses_settings_and_outputs_before_the_run(tmp_path, capsys, no_run, baseline_script, argv,
+                                                               message):
+    """An empty theme and a length of a million were taken (the story silently capped), and an output that
+    cannot be written failed after the whole run."""
+    if "/proc" in message and not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc here")
+    names = {"file": tmp_path / "a_file", "folder": tmp_path / "folder", "tmp": tmp_path, "n": len(load_database())}
+    names["file"].write_text("x")
+    names["folder"].mkdir()
+    with pytest.raises(SystemExit) as stop:
+        baseline_script("run_story").main([arg.format(**names) for arg in argv])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert message.format(**names) in err and "Traceback" not in err, err
+
+
+def test_run_story_refuses_a_crafted_policy_zip_without_running_it(tmp_path, capsys, baseline_script):
+    """``--walk x.zip`` went through SB3's loader, which unpickles the zip's ``data``: its payload ran."""
+    import base64
+    import pickle
+    import zipfile
+
+    marker = tmp_path / "marker"
+
+    class Payload:
+        def __reduce__(self):
+            return (open, (str(marker), "w"))
+
+    data = {"policy_class": {":type:": "<class 'abc.ABCMeta'>",
+                             ":serialized:": base64.b64encode(pickle.dumps(Payload())).decode()}}
+    crafted = tmp_path / "x.zip"
+    with zipfile.ZipFile(crafted, "w") as archive:
+        archive.writestr("data", json.dumps(data))
+    with pytest.raises(SystemExit) as stop:
+        baseline_script("run_story").main(["--script", "tired_bedtime", "--no-video", "--text-encoder", "hashing",
+                                           "--walk", str(crafted)])
+    assert stop.value.code == 2
+    assert "x.zip: not a Stable-Baselines3 model .zip: it has no 'policy.pth' member" in capsys.readouterr().err
+    assert not marker.exists()
+
+
+def test_run_story_says_when_a_story_is_shorter_than_its_length(capsys, no_run, baseline_script):
+    """A --length the database cannot chain to is taken as asked and the story's shortfall said, not hidden."""
+    n = len(load_database())
+    with pytest.raises(AssertionError, match="the story ran"):  # no_run: the story is assembled, not run
+        baseline_script("run_story").main(["--theme", "a tired evening", "--length", str(n), "--encoder", "hashing",
+                                           "--no-video"])
+    out = capsys.readouterr().out
+    assert "short scripts asked for (--length): no other script can follow its last one" in out
+    assert f"of the {n} short scripts" in out

@@ -19,12 +19,21 @@ Without ``--policy`` the video shows the trained policy the package ships for th
 (``stairenv/policies/<env id>.npz``, ``stairenv.pretrained.load``) and, where none ships, the
 zero policy, with a one-line note saying so. ``--policy pretrained`` asks for the shipped policy
 and is an error where none ships.
+
+``--out`` and ``--frames-png`` are checked before anything is rendered (:func:`check_output`: a usage
+error naming the flag and the path); the film is written under a hidden name beside ``--out`` and
+moved there once whole, so a film that stops leaves no half-written file (nor its stills).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import secrets
 import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +88,70 @@ def build_parser() -> argparse.ArgumentParser:
                              "(a policy trained on few captions follows unseen ones worse) instead of the env's")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
+
+
+def check_output(flag: str, path: str | os.PathLike, folder: bool = False) -> Path:
+    """``path`` as a ``Path`` where a file (``folder`` False) or a folder of files can be written;
+    ``ValueError`` naming ``flag`` and ``path`` otherwise: a folder where a file is expected (or a file
+    where a folder is), a file in the way of the folders to make, a read-only file, or a place where
+    nothing can be created (tried by making and removing an empty folder in the nearest existing one).
+    Checked before any work, so that a film or a run is not lost at its end; nothing is left behind."""
+    path = Path(path).expanduser()
+    what = f"{flag} {str(path)!r}"
+    if not str(path).strip():
+        raise ValueError(f"{flag}: an empty path")
+    if folder and path.exists() and not path.is_dir():
+        raise ValueError(f"{what}: is a file, not a folder")
+    if not folder and path.is_dir():
+        raise ValueError(f"{what}: is a folder; give a file path")
+    if not folder and path.exists() and not os.access(path, os.W_OK):
+        raise ValueError(f"{what}: the file exists and cannot be overwritten (read-only)")
+    existing = path if folder else path.parent
+    while not existing.exists():
+        if existing.is_symlink():
+            raise ValueError(f"{what}: {str(existing)!r} is a broken link")
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{what}: {str(existing)!r} is a file, so no folder can be made in it")
+    try:
+        os.rmdir(tempfile.mkdtemp(dir=existing, prefix=".stairenv-check-"))
+    except OSError as error:
+        raise ValueError(f"{what}: nothing can be written in {str(existing)!r} ({error.strerror or error})") from None
+    return path
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """``mkdir -p folder``; the folders it made, innermost first."""
+    made = []
+    probe = folder
+    while not probe.exists():
+        made.append(probe)
+        probe = probe.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    return made
+
+
+def _remove_folders(made: list[Path]) -> None:
+    for folder in made:
+        with contextlib.suppress(OSError):  # not empty: something else was put there meanwhile
+            folder.rmdir()
+
+
+@contextlib.contextmanager
+def written_whole(path: Path) -> Iterator[Path]:
+    """A path beside ``path`` (a hidden name, the same suffix) to write ``path``'s content into: moved
+    to ``path`` when the block ends, removed (with the folders made for it) when it raises, so that
+    no half-written file is left at ``path``. Its folders are made first."""
+    made = _make_folders(path.parent)
+    partial = path.with_name(f".{path.stem}.{os.getpid()}-{secrets.token_hex(4)}.partial{path.suffix}")
+    try:
+        yield partial
+        os.replace(partial, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            partial.unlink()
+        _remove_folders(made)
+        raise
 
 
 def check_env_id(env_id: str) -> None:
@@ -204,6 +277,9 @@ def record(
     out = Path(default_out(env_id) if out is None else out)
     if out.suffix.lower() != ".mp4":
         raise ValueError(f"out must be an .mp4 path, got {str(out)!r}")
+    # the outputs are checked before the film is made (it used to fail at its end, in ffmpeg)
+    out = check_output("--out", out)
+    png_dir = None if frames_png is None else check_output("--frames-png", frames_png, folder=True)
 
     policy, note = resolve_policy(policy, env_id)
     env = gym.make(env_id, render_mode="rgb_array", width=width, height=height, **(env_kwargs or {}))
@@ -218,11 +294,6 @@ def record(
         fps = int(env.metadata["render_fps"])
         one_episode = seconds is None
         n_frames = max(1, int(round((MAX_EPISODE_SECONDS if one_episode else seconds) * fps)))
-        out.parent.mkdir(parents=True, exist_ok=True)
-        png_dir = None
-        if frames_png is not None:
-            png_dir = Path(frames_png)
-            png_dir.mkdir(parents=True, exist_ok=True)
         policy_name = Path(policy).name if Path(policy).suffix else policy
 
         # best_progress: InterLevel's stair progress; None for envs that report none (PlaMo, SIMS)
@@ -265,48 +336,59 @@ def record(
                 task_text["text"] = text
 
         obs = reset()
-        # libx264 needs even frame sizes; macro_block_size=2 rounds odd ones up without a warning.
-        writer = imageio.get_writer(out, fps=fps, codec="libx264", quality=7, macro_block_size=2,
-                                    pixelformat="yuv420p")
         written = 0
-        try:
-            for k in tqdm(range(n_frames), desc=f"rendering {out.name}", unit="frame", disable=not progress_bar):
-                ended = False
-                if k > 0:
-                    obs, _, terminated, truncated, info = env.step(np.asarray(act(obs)))
-                    stats["steps"] += 1
-                    episode_step += 1
-                    note_progress(info)
-                    note_task(info)
-                    stats["outcome"] = outcome_of(info, terminated, truncated)
-                    if terminated or truncated:
-                        ended = True
-                        stats["successes"] += bool(info.get("success"))
-                        stats["falls"] += bool(info.get("fell"))
-                        stats["unstable"] += bool(info.get("physics_unstable"))
-                frame = labelled(env.render())
-                writer.append_data(frame)
-                written += 1
-                if png_dir is not None and k % fps == 0:
-                    path = png_dir / f"frame_{k // fps:03d}s.png"
-                    imageio.imwrite(path, frame)
-                    pngs.append(str(path))
-                if one_episode and (ended or k == n_frames - 1):
-                    break
-                if ended and k < n_frames - 1:
-                    episode_seed += 1
-                    stats["episodes"] += 1
-                    episode_step = 0
-                    obs = reset()
-            if one_episode:  # the outcome, written on the last frame, held
-                banner = stats["outcome"] if stats["outcome"] != "still running" else (
-                    f"stopped after {MAX_EPISODE_SECONDS:.0f} s")
-                last = labelled(env.render(), banner.upper())
-                for _ in range(max(1, int(round(OUTCOME_HOLD_SECONDS * fps)))):
-                    writer.append_data(last)
-                    written += 1
-        finally:
-            writer.close()
+        with written_whole(out) as partial:  # moved to ``out`` once whole; removed if the film stops
+            made_png_folders = _make_folders(png_dir) if png_dir is not None else []
+            try:
+                # libx264 needs even frame sizes; macro_block_size=2 rounds odd ones up without a warning.
+                writer = imageio.get_writer(partial, fps=fps, codec="libx264", quality=7, macro_block_size=2,
+                                            pixelformat="yuv420p")
+                try:
+                    for k in tqdm(range(n_frames), desc=f"rendering {out.name}", unit="frame",
+                                  disable=not progress_bar):
+                        ended = False
+                        if k > 0:
+                            obs, _, terminated, truncated, info = env.step(np.asarray(act(obs)))
+                            stats["steps"] += 1
+                            episode_step += 1
+                            note_progress(info)
+                            note_task(info)
+                            stats["outcome"] = outcome_of(info, terminated, truncated)
+                            if terminated or truncated:
+                                ended = True
+                                stats["successes"] += bool(info.get("success"))
+                                stats["falls"] += bool(info.get("fell"))
+                                stats["unstable"] += bool(info.get("physics_unstable"))
+                        frame = labelled(env.render())
+                        writer.append_data(frame)
+                        written += 1
+                        if png_dir is not None and k % fps == 0:
+                            path = png_dir / f"frame_{k // fps:03d}s.png"
+                            imageio.imwrite(path, frame)
+                            pngs.append(str(path))
+                        if one_episode and (ended or k == n_frames - 1):
+                            break
+                        if ended and k < n_frames - 1:
+                            episode_seed += 1
+                            stats["episodes"] += 1
+                            episode_step = 0
+                            obs = reset()
+                    if one_episode:  # the outcome, written on the last frame, held
+                        banner = stats["outcome"] if stats["outcome"] != "still running" else (
+                            f"stopped after {MAX_EPISODE_SECONDS:.0f} s")
+                        last = labelled(env.render(), banner.upper())
+                        for _ in range(max(1, int(round(OUTCOME_HOLD_SECONDS * fps)))):
+                            writer.append_data(last)
+                            written += 1
+                finally:
+                    writer.close()
+            except BaseException:  # no stills of a film that is not written
+                for png in pngs:
+                    with contextlib.suppress(OSError):
+                        Path(png).unlink()
+                pngs.clear()
+                _remove_folders(made_png_folders)
+                raise
     finally:
         env.close()
     return {"path": str(out), "frames": written, "fps": fps, "pngs": pngs, "policy": policy, "note": note,

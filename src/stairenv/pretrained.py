@@ -183,6 +183,14 @@ def with_trained_captions(env_kwargs: dict[str, Any], policy: Any) -> dict[str, 
     return env_kwargs if captions is None else {**env_kwargs, "captions": captions}
 
 
+#: a member over this many bytes may unpack to at most MAX_COMPRESSION_RATIO times its packed size
+#: (trained weights pack about 2:1, a config's text about 8:1; a zip bomb about 1000:1)
+RATIO_CHECKED_BYTES = 4 * 2**20
+MAX_COMPRESSION_RATIO = 50
+#: the bytes a member is read in, straight into its array (no second copy of the whole member)
+READ_CHUNK_BYTES = 2**20
+
+
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     from numpy.lib import format as npy
 
@@ -193,6 +201,12 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
             unpacked = sum(member.file_size for member in members)
             if unpacked > MAX_UNPACKED_BYTES:
                 raise PolicyFileError(f"{path}: unpacks to {unpacked} bytes, more than {MAX_UNPACKED_BYTES}")
+            for member in members:  # a zip bomb under the limit: refused before anything is unpacked
+                if (member.file_size > RATIO_CHECKED_BYTES
+                        and member.file_size > MAX_COMPRESSION_RATIO * max(member.compress_size, 1)):
+                    raise PolicyFileError(
+                        f"{path}: member {member.filename!r} unpacks {member.compress_size} bytes to "
+                        f"{member.file_size}, over {MAX_COMPRESSION_RATIO} times (no policy's arrays pack so tightly)")
             if len(members) > 4 * MAX_LAYERS + 8:
                 raise PolicyFileError(f"{path}: {len(members)} members, more than a policy file has")
             for member in members:
@@ -212,11 +226,17 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
                     if declared != member.file_size - header:
                         raise PolicyFileError(f"{path}: {name}: its header declares shape {shape} of {dtype} "
                                               f"({declared} bytes) but the file holds {member.file_size - header}")
-                    data = fp.read(declared)
-                if len(data) != declared:
+                    flat = np.empty(int(np.prod(shape, dtype=object)), dtype=dtype)  # read into, a chunk at a time
+                    into, filled = flat.view(np.uint8), 0
+                    while filled < declared:
+                        chunk = fp.read(min(READ_CHUNK_BYTES, declared - filled))
+                        if not chunk:
+                            break
+                        into[filled:filled + len(chunk)] = np.frombuffer(chunk, dtype=np.uint8)
+                        filled += len(chunk)
+                if filled != declared:
                     raise PolicyFileError(f"{path}: {name} is truncated")
-                order = "F" if fortran else "C"
-                arrays[name] = np.frombuffer(data, dtype=dtype).reshape(shape, order=order).copy()
+                arrays[name] = flat.reshape(shape, order="F" if fortran else "C")
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, RuntimeError) as err:
         if isinstance(err, PolicyFileError):
             raise
