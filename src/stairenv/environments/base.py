@@ -169,6 +169,78 @@ class HumanoidEnv(gym.Env):
     """
 
     metadata = {"render_modes": list(RENDER_MODES), "render_fps": 30}
+    #: the keywords a built env takes (``configure``, a batched env's ``set_attr``, or assigning
+    #: ``env.unwrapped.<keyword>``): checked as ``gym.make`` checks them, written into ``config`` and re-derived
+    #: by ``_apply_config``. Every other keyword is fixed once the env is built (it shapes the model, the
+    #: spaces or what was loaded for it): changing one is refused, naming it.
+    LIVE_KEYWORDS: frozenset[str] = frozenset()
+    #: attributes named as a keyword that hold the env's state instead (PlaMoScene's ``scene``, the episode's
+    #: scene; SIMS's ``room``): set freely, never through ``configure``
+    STATE_ATTRIBUTES: frozenset[str] = frozenset()
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        """Each subclass's ``__init__`` counts as construction: until the outermost returns, keyword attributes
+        are set as plain attributes; afterwards assigning one goes through ``configure``."""
+        super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is None or getattr(init, "_counts_construction", False):
+            return
+
+        @functools.wraps(init)
+        def constructing(self, *args, **kw):
+            depth = self.__dict__.get("_init_depth", 0)
+            object.__setattr__(self, "_init_depth", depth + 1)
+            try:
+                init(self, *args, **kw)
+            finally:
+                object.__setattr__(self, "_init_depth", depth)
+
+        constructing._counts_construction = True
+        cls.__init__ = constructing
+
+    def __setattr__(self, name: str, value) -> None:
+        state = self.__dict__
+        if (state.get("_init_depth", 1) == 0 and name in _config_keywords(state.get("config"))
+                and name not in self.STATE_ATTRIBUTES):
+            self.configure(**{name: value})
+        else:
+            object.__setattr__(self, name, value)
+
+    def __getattr__(self, name: str):
+        # only for names not found otherwise: a keyword the env keeps no attribute of reads its config
+        config = self.__dict__.get("config")
+        if config is not None and name in _config_keywords(config):
+            return config.keywords()[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def configure(self, **keywords) -> None:
+        """Change keywords of this built env: each checked as ``gym.make`` checks it (``TypeError`` /
+        ``ValueError`` naming it and its range), then ``config`` is the new one and what depends on it is
+        re-derived (in effect from the next step; a start's or a staircase's from the next reset). Only
+        ``LIVE_KEYWORDS`` may change: another keyword given a new value is refused with a ``ValueError``
+        naming it (build another env with it); given its current value it is a no-op."""
+        before = self.config.keywords()
+        config = self.config.replace(**keywords)
+        after = config.keywords()
+        changed = [name for name in keywords if not _same_value(after[name], before[name])]
+        fixed = [name for name in changed if name not in self.LIVE_KEYWORDS]
+        if fixed:
+            live = ", ".join(sorted(self.LIVE_KEYWORDS)) or "none"
+            raise ValueError(f"{fixed[0]!r} of {type(self).__name__} is fixed once the env is built (it shapes the "
+                             f"model, the spaces or what was loaded for them): build another env with "
+                             f"gym.make(..., {fixed[0]}=...). The keywords a built env takes: {live}")
+        if changed:
+            object.__setattr__(self, "config", config)
+            self._apply_config(config)
+
+    def _apply_config(self, config) -> None:
+        """Derive this env's working attributes of its ``LIVE_KEYWORDS`` from ``config`` (after ``configure``;
+        an env may call it at construction too). Here: an attribute of each, named as the keyword, which the
+        env reads where it uses it; an env whose attributes are derived otherwise overrides it."""
+        values = config.keywords()
+        for name in self.LIVE_KEYWORDS:
+            object.__setattr__(self, name, values[name])
+
     #: ``load_reference_library`` source used when ``reference_motion`` is None (RSI and AMP reference).
     DEFAULT_REFERENCE_MOTION: str | None = None
     #: the clips of the reference library that starts are drawn from (``init`` "reference" or "hybrid").
@@ -936,6 +1008,23 @@ def _rows_into(n: int, rows_a, values_a, rows_b, values_b) -> np.ndarray:
         out[rows_a] = values_a
     out[rows_b] = values_b
     return out
+
+
+@functools.cache
+def _keywords_of(config_type: type) -> frozenset[str]:
+    return frozenset(config_type.keyword_names())
+
+
+def _config_keywords(config) -> frozenset[str]:
+    """The keywords of an env's config (none before it has one)."""
+    return frozenset() if config is None else _keywords_of(type(config))
+
+
+def _same_value(a, b) -> bool:
+    try:
+        return bool(np.array_equal(a, b))
+    except Exception:    # values numpy cannot compare as arrays
+        return a is b or a == b
 
 
 def _attribute(env: HumanoidEnv, path: str):

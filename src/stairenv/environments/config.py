@@ -83,6 +83,11 @@ class EnvConfig:
         with Path(path).open("rb") as f:
             return from_keywords(cls, tomllib.load(f).get("kwargs", {}))
 
+    @classmethod
+    def keyword_names(cls) -> tuple[str, ...]:
+        """The keywords of this config, in field order."""
+        return tuple(keyword_paths(cls))
+
     def keywords(self) -> dict[str, Any]:
         """Every keyword and its resolved value (``from_keywords(**config.keywords()) == config``)."""
         return {keyword: _get(self, path) for keyword, path in keyword_paths(type(self)).items()}

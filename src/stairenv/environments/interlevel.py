@@ -145,27 +145,16 @@ class InterLevelEnv(HumanoidEnv):
         self.config = config = resolve(InterLevelConfig, config, keywords)
         # attributes of the config's values, as before there was one (read by the kernel, the batched
         # env and the trainers)
-        physics, render, rewards, termination = config.physics, config.render, config.reward, config.termination
-        start, aids = config.start, config.training_aids
+        physics, render, rewards, aids = config.physics, config.render, config.reward, config.training_aids
         self.reward_name = rewards.kind
         self._term_names = task.REWARD_TERMS if rewards.kind == "interlevel" else interscene.REWARD_TERMS
         #: a step outcome's reward terms, in ``info`` and in the order they are summed
         self._outcome_terms = (*self._term_names, "reward_success", "reward_failure")
-        self.reward_config = rewards.terms
-        self._reward_array = self.reward_config.as_array()  # what the compiled step takes
-        self.success_reward, self.failure_reward = rewards.success_reward, rewards.failure_reward
-        self.success_radius = termination.success_radius
-        self.terminate_on_success = termination.terminate_on_success
-        self.termination_height = termination.termination_height
-        self.start_radius, self.random_start_heading = start.start_radius, start.random_start_heading
-        self.reset_noise_scale = start.reset_noise_scale
+        self._apply_config(config)
         self.stairs_config = config.stairs
         self.stairs_start_fraction = aids.stairs_start_fraction
         self._stairs_start = False
-        self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
         self.step_height_levels = aids.step_height_levels
-        self.curriculum_demote_below = aids.curriculum_demote_below
-        self.curriculum_promote_at = aids.curriculum_promote_at
         #: this world's level of the step-height curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
@@ -187,6 +176,32 @@ class InterLevelEnv(HumanoidEnv):
     # the keywords: InterLevelConfig's fields, defaults included (``config=`` stays out of the signature, which
     # lists the keywords)
     __init__.__signature__ = keyword_signature(InterLevelConfig)
+
+    #: what a built env takes (``configure``, ``set_attr``): the reward's weights and bonuses, the episode's end,
+    #: the start's spread and the training aids' stall and curriculum thresholds
+    LIVE_KEYWORDS = frozenset((
+        "w_location", "w_facing", "w_velocity", "sigma_before", "sigma_after", "sigma_across", "w_scale",
+        "target_speed", "progress_scaling", "success_reward", "failure_reward", "success_radius",
+        "terminate_on_success", "termination_height", "start_radius", "random_start_heading", "reset_noise_scale",
+        "stall_seconds", "stall_distance", "curriculum_demote_below", "curriculum_promote_at"))
+
+    def _apply_config(self, config: InterLevelConfig) -> None:
+        rewards, termination, start, aids = config.reward, config.termination, config.start, config.training_aids
+        set_ = object.__setattr__    # these attributes are the config's, derived here
+        set_(self, "reward_config", rewards.terms)
+        set_(self, "_reward_array", rewards.terms.as_array())  # what the compiled step takes
+        set_(self, "success_reward", rewards.success_reward)
+        set_(self, "failure_reward", rewards.failure_reward)
+        set_(self, "success_radius", termination.success_radius)
+        set_(self, "terminate_on_success", termination.terminate_on_success)
+        set_(self, "termination_height", termination.termination_height)
+        set_(self, "start_radius", start.start_radius)
+        set_(self, "random_start_heading", start.random_start_heading)
+        set_(self, "reset_noise_scale", start.reset_noise_scale)
+        set_(self, "stall_seconds", aids.stall_seconds)
+        set_(self, "stall_distance", aids.stall_distance)
+        set_(self, "curriculum_demote_below", aids.curriculum_demote_below)
+        set_(self, "curriculum_promote_at", aids.curriculum_promote_at)
 
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

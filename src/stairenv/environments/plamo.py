@@ -131,6 +131,9 @@ class PlaMoEnv(HumanoidEnv):
     #: PlaMo's reference motion (AMP and reference-state starts): all four locomotion types
     DEFAULT_REFERENCE_MOTION = "builtin:plamo"
 
+    #: what a built env takes (``configure``, ``set_attr``): the episode's end bounds and the aids' graces
+    LIVE_KEYWORDS = frozenset(("max_xy_error", "min_head_height", "aid_grace", "z_above_grace"))
+
     def __init__(self, *, config: PlaMoConfig | None = None, **keywords) -> None:
         # the keywords (signature below: PlaMoConfig's fields) -> the one resolved, checked config
         self.config = config = resolve(PlaMoConfig, config, keywords)

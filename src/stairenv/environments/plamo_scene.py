@@ -90,6 +90,10 @@ class PlaMoSceneEnv(PlaMoEnv):
     {keyword table}
     """
 
+    #: what a built env takes (``configure``, ``set_attr``): the episode's end bounds
+    LIVE_KEYWORDS = frozenset(("success_radius", "max_xy_error"))
+    STATE_ATTRIBUTES = frozenset(("scene",))    # the episode's scene (the keyword: what scenes to draw)
+
     def __init__(self, *, config: PlaMoSceneConfig | None = None, **keywords) -> None:
         # the keywords (signature below: PlaMoSceneConfig's fields) -> the one resolved, checked config,
         # checked before PlaMoEnv's constructor builds a model

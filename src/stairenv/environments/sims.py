@@ -203,6 +203,10 @@ class SIMSEnv(HumanoidEnv):
     #: Standing starts only: the walk and idle clips (a seated frame would start in mid-air).
     start_clips = staticmethod(standing_clips)
 
+    #: what a built env takes (``configure``, ``set_attr``): the episode's end bounds
+    LIVE_KEYWORDS = frozenset(("fall_height", "terminate_on_success", "stall_distance"))
+    STATE_ATTRIBUTES = frozenset(("room",))    # the episode's room (the keyword: a fixed room to use)
+
     def __init__(self, *, config: SIMSConfig | None = None, **keywords) -> None:
         # the keywords (signature below: SIMSConfig's fields) -> the one resolved, checked config
         self.config = config = resolve(SIMSConfig, config, keywords)

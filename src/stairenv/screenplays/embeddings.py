@@ -524,12 +524,9 @@ def shipped_basis() -> dict[str, object]:
     :func:`corpus_digest`) and ``digest`` (sha256 of the components' bytes: the file's identity)."""
     with _basis_lock:
         if not _basis:
-            from importlib import resources
-
-            with resources.as_file(resources.files("stairenv.screenplays") / "data" / SHIPPED_BASIS) as path:
-                with np.load(path, allow_pickle=False) as z:
-                    components = np.ascontiguousarray(z["components"], dtype=np.float32)
-                    _basis.update(model_id=str(z["model_id"]), corpus_digest=str(z["corpus_digest"]))
+            with np.load(Path(__file__).with_name("data") / SHIPPED_BASIS, allow_pickle=False) as z:
+                components = np.ascontiguousarray(z["components"], dtype=np.float32)
+                _basis.update(model_id=str(z["model_id"]), corpus_digest=str(z["corpus_digest"]))
             components.setflags(write=False)
             _basis.update(components=components, digest=hashlib.sha256(components.tobytes()).hexdigest())
         return _basis
