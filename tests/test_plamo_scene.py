@@ -207,3 +207,80 @@ def test_a_stop_turns_the_shorter_way_round():
     assert out[0] == 3.1 and out[-1] == 1.5 and np.array_equal(out[moving], yaw[moving])
     assert (np.abs(out[3:6]) > 3.1).all() and np.all(np.abs(np.diff(np.unwrap(out[2:7]))) < 0.03)
     np.testing.assert_array_equal(out[9:11], np.interp([9, 10], [8, 11], [0.5, 1.5]))
+
+
+def test_an_instruction_to_the_start_landmark_plans_a_zero_length_route():
+    """"Walk to the fountain" where the character starts at the fountain: the route is the start point, timed
+    0 s, and the episode runs (a success at the first step). It used to stop the reset with a MemoryError
+    (5.14 TiB): the leg was a few cm to its cell's centre, both ends at rest, timed 7e10 s. Every landmark of
+    two seeds; a zero-length leg between two others ("crawl to the X, then walk to the X, then ...") used to
+    end in an IndexError."""
+    _, info = gym.make("PlaMoScene-v0", instructions="Walk to the fountain").reset(seed=0)   # as reported
+    assert info["planned_time"] == 0.0
+    names = ("tree", "swing", "car", "fountain")
+    scene = {"landmark_names": names, "num_landmarks": 4}
+    for name in names:
+        env = PlaMoSceneEnv(scene=scene, instructions=f"Walk to the {name}")
+        for seed in range(2):
+            _, info = env.reset(seed=seed)
+            at_start = name == env.scene.landmark_names[0]   # the character starts at the first landmark
+            assert np.isfinite(info["planned_time"]) and info["planned_time"] < 60.0 and len(env.path.points) < 1000
+            assert (info["planned_time"] == 0.0) == at_start
+            _, _, terminated, _, info = env.step(np.zeros(env.action_space.shape))
+            assert info["success"] == terminated == at_start
+        env.close()
+    a, b, c = names[:3]
+    env = PlaMoSceneEnv(scene=scene, instructions=f"Crawl to the {a}, then walk to the {a}, then walk from the {a} "
+                                                  f"to the {b}, then run to the {c}")
+    for seed in range(2):
+        _, info = env.reset(seed=seed)
+        assert env._plans[1].trajectory.duration == 0.0 and info["planned_time"] == env._plans[-1].trajectory.end_time
+        assert np.all(np.diff(env.trajectory.t) > 0) and np.all(np.diff(env.trajectory.s) >= 0)
+        env.step(np.zeros(env.action_space.shape))
+    env.close()
+
+
+def test_every_landmark_of_a_drawn_scene_is_a_zero_length_leg_from_itself():
+    """The planner alone, on the default scenes of five seeds: a leg to every landmark from its centre (where
+    the env stands the character) and from its nearest passable point ("from the X") has zero length."""
+    from stairenv.planning.planner import Planner
+    from stairenv.world.scenes import SceneConfig, generate_scene
+
+    for seed in range(5):
+        scene = generate_scene(SceneConfig(), np.random.default_rng(seed))
+        planner = Planner(scene.planning_grid(cell_size=0.1))
+        for name in scene.landmark_names:
+            for start in (np.asarray(scene.landmark(name).center, dtype=float), planner.landmark_point(name)):
+                for locomotion in ("walk", "crawl"):
+                    (plan,) = planner.route(f"{locomotion} to the {name}", start=start)
+                    assert plan.trajectory.duration == 0.0 and np.array_equal(plan.trajectory.xyz[0, :2], start)
+
+
+@pytest.mark.parametrize("duration", [7.07e10, 1e300, np.inf, np.nan, -1.0])
+def test_the_path_sampler_refuses_an_absurd_duration(duration):
+    """A duration that would need over a million samples (7e10 s asked for 5.14 TiB), or is not a finite number
+    >= 0, raises ValueError before anything is allocated."""
+    from stairenv.environments.plamo_scene import path_from_trajectory
+    from stairenv.planning.waypoints import Trajectory
+
+    trajectory = Trajectory.from_profile(np.array([0.0, 1.0]), np.zeros((2, 3)), np.array([1.0, 1.0]))
+    with pytest.raises(ValueError, match="the path's duration"):
+        path_from_trajectory(trajectory, lambda xy: np.zeros(len(xy)), duration)
+    assert len(path_from_trajectory(trajectory, lambda xy: np.zeros(len(xy)), 0.0).points) == 1
+
+
+def test_a_reset_error_quotes_at_most_80_characters_of_the_instructions():
+    """Instructions of 256 KiB naming a landmark this scene lacks: the reset's error quotes 80 characters and
+    the length (it quoted them whole)."""
+    text = "Walk to the tree" + "." * 2 ** 18
+    env = gym.make("PlaMoScene-v0", instructions=text)
+    for seed in range(20):
+        try:
+            env.reset(seed=seed)
+        except InstructionError as error:
+            message = str(error)
+            assert len(message) < 1000 and message.startswith(
+                "instructions 'Walk to the tree.....") and "(262,160 characters) cannot be planned" in message
+            break
+    else:
+        pytest.fail("no scene of 20 without a tree")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 
 import networkx as nx
 import numpy as np
@@ -649,3 +650,107 @@ def test_collision_prediction_needs_a_finite_time():
     assert predict_collision(trajectory, [ball], t_now=0.0) is not None
     with pytest.raises(ValueError, match=r"t_now must be a number in \(-inf, inf\), got nan"):
         predict_collision(trajectory, [ball], t_now=math.nan)  # used to predict no collision at all
+
+
+# ------------------------------------------------------------------------------------ degenerate routes
+def test_a_leg_to_the_landmark_it_starts_at_has_zero_length():
+    """Starting on a cell of the target landmark, the leg is the start point alone, timed 0 s. It used to be a
+    step of a few cm to the cell's centre, sampled at its two ends, both at rest: timed at a floor speed of
+    1e-12 m/s it took 7e10 s, and the env's path sampler asked for 5 TiB."""
+    grid = flat_grid(40, 40, landmarks={"a": square(20, 20, 2), "b": square(35, 35)})
+    planner = Planner(grid)
+    for start in ((2.02, 1.98), (2.05, 2.05), (1.81, 2.19)):   # off a cell's centre, on it, at the edge
+        plans = planner.route("walk to the a", start=start)
+        trajectory = plans[0].trajectory
+        assert len(trajectory.t) == 1 and trajectory.duration == 0.0 and plans[0].length == 0.0
+        np.testing.assert_array_equal(trajectory.xyz[0, :2], start)
+        assert len(plans[0].waypoints(dt=0.1).t) == 1
+    # a zero-length leg between two others: times and positions run on
+    plans = planner.route("crawl to the a, then walk to the a, then run to the b", start=(2.02, 1.98))
+    assert [p.trajectory.duration for p in plans[:2]] == [0.0, 0.0] and 0.0 < plans[2].trajectory.duration < 60.0
+    assert plans[2].trajectory.start_time == 0.0 and np.allclose(plans[2].start_xy, (2.02, 1.98))
+
+
+def test_a_path_sampled_at_its_two_ends_at_rest_is_timed():
+    """Two samples 3.5 cm apart, both at rest (a detour of a few cm from a standstill): a midpoint joins them at
+    the gentler acceleration, rest to rest in 2 sqrt(d / a) (it used to take 7e10 s); ``Trajectory.from_profile``
+    refuses two samples apart at rest."""
+    from stairenv.planning.astar import AStarResult
+    from stairenv.planning.planner import timed_plan
+    from stairenv.planning.refine import profile_along
+
+    grid = flat_grid(20, 20)
+    costmap = build_costmap(grid, get_locomotion("walk"))
+    path = profile_along(costmap, np.array([[1.025, 0.975], [1.05, 1.0]]))
+    assert len(path.s) == 2
+    search = AStarResult(np.array([[9, 10], [10, 10]]), 0.1, 1, costmap.passable, np.array([[10, 10]]))
+    settings = PlannerSettings()
+    plan = timed_plan(costmap, search, path, np.array([[10, 10]]), settings, 0.0, 0.0, 0.0, None, None)
+    gentle = min(settings.a_max, -settings.a_min)
+    assert plan.trajectory.duration == pytest.approx(2.0 * math.sqrt(path.s[-1] / gentle))
+    np.testing.assert_allclose(plan.trajectory.xyz[[0, -1], :2], path.xy)
+    with pytest.raises(ValueError, match=r"v\[0\] and v\[1\] are both 0 over 0\.0353553 m"):
+        Trajectory.from_profile(path.s, np.zeros((2, 3)), np.zeros(2))
+
+
+@pytest.mark.parametrize("case", ["waypoints dt", "prediction dt", "replan sweep", "wait step", "refiner ds"])
+def test_samplers_refuse_absurd_sample_counts(case):
+    """A step near zero (or a span near infinity) is refused with a ValueError naming it before anything is
+    allocated (each used to ask for terabytes)."""
+    grid = flat_grid(40, 40, landmarks={"a": square(5, 5), "b": square(35, 35)})
+    plan = Planner(grid).plan("b", "walk", start="a")
+    ball = ConstantVelocityObstacle((0.9, 0.9), (0.0, 0.0))   # on the path, met within the horizon
+    assert predict_collision(plan.trajectory, [ball], t_now=0.0) is not None
+    call, message = {
+        "waypoints dt": (lambda: timed_waypoints(plan.trajectory, dt=1e-13), "the waypoints' time span"),
+        "prediction dt": (lambda: predict_collision(plan.trajectory, [ball], t_now=0.0, dt=1e-13), "horizon"),
+        "replan sweep": (lambda: replan(plan, [ball], t_now=0.0, sweep=1e9, dt=1e-4), "sweep"),
+        "wait step": (lambda: wait_for_obstacles(plan, [ball], t_now=0.0, max_wait=1e9, wait_step=1e-5),
+                      "max_wait"),
+        "refiner ds": (lambda: Planner(grid, PlannerSettings(ds=1e-13)).plan("b", "walk", start="a"),
+                       "the path's length"),
+    }[case]
+    with pytest.raises(ValueError, match=rf"^{re.escape(message)}.* samples; at most 1,000,000 are built"):
+        call()
+
+
+# ------------------------------------------------------------------------------------ quoted text
+def test_messages_quote_at_most_80_characters_of_the_text():
+    """A megabyte of instruction text gave a message of two megabytes (the text and its clause, each in full):
+    every message quotes at most 80 characters, with an ellipsis and the whole length (here 256 KiB)."""
+    tail = "x" * 2 ** 18
+    cases = [
+        (lambda: parse_instructions(f"Walk to the {tail}", LANDMARKS), "unknown landmark"),
+        (lambda: parse_instructions(f"Walk {tail} to the car", LANDMARKS), "unknown locomotion verb"),
+        (lambda: parse_instructions(f"walk the {tail}", LANDMARKS), "cannot read"),
+        (lambda: parse_instructions("run crawling " + "please " * 2 ** 15 + "to the car", LANDMARKS), "ambiguous"),
+        (lambda: parse_instructions("." * 2 ** 18, LANDMARKS), "no instruction found"),
+        (lambda: Planner(flat_grid(5, 5)).landmark(tail), "unknown landmark"),
+        (lambda: Planner(flat_grid(5, 5, landmarks={"a": square(2, 2)})).route(
+            [Segment(None, tail, "walk")]), "has no source"),
+        (lambda: get_locomotion(tail), "locomotion must be one of"),
+        (lambda: PlannerSettings(ds=tail), "ds must be a number"),
+    ]
+    for call, start in cases:
+        with pytest.raises(ValueError) as err:
+            call()
+        message = str(err.value)
+        assert start in message and len(message) < 1200, (start, len(message))
+        if "(1,0" in message or "characters)" in message:
+            assert re.search(r"'\.\.\. \([\d,]+ characters\)", message)
+    with pytest.raises(InstructionError, match=r"^unknown landmark 'x{80}'\.\.\. \(262,144 characters\) in "
+                                               r"'walk to the x{68}'\.\.\. \(262,156 characters\); known landmarks"):
+        parse_instructions(f"Walk to the {tail}", LANDMARKS)
+    # short text is quoted whole, as before
+    with pytest.raises(InstructionError, match=r"^unknown landmark 'lake' in 'run from the tree to the lake'; "):
+        parse_instructions("Run from the tree to the lake", LANDMARKS)
+
+
+def test_a_long_run_of_white_space_is_parsed_in_linear_time():
+    """The clause splitter's patterns start with \\s*: on a run of n spaces they tried every suffix of it (6,000
+    took ~5 s, 16,000 40 s, a megabyte would take days). White space is read as one space first (~1 ms here)."""
+    import time
+
+    start = time.perf_counter()
+    assert parse_instructions("walk" + " \t\n" * 2000 + "to the car", LANDMARKS) == [Segment(None, "car", "walk")]
+    assert time.perf_counter() - start < 1.0

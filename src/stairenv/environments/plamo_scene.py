@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import numpy as np
@@ -22,7 +21,7 @@ from stairenv.environments.config import (  # noqa: F401
 from stairenv.environments.config import PlaMoSceneConfig, document_keywords, keyword_signature, resolve
 from stairenv.environments.plamo import NUM_WAYPOINTS, WAYPOINT_SPACING, PlaMoEnv
 from stairenv.humanoid import load_humanoid_spec
-from stairenv.planning.errors import InstructionError, PlanningError
+from stairenv.planning.errors import InstructionError, PlanningError, check_samples, quote
 from stairenv.planning.planner import Plan, Planner, plan_path
 from stairenv.planning.replan import predict_collision, replan, wait_for_obstacles
 from stairenv.planning.waypoints import Trajectory
@@ -44,8 +43,14 @@ def random_instructions(landmarks: list[str], rng: np.random.Generator, segments
 
 
 def path_from_trajectory(trajectory: Trajectory, ground_height, duration: float) -> task.PathSamples:
-    """Sample a planned trajectory every PATH_DT seconds (held at the end) as the env's PathSamples."""
-    times = trajectory.start_time + np.arange(int(math.ceil(duration / PATH_DT)) + 1) * PATH_DT
+    """Sample a planned trajectory every PATH_DT seconds (held at the end) as the env's PathSamples.
+
+    Raises ValueError, before anything is allocated, for a ``duration`` that is not a finite number >= 0 or
+    would need over ``MAX_SAMPLES`` samples (27.8 hours), or a trajectory whose times are not finite."""
+    count = check_samples("the path's duration", duration, PATH_DT)
+    if not (np.all(np.isfinite(trajectory.t)) and len(trajectory.t)):
+        raise ValueError("the trajectory's times must be finite numbers")
+    times = trajectory.start_time + np.arange(count) * PATH_DT
     xyz, v, _ = trajectory.sample(times)
     step = np.diff(xyz, axis=0, append=xyz[-1:] + (xyz[-1:] - xyz[-2:-1] if len(xyz) > 1 else 0))
     moving = np.hypot(step[:, 0], step[:, 1]) > 1e-6
@@ -152,7 +157,7 @@ class PlaMoSceneEnv(PlaMoEnv):
                 break
             except (PlanningError, InstructionError) as error:
                 if self.instructions is not None:  # the user's own: say which keyword and scene
-                    message = (f"instructions {self.instructions!r} cannot be planned in this episode's scene "
+                    message = (f"instructions {quote(self.instructions)} cannot be planned in this episode's scene "
                                f"(landmarks {list(self.scene.landmark_names)}): {error}")
                     if isinstance(error, PlanningError):
                         raise PlanningError(error.reason, message) from None
@@ -350,12 +355,16 @@ def _shifted(trajectory: Trajectory, dt: float) -> Trajectory:
 
 
 def _concatenate(trajectories: list[Trajectory]) -> Trajectory:
-    """One trajectory through consecutive ones (arc length runs on; duplicate joints dropped)."""
+    """One trajectory through consecutive ones (arc length runs on; duplicate joints dropped, and with them
+    a zero-length leg's one sample: "walk to the tree, then walk to the tree")."""
     t, s, xyz, v = [trajectories[0].t], [trajectories[0].s], [trajectories[0].xyz], [trajectories[0].v]
+    t_end, s_end = t[0][-1], s[0][-1]
     for traj in trajectories[1:]:
-        keep = traj.t > t[-1][-1] + 1e-9
+        keep = traj.t > t_end + 1e-9
         t.append(traj.t[keep])
-        s.append(s[-1][-1] + traj.s[keep] - traj.s[0])
+        s.append(s_end + traj.s[keep] - traj.s[0])
         xyz.append(traj.xyz[keep])
         v.append(traj.v[keep])
+        if keep.any():
+            t_end, s_end = t[-1][-1], s[-1][-1]
     return Trajectory(np.concatenate(t), np.concatenate(s), np.vstack(xyz), np.concatenate(v))

@@ -3,11 +3,48 @@
 from __future__ import annotations
 
 import math
+import reprlib
 
 import numpy as np
 
 #: Why a goal could not be reached (``PlanningError.reason``).
 REASONS = ("blocked", "ceiling", "slope", "ceiling+slope", "budget", "speed")
+
+#: The most characters of a user's text an error message quotes (``quote``).
+QUOTE_CHARS = 80
+
+#: The most samples one sampler builds (a followed path, waypoints, a collision prediction's times, a
+#: resampled polyline): 8 MB an array of floats. A path sampled every 0.1 s reaches it after 27.8 hours.
+MAX_SAMPLES = 1_000_000
+
+
+def quote(value: object, limit: int = QUOTE_CHARS) -> str:
+    """``repr(value)`` for an error message, at most about ``limit`` characters: a longer text is cut
+    after ``limit`` characters, with an ellipsis and its whole length (``'walk to the ...'... (1,048,576
+    characters)``), so a message never echoes a megabyte of input."""
+    if isinstance(value, str):
+        if len(value) <= limit:
+            return repr(value)
+        return f"{value[:limit]!r}... ({len(value):,} characters)"
+    shortener = reprlib.Repr()   # never builds the whole repr of a huge list
+    shortener.maxstring = shortener.maxother = limit
+    shortener.maxlist = shortener.maxtuple = shortener.maxset = shortener.maxdict = shortener.maxarray = 20
+    text = shortener.repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}..."
+
+
+def check_samples(name: str, span: float, step: float, unit: str = "s", limit: int = MAX_SAMPLES) -> int:
+    """The number of samples every ``step`` over ``span`` (``ceil(span / step) + 1``), else ValueError
+    naming ``name`` when ``span`` is not a finite number >= 0 or the count is over ``limit``: checked
+    before anything is allocated (a duration of 7e10 s, or a step of 1e-12, would ask for terabytes)."""
+    span, step = float(span), float(step)
+    if not (math.isfinite(span) and span >= 0.0):
+        raise ValueError(f"{name} must be a finite number >= 0 ({unit}), got {span!r}")
+    count = span / step if step > 0.0 else math.inf
+    if not count + 1.0 <= limit:
+        raise ValueError(f"{name}: {span:g} {unit} sampled every {step:g} {unit} would need {count + 1.0:.3g} "
+                         f"samples; at most {limit:,} are built")
+    return int(math.ceil(count)) + 1
 
 
 class PlanningError(RuntimeError):
@@ -47,7 +84,7 @@ def check_range(name: str, value: float, low: float = -math.inf, high: float = m
     ok = ok and (x > low if low_open else x >= low) and (x < high if high_open else x <= high)
     if not ok:
         interval = f"{'(' if low_open else '['}{low}, {high}{')' if high_open else ']'}"
-        raise ValueError(f"{name} must be a number in {interval}, got {value!r}")
+        raise ValueError(f"{name} must be a number in {interval}, got {quote(value)}")
     return x
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import check_cells, check_range
+from .errors import check_cells, check_range, quote
 
 
 @dataclass
@@ -33,7 +33,7 @@ class PlanningGrid:
         self.origin = _finite_pair("origin", self.origin)
         self.check_maps()
         for name, cells in self.landmarks.items():
-            self.landmarks[name] = check_cells(f"landmark {name!r}", cells, self.heights.shape)
+            self.landmarks[name] = check_cells(f"landmark {quote(name)}", cells, self.heights.shape)
 
     def check_maps(self) -> None:
         """Raise ValueError unless the maps are planner-readable: 2-D arrays of one shape, finite
@@ -74,7 +74,7 @@ def _finite_pair(name: str, value: object) -> tuple[float, float]:
     except (TypeError, ValueError):
         pair = np.empty(0)
     if pair.shape != (2,) or not np.isfinite(pair).all():
-        raise ValueError(f"{name} must be two finite numbers (x, y) in metres, got {value!r}")
+        raise ValueError(f"{name} must be two finite numbers (x, y) in metres, got {quote(value)}")
     return float(pair[0]), float(pair[1])
 
 

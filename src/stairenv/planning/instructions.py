@@ -19,7 +19,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from .errors import InstructionError
+from .errors import InstructionError, quote
 from .locomotion import LOCOMOTION_WORDS
 
 _FILLER = frozenset(("please", "now", "then", "and", "back", "over", "straight", "all", "the", "way",
@@ -43,7 +43,9 @@ def _norm(name: str) -> str:
 
 
 def _split_clauses(text: str) -> list[str]:
-    text = text.lower().replace("\n", " ")
+    # every run of white space read as one space first: the patterns below start with \s*, and a run of a
+    # million spaces made them try every suffix of it (quadratic: 16,000 spaces took 40 s)
+    text = re.sub(r"\s+", " ", text.lower())
     verbs = "|".join(sorted((re.escape(w) for w in LOCOMOTION_WORDS), key=len, reverse=True))
     # "and" + a locomotion word starts a clause; "then", ",", ";", "." always do.
     text = re.sub(rf"\band\s+(?=(?:then\s+)?(?:{verbs})\b)", " ; ", text)
@@ -64,7 +66,7 @@ def _locomotion(verb_phrase: str, clause: str) -> str:
     if len(found) == 2 and "walk" in found:  # "walk crouching", "go crawling": the manner word wins
         found.discard("walk")
     if len(found) > 1:
-        raise InstructionError(f"ambiguous locomotion in {clause!r}: {sorted(found)}; use one of "
+        raise InstructionError(f"ambiguous locomotion in {quote(clause)}: {sorted(found)}; use one of "
                                f"{sorted(set(LOCOMOTION_WORDS.values()))}")
     return found.pop()
 
@@ -74,7 +76,7 @@ def _unknown_verb(word: str, clause: str) -> str:
     for w, name in LOCOMOTION_WORDS.items():
         by_name.setdefault(name, []).append(w)
     known = "; ".join(f"{name}: {', '.join(ws)}" for name, ws in by_name.items())
-    return f"unknown locomotion verb {word!r} in {clause!r}; known verbs are {known}"
+    return f"unknown locomotion verb {quote(word)} in {quote(clause)}; known verbs are {known}"
 
 
 def _landmark(phrase: str, known: dict[str, str], clause: str) -> str:
@@ -85,7 +87,8 @@ def _landmark(phrase: str, known: dict[str, str], clause: str) -> str:
             break
     if phrase in known:
         return known[phrase]
-    raise InstructionError(f"unknown landmark {phrase!r} in {clause!r}; known landmarks are {sorted(known.values())}")
+    raise InstructionError(f"unknown landmark {quote(phrase)} in {quote(clause)}; known landmarks are "
+                           f"{sorted(known.values())}")
 
 
 def parse_instructions(text: str | Sequence[str], landmarks: Iterable[str]) -> list[Segment]:
@@ -93,7 +96,8 @@ def parse_instructions(text: str | Sequence[str], landmarks: Iterable[str]) -> l
 
     ``landmarks`` are the scene's landmark names (e.g. ``grid.landmarks``); names match
     case-insensitively with ``_`` and ``-`` read as spaces. Raises ``InstructionError``
-    (a ValueError) listing the known landmarks or verbs when a name or verb is unknown.
+    (a ValueError) listing the known landmarks or verbs when a name or verb is unknown; a message quotes
+    at most ``QUOTE_CHARS`` (80) characters of the text (``errors.quote``).
     """
     known = {_norm(name): name for name in landmarks}
     if not known:
@@ -101,12 +105,12 @@ def parse_instructions(text: str | Sequence[str], landmarks: Iterable[str]) -> l
     texts = [text] if isinstance(text, str) else list(text)
     clauses = [c for t in texts for c in _split_clauses(str(t))]
     if not clauses:
-        raise InstructionError(f"no instruction found in {text!r}")
+        raise InstructionError(f"no instruction found in {quote(text)}")
     segments: list[Segment] = []
     for clause in clauses:
         m = _CLAUSE.match(clause)
         if m is None:
-            raise InstructionError(f"cannot read {clause!r}: expected '<verb> [from <landmark>] to <landmark>', "
+            raise InstructionError(f"cannot read {quote(clause)}: expected '<verb> [from <landmark>] to <landmark>', "
                                    f"e.g. 'crawl from the car to the swing'")
         locomotion = _locomotion(m["verb"], clause)
         target = _landmark(m["tgt"], known, clause)

@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import quote
+
 
 @dataclass(frozen=True)
 class Locomotion:
@@ -78,7 +80,7 @@ def get_locomotion(locomotion: str | Locomotion) -> Locomotion:
     name = LOCOMOTION_WORDS.get(key, key)
     if name not in LOCOMOTIONS:
         raise ValueError(f"locomotion must be one of {sorted(LOCOMOTIONS)} (or a word for one: "
-                         f"{sorted(LOCOMOTION_WORDS)}), got {locomotion!r}")
+                         f"{sorted(LOCOMOTION_WORDS)}), got {quote(locomotion)}")
     return LOCOMOTIONS[name]
 
 

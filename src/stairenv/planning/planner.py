@@ -18,13 +18,13 @@ import numpy as np
 
 from .astar import AStarResult, astar, goal_cells
 from .costmap import Costmap, build_costmap
-from .errors import InstructionError, check_cells, check_range
+from .errors import InstructionError, check_cells, check_range, quote
 from .grid import PlanningGrid
 from .instructions import Segment, parse_instructions
 from .locomotion import Locomotion, get_locomotion
 from .refine import RefinedPath, refine_path
 from .speed import A_MAX, A_MIN, SpeedProfile, speed_limits, speed_profile
-from .waypoints import Trajectory, Waypoints, timed_waypoints
+from .waypoints import Trajectory, Waypoints, bridge_stops, timed_waypoints
 
 
 @dataclass(frozen=True)
@@ -170,7 +170,7 @@ def _point_on_grid(name: str, xy: Sequence[float] | np.ndarray, grid: PlanningGr
     x0, y0 = grid.origin
     x1, y1 = x0 + grid.shape[1] * grid.cell_size, y0 + grid.shape[0] * grid.cell_size
     raise ValueError(f"{name} must be a point (x, y) on the grid, x in [{x0}, {x1}) and y in [{y0}, {y1}) m, "
-                     f"got {xy!r}")
+                     f"got {quote(xy)}")
 
 
 def timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extra_blocked, segment,
@@ -196,7 +196,10 @@ def timed_plan(costmap, search, path, target, settings, v_start, v_end, t0, extr
         speed = speed_profile(path.s, v_upper, a_max=settings.a_max, a_min=settings.a_min, v_start=v_start,
                               v_end=v_end, knot_spacing=settings.knot_spacing, max_knots=settings.max_knots)
     xyz = np.column_stack((path.xy, path.z_head))
-    trajectory = Trajectory.from_profile(path.s, xyz, speed.v, t0=t0)
+    # A path shorter than its sample spacing has samples at its ends only, both at rest (the speed QP's
+    # knot between them is not a sample): a midpoint joins them, reached at the gentler of the accelerations.
+    s, xyz, v = bridge_stops(path.s, xyz, speed.v, min(settings.a_max, -settings.a_min))
+    trajectory = Trajectory.from_profile(s, xyz, v, t0=t0)
     return Plan(loc, costmap, search, path, speed, trajectory, np.asarray(target), settings, segment, extra_blocked)
 
 
@@ -221,7 +224,8 @@ class Planner:
 
     def landmark(self, name: str) -> np.ndarray:
         if name not in self.grid.landmarks:
-            raise InstructionError(f"unknown landmark {name!r}; known landmarks are {sorted(self.grid.landmarks)}")
+            raise InstructionError(f"unknown landmark {quote(name)}; known landmarks are "
+                                   f"{sorted(self.grid.landmarks)}")
         return self.grid.landmarks[name]
 
     def landmark_point(self, name: str, locomotion: str | Locomotion = "walk",
@@ -273,7 +277,7 @@ class Planner:
             elif position is not None:
                 start_xy = position
             else:
-                raise InstructionError(f"{seg} has no source: pass start=(x, y), the current position")
+                raise InstructionError(f"{quote(seg)} has no source: pass start=(x, y), the current position")
             plan = plan_path(self.costmap(loc), start_xy, self.landmark(seg.target), settings=self.settings,
                              t0=t0, segment=seg)
             plans.append(plan)

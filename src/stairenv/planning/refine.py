@@ -43,7 +43,7 @@ from stairenv.numba_jit import jit
 
 from .astar import SQRT2, edge_cost, edge_ok
 from .costmap import Costmap
-from .errors import check_range
+from .errors import check_range, check_samples
 
 
 # ----------------------------------------------------------------------------------------------
@@ -183,6 +183,7 @@ def resample_polyline(points: np.ndarray, ds: float) -> np.ndarray:
     if len(points) < 2:
         return points.copy()
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
+    check_samples("the path's length (resampled every ds)", float(s[-1]), ds, unit="m")
     n = max(math.ceil(s[-1] / ds), 1) + 1
     t = np.linspace(0.0, s[-1], n)
     return np.stack((np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])), axis=1)
@@ -422,7 +423,9 @@ def refine_path(
 ) -> RefinedPath:
     """A* cells -> smooth samples with ground and head heights (string pull, smooth, head profile).
 
-    start_xy: the exact start position (inside the first cell); the first sample is put there.
+    start_xy: the exact start position (inside the first cell); the first sample is put there. One cell
+    (the start cell is already a goal) gives a path of zero length, the start point alone (not a step from
+    it to the cell's centre: a few centimetres that a profile from rest to rest could not time).
     ds, smoothing, comfort: see ``smooth_path``; head_slope, head_smoothing: see ``head_profile``;
     curvature_scale (m): see ``curvature``.
     """
@@ -431,7 +434,7 @@ def refine_path(
     vertices = costmap.grid.cell_center(vertices_cells[:, 0], vertices_cells[:, 1]).astype(np.float64)
     if start_xy is not None:
         start_xy = np.asarray(start_xy, dtype=np.float64).reshape(2)
-        vertices = np.vstack((start_xy, vertices))
+        vertices = start_xy[None, :] if len(vertices_cells) == 1 else np.vstack((start_xy, vertices))
     xy = smooth_path(costmap, vertices, passable=passable, ds=ds, smoothing=smoothing, comfort=comfort)
     path = profile_along(costmap, xy, head_slope=head_slope, head_smoothing=head_smoothing,
                          curvature_scale=curvature_scale)

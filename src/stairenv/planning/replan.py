@@ -37,10 +37,11 @@ from typing import Protocol
 import numpy as np
 
 from .astar import astar, disc_cells
-from .errors import PlanningError, check_range
+from .errors import PlanningError, check_range, check_samples
 from .planner import Plan, timed_plan
 from .refine import profile_along, smooth_path, string_pull
 from .waypoints import Trajectory
+from .waypoints import bridge_stops as _bridge_stops
 
 
 class DynamicObstacle(Protocol):
@@ -111,6 +112,7 @@ def predict_collision(trajectory: Trajectory, obstacles: Sequence[DynamicObstacl
     horizon = check_range("horizon", horizon, 0.0, math.inf, high_open=True)
     body_radius = check_range("body_radius", body_radius, 0.0, math.inf, high_open=True)
     dt = check_range("dt", dt, 0.0, math.inf, low_open=True, high_open=True)
+    check_samples("horizon (every dt)", horizon, dt)
     times = t_now + np.arange(0.0, horizon + 0.5 * dt, dt)
     body = trajectory.position(times)[:, :2]
     best = None
@@ -170,6 +172,8 @@ def replan(
     emergency_a_min = check_range("emergency_a_min", emergency_a_min, -math.inf, 0.0, low_open=True, high_open=True)
     if int(max_rounds) < 1:
         raise ValueError(f"max_rounds must be an integer >= 1, got {max_rounds!r}")
+    dt = check_range("dt", dt, 0.0, math.inf, low_open=True, high_open=True)
+    check_samples("sweep (every dt)", sweep, dt)
     traj = original = plan.trajectory if trajectory is None else trajectory
     cm = plan.costmap
     body_radius = cm.body_radius
@@ -284,6 +288,7 @@ def wait_for_obstacles(
     max_wait = check_range("max_wait", max_wait, 0.0, math.inf, high_open=True)
     wait_step = check_range("wait_step", wait_step, 0.0, math.inf, low_open=True, high_open=True)
     emergency_a_min = check_range("emergency_a_min", emergency_a_min, -math.inf, 0.0, low_open=True, high_open=True)
+    check_samples("max_wait (every wait_step)", max_wait, wait_step)
     traj = plan.trajectory if trajectory is None else trajectory
     body_radius = plan.costmap.body_radius
     first = predict_collision(traj, obstacles, t_now=t_now, horizon=horizon, body_radius=body_radius, dt=dt)
@@ -325,18 +330,6 @@ def wait_for_obstacles(
                           waited=float(wait))
     raise PlanningError("blocked", f"waiting up to {max_wait:g} s on the path does not clear the way: "
                         f"obstacle {first.obstacle} still meets the character (e.g. it comes to the stopping point)")
-
-
-def _bridge_stops(s: np.ndarray, xyz: np.ndarray, v: np.ndarray, accel: float):
-    """Insert a midpoint between consecutive samples that are both at rest (no constant-acceleration
-    motion joins them): speed up at ``accel`` over the first half and slow down over the second."""
-    both = np.flatnonzero((v[:-1] == 0.0) & (v[1:] == 0.0) & (np.diff(s) > 0.0))
-    if len(both) == 0:
-        return s, xyz, v
-    mid_s = 0.5 * (s[both] + s[both + 1])
-    mid_v = np.sqrt(accel * (s[both + 1] - s[both]))
-    mid_xyz = 0.5 * (xyz[both] + xyz[both + 1])
-    return (np.insert(s, both + 1, mid_s), np.insert(xyz, both + 1, mid_xyz, axis=0), np.insert(v, both + 1, mid_v))
 
 
 def _free(costmap, extra: np.ndarray, i: int, j: int) -> bool:
