@@ -73,3 +73,12 @@ def test_path_and_skill_envs_take_their_live_keywords_and_refuse_the_rest():
     assert sims.unwrapped.config.termination.fall_height == 0.2 and sims.unwrapped.fall_height == 0.2
     with pytest.raises(ValueError, match="'text_dim' of SIMSEnv is fixed"):
         sims.unwrapped.text_dim = 32
+
+
+def test_an_instruction_keyword_error_quotes_a_bounded_text():
+    """``gym.make(..., instructions=<1 MB>)`` that does not parse names the keyword and shows at most ~80
+    characters of the text (it used to echo the whole megabyte)."""
+    text = "Walk to the moon. " * 60_000
+    with pytest.raises(ValueError, match="instructions") as caught:
+        gym.make("PlaMoScene-v0", instructions=text)
+    assert len(str(caught.value)) < 1000 and "characters)" in str(caught.value)

@@ -32,7 +32,7 @@ from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
 from stairenv.tasks.interlevel import InterLevelReward
-from stairenv.planning.errors import InstructionError
+from stairenv.planning.errors import InstructionError, quote
 from stairenv.planning.instructions import parse_instructions
 from stairenv.validation import (
     Check,
@@ -380,7 +380,7 @@ def check_instructions(text: str, landmarks) -> None:
     try:
         parse_instructions(text, landmarks)
     except InstructionError as error:
-        raise InstructionError(f"instructions {text!r}: {error}") from None
+        raise InstructionError(f"instructions {quote(text)}: {error}") from None
 
 
 def _scene(value) -> SceneConfig:
