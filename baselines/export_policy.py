@@ -9,6 +9,10 @@ The model is either
   code from it): its actor, its observation statistics and its run's settings, or
 - an SB3 PPO checkpoint ``.zip`` (``--trainer sb3``), with the VecNormalize ``.pkl`` saved beside it.
 
+A lean checkpoint is checked entry by entry before anything is written (``check_checkpoint``); the policy
+goes to a temporary file beside ``--out``, renamed only once it reads back: on a failure (a usage error
+naming the file and the entry) nothing is written.
+
     python baselines/export_policy.py checkpoints/PlaMo-v0/p18_checkpoint_16001024.pt --out PlaMo-v0.npz \\
         --config notes.json --evaluation table2.json
     python baselines/export_policy.py runs/InterLevel-v0/seed0/final_model.zip --out InterLevel-v0.npz
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -25,7 +30,8 @@ import gymnasium as gym
 
 import stairenv  # noqa: F401  (registers the env ids)
 from stairenv.evaluation.policies import load_policy
-from stairenv.pretrained import NumpyPolicy, check_sizes, from_sb3, load_file, record_text_encoder, with_trained_captions
+from stairenv.pretrained import (NumpyPolicy, PolicyFileError, check_sizes, from_sb3, load_file, record_text_encoder,
+                                 with_trained_captions)
 
 SB3_DEFAULT_ENV = "InterLevel-v0"
 
@@ -66,13 +72,20 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not args.out.endswith(".npz"):
         parser.error(f"--out must end in .npz, got {args.out!r}")
-    notes = {key: json.loads(Path(path).read_text()) for key, path in (("training", args.config),
-                                                                       ("evaluation", args.evaluation)) if path}
+    notes = {}
+    for key, flag, path in (("training", "--config", args.config), ("evaluation", "--evaluation", args.evaluation)):
+        if path:
+            try:
+                notes[key] = json.loads(Path(path).read_text())
+            except (OSError, ValueError) as err:  # missing, not text, not JSON
+                parser.error(f"{flag} {path}: not a readable JSON file ({err})")
     if args.model.endswith(".pt"):
-        try:
+        try:    # read_checkpoint checks every entry first (check_checkpoint): nothing is written from a bad file
             policy = from_lean_checkpoint(args.model, args.env)
         except ValueError as err:  # CheckpointError included: the file and the fault named
             parser.error(str(err))
+        except (TypeError, gym.error.Error) as err:  # the run's env keywords no longer build its env
+            parser.error(f"{args.model}: its run's env cannot be built here (config['env_kwargs']): {err}")
         config = dict(policy.config, source=Path(args.model).name)
         if "training" in notes:
             if not isinstance(notes["training"], dict):
@@ -84,9 +97,29 @@ def main(argv: list[str] | None = None) -> int:
         sb3 = load_policy(args.model, gym.make(env_id))  # checks the spaces; the normaliser beside the model
         policy = from_sb3(sb3.model, sb3.obs_normalizer, dict({"env_id": env_id, "source": Path(args.model).name},
                                                               **notes))
-    policy.save(args.out)
-    print(f"wrote {args.out}: {load_file(args.out)!r}")
+    try:
+        written = save_checked(policy, Path(args.out))
+    except (PolicyFileError, OSError) as err:
+        parser.error(f"{err}; nothing was written")
+    print(f"wrote {args.out}: {written!r}")
     return 0
+
+
+def save_checked(policy: NumpyPolicy, out: Path) -> NumpyPolicy:
+    """``policy`` written to ``out`` and read back (``load_file``'s checks: finite weights, sound statistics)
+    through a temporary file beside it, renamed to ``out`` only once it reads back: a policy that does not
+    leaves no file (and an older ``out`` as it was). Returns the policy read back."""
+    tmp = out.with_name(f".{out.stem}.{os.getpid()}.tmp.npz")
+    try:
+        policy.save(tmp)
+        written = load_file(tmp)
+    except BaseException as err:
+        tmp.unlink(missing_ok=True)
+        if isinstance(err, PolicyFileError):    # named as the file it was to be
+            raise PolicyFileError(str(err).replace(str(tmp), str(out))) from None
+        raise
+    os.replace(tmp, out)
+    return written
 
 
 if __name__ == "__main__":

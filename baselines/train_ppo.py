@@ -58,7 +58,13 @@ checkpoint's (lean ``.pt`` or SB3 ``.zip``) policy and value weights, optimiser 
 flags; a step-height curriculum's levels when both runs have one): a recipe change on a trained
 policy. ``--reset-std`` (lean trainer) also starts the policy's action noise at ``--log-std-init`` again:
 a trained policy's noise has shrunk, which on a new task explores little and, under ``--target-kl``, holds
-the rate down. ``--resume`` continues a run exactly (the checkpoint's own settings and step count).
+the rate down. ``--resume`` continues a run exactly (the checkpoint's own settings and step count): a flag,
+``--config`` key or ``--preset`` value given that would change them stops it, naming each (the same values
+again go on; other settings on trained weights are ``--init-from``'s); this machine's ``--physics``,
+``--physics-threads``, ``--device``, ``--state-on-device``, ``--torch-threads`` and ``--update-threads`` are
+taken, and said. Every checkpoint is checked as it is read (``stairenv.training.check_checkpoint``: finite
+weights and statistics, positive variances, a sane log std and learning rate, each fault naming the file
+and the entry), and one of a run with AMP without its discriminator needs ``--fresh-discriminator``.
 
 Logged beside SB3's: ``amp/*`` (style and task reward, discriminator statistics) and, for
 InterLevel envs, ``episode/{progress,success,fell,stalled}`` at each episode's end, also for the episodes
@@ -128,8 +134,9 @@ from stairenv.style.discriminator import LOSSES, SCORERS, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
 from stairenv.tasks import curriculum
-from stairenv.training import (CheckpointError, RunLog, Trainer, TrainConfig, build_style, checkpoints_in,
-                               read_checkpoint)
+from stairenv.training import (CheckpointError, RunLog, Trainer, TrainConfig, build_style, check_checkpoint,
+                               checkpoints_in, read_checkpoint)
+from stairenv.training.ppo import RunMismatch
 from stairenv.training.distributed import LOCAL, DataParallel
 from stairenv.training.from_sb3 import state_from_sb3
 from stairenv.training.sb3 import (  # noqa: F401  (AdaptiveLearningRate, restore_curriculum: tested here)
@@ -325,7 +332,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Flags, then ``--config`` keys, then ``--preset`` values: the first that sets a key wins."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    fixed = _explicit(argv)
+    fixed, from_config = _explicit(argv), set()
     if args.config is not None:
         with args.config.open("rb") as f:
             config = tomllib.load(f)
@@ -342,10 +349,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                     value = convert(value)
                 setattr(args, key, value)
                 fixed.add(key)
+                from_config.add(key)
     for key, value in PRESETS[args.preset].items():
         if key not in fixed:
             setattr(args, key, value)
     args.given = frozenset(fixed)    # set by a flag or a --config key, not a default or a preset
+    args.from_config = frozenset(from_config)    # of those, set by a --config key
     if args.env not in gym.registry:
         raise SystemExit(f"--env {args.env!r} is not registered; known stairenv ids: {list(stairenv.ENV_IDS)}")
     if args.n_envs < 1:
@@ -445,6 +454,25 @@ DISC_FLAGS = tuple(f"disc_{name}" for name in (
     "hidden", "loss", "lr", "grad_penalty", "grad_penalty_batch", "weight_decay", "logit_reg", "input_noise",
     "batch_size", "replay_size", "update_interval", "updates", "background", "scoring"))
 
+#: flags that set a field of the run's ``TrainConfig`` (flag -> field): ``--resume`` goes on with the
+#: checkpoint's and refuses such a flag given with another value (``--fresh-discriminator`` takes the
+#: ``--disc-*`` flags given for the new discriminator)
+RUN_FLAGS = {"env": "env_id", "n_envs": "num_envs", "seed": "seed", "n_steps": "rollout_steps",
+             "n_epochs": "epochs", "batch_size": "minibatch_size", "learning_rate": "learning_rate",
+             "adaptive_kl": "target_kl", "gamma": "gamma", "gae_lambda": "gae_lambda", "clip_range": "clip_range",
+             "ent_coef": "ent_coef", "max_grad_norm": "max_grad_norm", "policy_hidden": "hidden",
+             "log_std_init": "log_std_init", "style": "style", "reference": "reference",
+             "amp_history": "amp_history", "w_task": "w_task", "w_style": "w_style", "update_bf16": "update_bf16",
+             "checkpoint_every": "checkpoint_every", **{name: name for name in DISC_FLAGS}}
+#: flags of the machine, which ``--resume`` takes over the checkpoint's (and says so)
+MACHINE_FLAGS = ("physics", "physics_threads", "state_on_device", "device", "torch_threads", "update_threads")
+#: flags ``--resume`` compares with the checkpoint's env keywords and text conditioning one by one
+KEYWORD_FLAGS = ("env_kwarg", "init", "amp_text_condition", "amp_text_captions")
+#: flags that choose what to do, not how the run trains (``--timesteps``: the steps to go on for)
+OTHER_FLAGS = ("config", "preset", "timesteps", "logdir", "resume", "auto_resume", "init_from", "fresh_discriminator",
+               "reset_std", "eval_episodes", "eval_max_episode_steps", "climb_cache_workers", "vec_env", "trainer",
+               "no_progress_bar", "help")
+
 
 def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
     """The flags as the lean trainer's ``TrainConfig``."""
@@ -467,14 +495,25 @@ def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
         raise SystemExit(f"train_ppo: {err}") from None
 
 
-def _read_lean(path: Path, flag: str, fresh_discriminator: bool) -> dict:
-    """A lean checkpoint; with ``--fresh-discriminator`` without its style state (a new discriminator)."""
+def _read_lean(path: Path, flag: str, args: argparse.Namespace) -> dict:
+    """A lean checkpoint, every entry checked (``check_checkpoint``); with ``--fresh-discriminator`` without
+    its style state (a new discriminator). A run with AMP (``--resume``: the checkpoint's run; ``--init-from``:
+    this one) refuses a checkpoint without a discriminator unless ``--fresh-discriminator`` asks for a new one."""
     try:
-        state = read_checkpoint(path)
+        state = read_checkpoint(path, style=not args.fresh_discriminator)
     except CheckpointError as err:
         raise SystemExit(f"{flag}: {err}") from None
-    if fresh_discriminator:
+    if args.fresh_discriminator:
         state["style"] = None
+        return state
+    saved_style = TrainConfig.from_dict(state["config"]).style
+    if (saved_style if flag == "--resume" else args.style) == "amp" and state.get("style") is None:
+        entry = "is missing" if "style" not in state else "is None"
+        why = ("its run trained with AMP, so the file has lost it" if saved_style == "amp" else
+               "its run trained without AMP (style 'none')")
+        raise SystemExit(f"{flag} {path}: entry 'style' (the discriminator's state) {entry}: {why}. Pass "
+                         "--fresh-discriminator to train a new discriminator with this run, or go on from a "
+                         "checkpoint that holds one")
     return state
 
 
@@ -489,15 +528,19 @@ def _lean_start(args: argparse.Namespace) -> tuple[dict | None, dict | None]:
         if args.resume.suffix == ".zip":
             raise SystemExit(f"--resume {args.resume}: an SB3 checkpoint continues with --trainer sb3; to go on "
                              "with the lean trainer start a new run from it with --init-from")
-        return _read_lean(args.resume, "--resume", args.fresh_discriminator), None
+        return _read_lean(args.resume, "--resume", args), None
     if args.init_from is None:
         return None, None
     if args.init_from.suffix != ".zip":
-        state = _read_lean(args.init_from, "--init-from", args.fresh_discriminator)
+        state = _read_lean(args.init_from, "--init-from", args)
     else:
         checkpoint = checkpoint_file(args.init_from)
         amp_state = required_amp_state(checkpoint) if args.style == "amp" and not args.fresh_discriminator else None
         state = state_from_sb3(checkpoint, statistics_beside(checkpoint), amp_state)
+        try:    # the same checks as a lean checkpoint's (a NaN in the statistics .pkl, say)
+            check_checkpoint(state, checkpoint, weights_only=True)
+        except CheckpointError as err:
+            raise SystemExit(f"--init-from: {err}") from None
         saved = curriculum_state_beside(checkpoint)
         state["curriculum_level"] = json.loads(saved.read_text())["curriculum_level"] if saved else []
     if args.reset_std:
@@ -539,28 +582,160 @@ def fill_climb_cache(config: TrainConfig, workers: int, say, parallel=LOCAL) -> 
             f"{workers} processes each in {time.perf_counter() - start:.0f} s, every rank holding them all")
 
 
+def _flag_name(dest: str) -> str:
+    """The command-line flag that sets ``dest`` (``adaptive_kl``: ``--target-kl``)."""
+    names = {action.dest: action.option_strings[0] for action in build_parser()._actions if action.option_strings}
+    return names.get(dest, "--" + dest.replace("_", "-"))
+
+
+def _saved_form(value: Any) -> Any:
+    """``value`` as a checkpoint's config holds it (lists for tuples, text keys, a path as text)."""
+    if isinstance(value, (tuple, list)):
+        return [_saved_form(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _saved_form(v) for k, v in value.items()}
+    return str(value) if isinstance(value, Path) else value
+
+
+def _same(new: Any, saved: Any) -> bool:
+    """Whether a flag's value is the one a checkpoint's config holds (4 and 4.0 alike, True and 1 not)."""
+    new = _saved_form(new)
+    if isinstance(new, bool) or isinstance(saved, bool):
+        return new is saved
+    if isinstance(new, (int, float)) and isinstance(saved, (int, float)):
+        return float(new) == float(saved)
+    return new == saved
+
+
+def _shown(value: Any) -> str:
+    """A setting as a flag takes it (``256,256``, ``1e-05``; None: ``not set``)."""
+    if value is None:
+        return "not set"
+    if isinstance(value, (tuple, list)) and all(isinstance(v, int) for v in value):
+        return ",".join(map(str, value))    # as --policy-hidden takes it
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _flag_text(dest: str, value: Any) -> str:
+    """The flag as given: ``--n-envs 8``, ``--update-bf16``, ``--no-disc-background``."""
+    flag = _flag_name(dest)
+    if isinstance(value, bool):
+        return flag if value else "--no-" + flag[2:]
+    return f"{flag} {_shown(value)}"
+
+
+_NOT_SET = object()
+
+
+def _refuse_changes(args: argparse.Namespace, resume: dict, saved: TrainConfig) -> None:
+    """``SystemExit`` naming every setting given (a flag, a ``--config`` key, a ``--preset``'s value) that
+    would change the run ``--resume`` goes on with: its checkpoint's settings (``RUN_FLAGS``, the env keywords,
+    the text conditioning). A resume goes on exactly; other settings on trained weights are ``--init-from``'s.
+    Taken instead of the checkpoint's: ``MACHINE_FLAGS`` (this machine's), ``--timesteps`` (the steps to go on
+    for) and, with ``--fresh-discriminator``, the ``--disc-*`` flags."""
+    given = set(getattr(args, "given", ()))
+    origin = {name: f"from --config {args.config}; " for name in getattr(args, "from_config", ())}
+    if "preset" in given:    # a preset asked for on the command line: its values are given too
+        for name in PRESETS[args.preset]:
+            if name not in given:
+                given.add(name)
+                origin[name] = f"from --preset {args.preset}; "
+    fields, changes = saved.as_dict(), []
+    for name, field in RUN_FLAGS.items():
+        if name in given and not (args.fresh_discriminator and name in DISC_FLAGS) \
+                and not _same(getattr(args, name), fields[field]):
+            changes.append(f"{_flag_text(name, getattr(args, name))} ({origin.get(name, '')}the run's: "
+                           f"{_shown(fields[field])})")
+    wanted, keywords = run_env_kwargs(args), dict(args.env_kwarg)
+    for key in [*keywords, *(["init"] if "init" in given and "init" not in keywords else [])]:
+        old = saved.env_kwargs.get(key, _NOT_SET)
+        if old is _NOT_SET or not _same(wanted[key], old):
+            flag = f"--env-kwarg {key}={wanted[key]!r}" if key in keywords else _flag_text("init", wanted[key])
+            changes.append(f"{flag} ({'' if key in keywords else origin.get('init', '')}the run's: "
+                           f"{'not set' if old is _NOT_SET else repr(old) if key in keywords else old})")
+    if args.amp_text_condition and "amp_text_condition" in resume["config"] and not saved.amp_text_condition:
+        changes.append("--amp-text-condition (the run's discriminator was not conditioned on text)")
+    if "amp_text_captions" in given and saved.amp_text_condition:
+        old = "all" if "condition_captions" in saved.env_kwargs else "reference"
+        if args.amp_text_captions != old:
+            changes.append(f"--amp-text-captions {args.amp_text_captions} (the run's: {old})")
+    if changes:
+        what = f"--auto-resume (the run's checkpoint {args.resume})" if args.auto_resume else f"--resume {args.resume}"
+        raise SystemExit(f"{what}: a resume goes on with its run's own settings, and these given would change the "
+                         f"run: {'; '.join(changes)}. Leave them out to go on exactly, or start a new run from the "
+                         "checkpoint with these settings with --init-from (its step count from 0)")
+
+
+#: ``--disc-*`` flags -> the resumed AMP state's setting (``AMPStyleReward``: its own or its discriminator config's)
+_SB3_STYLE = {"w_task": "w_task", "w_style": "w_style", "disc_update_interval": "update_interval",
+              "disc_updates": "updates_per_round", "disc_hidden": "config.hidden", "disc_loss": "config.loss",
+              "disc_lr": "config.learning_rate", "disc_grad_penalty": "config.grad_penalty",
+              "disc_grad_penalty_batch": "config.grad_penalty_batch", "disc_weight_decay": "config.weight_decay",
+              "disc_logit_reg": "config.logit_reg", "disc_input_noise": "config.input_noise",
+              "disc_batch_size": "config.batch_size", "disc_replay_size": "config.replay_size"}
+
+
+def _refuse_sb3_changes(args: argparse.Namespace, checkpoint: Path, model, style) -> None:
+    """``--trainer sb3 --resume``: ``SystemExit`` naming each PPO or network flag given (and, with the AMP state
+    resumed, each style flag) whose value differs from the one the checkpoint goes on with (SB3 keeps its own).
+    The env's flags (``--env``, ``--n-envs``, ``--seed``, ``--env-kwarg``) build this run's envs: taken; with
+    ``--target-kl`` the rate adapts from the checkpoint's."""
+    arch = model.policy_kwargs.get("net_arch")
+    saved = {key: getattr(model, key) for key in PPO_DEFAULTS}
+    clip = model.clip_range
+    saved.update(learning_rate=float(model.lr_schedule(1.0)), clip_range=float(clip(1.0)) if callable(clip) else clip,
+                 policy_hidden=arch["pi"] if isinstance(arch, dict) else arch,
+                 log_std_init=model.policy_kwargs.get("log_std_init", 0.0))
+    if args.adaptive_kl is not None:
+        saved.pop("learning_rate")
+    if style is not None:
+        for name, attribute in _SB3_STYLE.items():
+            value = style
+            for part in attribute.split("."):
+                value = getattr(value, part)
+            saved[name] = value
+    changes = [f"{_flag_text(name, getattr(args, name))} (the checkpoint's: {_shown(value)})"
+               for name, value in saved.items() if name in getattr(args, "given", ())
+               and not _same(getattr(args, name), value)]
+    if changes:
+        raise SystemExit(f"--resume {checkpoint}: SB3 goes on with the checkpoint's own settings, and these given "
+                         f"would change them: {'; '.join(changes)}. Leave them out to go on exactly, or start a new "
+                         "run from the checkpoint with these settings with --init-from (its step count from 0)")
+
+
 def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None, TrainConfig, dict, Any]:
     """``(resume_state, init_state, config, env_kwargs, reference windows)``: what the run reads from this
     machine's files before its worlds are built (``--resume`` / ``--init-from``, the reference motions)."""
     resume, init = _lean_start(args)
     if resume is not None:    # the checkpoint's own settings; --timesteps more steps (as SB3's resume)
         config = TrainConfig.from_dict(resume["config"])
+        _refuse_changes(args, resume, config)
         if not args.auto_resume:    # --auto-resume: on to the run's own end
             config = config.replace(total_steps=int(resume["steps"]) + int(args.timesteps))
-        # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's;
-        # the device and the state's place are this machine's flags (default cpu, host truth) whatever trained it
+        # where the physics runs is the machine's business, not the run's: a flag given overrides the checkpoint's
+        # (as the torch threads: this machine's cores); the device and the state's place are this machine's flags
+        # (default cpu, host truth) whatever trained it
         machine = {name: getattr(args, name) for name in ("physics", "physics_threads")
                    if getattr(args, name) is not None}
+        machine.update({name: getattr(args, name) for name in ("torch_threads", "update_threads")
+                        if name in args.given})
         # a fresh discriminator (--fresh-discriminator) is built with the --disc-* flags given, else the run's
         fresh = {name: getattr(args, name) for name in DISC_FLAGS if name in getattr(args, "given", ())} \
             if args.fresh_discriminator else {}
+        saved = config
         try:
             config = config.replace(**machine, **fresh, device=args.device, state_on_device=args.state_on_device)
         except ValueError as err:
             raise SystemExit(f"--resume: {err}") from None
+        taken = [f"{_flag_text(name, getattr(config, name))} (the run's: {_shown(getattr(saved, name))})"
+                 for name in MACHINE_FLAGS if name in args.given and getattr(config, name) != getattr(saved, name)]
+        if taken:
+            say(f"--resume: this machine's settings, not the checkpoint's: {', '.join(taken)}")
         args.env, args.amp_history, args.style, args.reference = (config.env_id, config.amp_history, config.style,
                                                                    config.reference)
         # checkpoints written before the run recorded it need the flag again
+        if args.amp_text_condition and "amp_text_condition" not in resume["config"]:
+            say("--resume: --amp-text-condition taken (the checkpoint was written before runs recorded it)")
         args.amp_text_condition = args.amp_text_condition or config.amp_text_condition
         config = config.replace(amp_text_condition=args.amp_text_condition)
         env_kwargs = dict(config.env_kwargs)
@@ -569,7 +744,16 @@ def _lean_setup(args: argparse.Namespace, say) -> tuple[dict | None, dict | None
         config = None
     if args.vec_env != "batched":
         say(f"note: the lean trainer steps the batched env ({args.vec_env!r} is --trainer sb3's)", file=sys.stderr)
-    reference = reference_windows(args, env_kwargs)
+    if resume is None:
+        reference = reference_windows(args, env_kwargs)
+    else:    # a checkpoint's keywords (and reference motions) that no longer build its env: named, no traceback
+        try:
+            reference = reference_windows(args, env_kwargs)
+            if reference is None:    # (reference_windows builds the env only for AMP)
+                gym.make(config.env_id, **env_kwargs).close()
+        except (TypeError, ValueError, gym.error.Error) as err:
+            raise SystemExit(f"--resume {args.resume}: its run's env cannot be built here from entries "
+                             f"config['env_id'], config['env_kwargs'] and config['reference']: {err}") from None
     if config is None:
         config = lean_config(args, env_kwargs)
     elif reference is not None:
@@ -582,19 +766,36 @@ def _take_resume(trainer: Trainer, args: argparse.Namespace, resume: dict) -> bo
     try:
         trainer.load_state(resume)
         return trainer.load_replay(args.resume, resume)
-    except (CheckpointError, RuntimeError, ValueError, KeyError) as err:
-        raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err}); a "
-                         "text-conditioned run written before checkpoints recorded amp_text_condition needs "
-                         "--amp-text-condition again") from None
+    except CheckpointError as err:    # the replay buffer beside it: the file and the fault named
+        raise SystemExit(f"--resume: {err}") from None
+    except RunMismatch as err:    # a sound checkpoint whose run is not the one its settings build here
+        advice = "; it was written by another version of stairenv, or its env's keywords no longer build its env"
+        if err.part == "discriminator" and "amp_text_condition" not in resume["config"] \
+                and not args.amp_text_condition:
+            advice = ("; a text-conditioned run written before checkpoints recorded amp_text_condition needs "
+                      "--amp-text-condition again, any other run --fresh-discriminator")
+        raise SystemExit(f"--resume {args.resume}: cannot go on from it: {err}{advice}") from None
+    except (RuntimeError, ValueError, KeyError) as err:
+        raise SystemExit(f"--resume {args.resume}: cannot go on from it ({type(err).__name__}: {err})") from None
 
 
 def _take_init(trainer: Trainer, args: argparse.Namespace, init: dict) -> None:
     try:
         trainer.load_state(init, weights_only=True)
+    except RunMismatch as err:
+        if err.part == "discriminator":
+            advice = ("pass --fresh-discriminator to train a new one (the style's inputs differ)"
+                      if isinstance(err.saved, int) else "pass its --disc-hidden, or --fresh-discriminator to train "
+                      "a new one")
+        elif err.saved[1] != err.run[1] and (err.saved[0], err.saved[2]) == (err.run[0], err.run[2]):
+            advice = f"pass --policy-hidden {_shown(err.saved[1])}, the layers it was trained with"
+        else:
+            advice = "pass the --env and --env-kwarg it was trained with" + (
+                f" and --policy-hidden {_shown(err.saved[1])}" if err.saved[1] != err.run[1] else "")
+        raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run: {err}; {advice}") from None
     except (RuntimeError, ValueError, KeyError) as err:
-        raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({err}); pass the "
-                         "--policy-hidden and --env it was trained with, or --fresh-discriminator where "
-                         "only the style's inputs differ") from None
+        raise SystemExit(f"--init-from {args.init_from}: cannot take it into this run ({type(err).__name__}: "
+                         f"{err})") from None
 
 
 def _train_lean(args: argparse.Namespace, parallel) -> Path:
@@ -732,6 +933,7 @@ def main(argv: list[str] | None = None) -> Path:
         normalizer.set_venv(venv)
         venv = normalizer
         model = load_checkpoint(checkpoint, venv, args.device, tensorboard)
+        _refuse_sb3_changes(args, checkpoint, model, style if amp_state is not None else None)
         discriminator = f", discriminator {amp_state}" if amp_state else ""
         if args.fresh_discriminator:
             discriminator = ", a fresh discriminator (--fresh-discriminator)"

@@ -5,8 +5,8 @@ networks, normalisers and checkpoints. Needs the ``train`` extra (torch).
 """
 
 from stairenv.training.config import TrainConfig
-from stairenv.training.ppo import (CheckpointError, RunLog, Trainer, build_style, checkpoints_in, make_env,
-                                   read_checkpoint)
+from stairenv.training.ppo import (CheckpointError, RunLog, Trainer, build_style, check_checkpoint, checkpoints_in,
+                                   make_env, read_checkpoint)
 
-__all__ = ["CheckpointError", "RunLog", "TrainConfig", "Trainer", "build_style", "checkpoints_in", "make_env",
-           "read_checkpoint"]
+__all__ = ["CheckpointError", "RunLog", "TrainConfig", "Trainer", "build_style", "check_checkpoint", "checkpoints_in",
+           "make_env", "read_checkpoint"]

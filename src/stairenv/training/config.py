@@ -12,7 +12,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from stairenv.environments.batch_physics import check_state_on_device
+from stairenv.style.discriminator import LOSSES
+from stairenv.style.scoring import SCORERS
 from stairenv.validation import check_bool, check_choice, check_float, check_int
+
+#: the Gaussian policy's log std a run may start at, and a checkpoint may hold (std 2e-9 .. 148)
+LOG_STD_RANGE = (-20.0, 5.0)
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,8 @@ class TrainConfig:
     checkpoint_every: int = 1_000_000
 
     def __post_init__(self) -> None:
+        if not isinstance(self.env_id, str):
+            raise TypeError(f"env_id must be a registered env id (a str), got {self.env_id!r:.60}")
         self._set("num_envs", check_int("num_envs", self.num_envs, 1, 1_000_000))
         self._set("physics", check_choice("physics", self.physics, ("mujoco", "threads", "serial", "warp")))
         if self.physics_threads is not None:
@@ -125,7 +132,7 @@ class TrainConfig:
         self._set("ent_coef", check_float("ent_coef", self.ent_coef, 0.0, 10.0))
         self._set("vf_coef", check_float("vf_coef", self.vf_coef, 0.0, 100.0))
         self._set("max_grad_norm", check_float("max_grad_norm", self.max_grad_norm, 1e-6, 1e6))
-        self._set("log_std_init", check_float("log_std_init", self.log_std_init, -20.0, 5.0))
+        self._set("log_std_init", check_float("log_std_init", self.log_std_init, *LOG_STD_RANGE))
         self._set("clip_obs", check_float("clip_obs", self.clip_obs, 1e-3, 1e9))
         self._set("clip_reward", check_float("clip_reward", self.clip_reward, 1e-3, 1e9))
         self._set("style", check_choice("style", self.style, ("amp", "none")))
@@ -134,6 +141,23 @@ class TrainConfig:
         self._set("w_task", check_float("w_task", self.w_task, 0.0, 1e6))
         self._set("w_style", check_float("w_style", self.w_style, 0.0, 1e6))
         self._set("checkpoint_every", check_int("checkpoint_every", self.checkpoint_every, 1, 10**12))
+        if self.reference is not None and not isinstance(self.reference, str):
+            raise TypeError(f"reference must be a path (a str) or None, got {self.reference!r:.60}")
+        # the discriminator's, in DiscriminatorConfig's and AMPStyleReward's ranges (a checkpoint's too)
+        self._set("disc_loss", check_choice("disc_loss", self.disc_loss, LOSSES))
+        self._set("disc_lr", check_float("disc_lr", self.disc_lr, 0.0, 1.0, low_open=True))
+        for name in ("disc_grad_penalty", "disc_weight_decay", "disc_logit_reg"):
+            self._set(name, check_float(name, getattr(self, name), 0.0))
+        self._set("disc_input_noise", check_float("disc_input_noise", self.disc_input_noise, 0.0, 10.0))
+        if self.disc_grad_penalty_batch is not None:
+            self._set("disc_grad_penalty_batch", check_int("disc_grad_penalty_batch", self.disc_grad_penalty_batch,
+                                                           1, 1 << 20))
+        self._set("disc_batch_size", check_int("disc_batch_size", self.disc_batch_size, 1, 1 << 20))
+        self._set("disc_replay_size", check_int("disc_replay_size", self.disc_replay_size, 1, 1 << 30))
+        self._set("disc_update_interval", check_int("disc_update_interval", self.disc_update_interval, 1, 10**12))
+        self._set("disc_updates", check_int("disc_updates", self.disc_updates, 0, 10**6))
+        self._set("disc_background", check_bool("disc_background", self.disc_background))
+        self._set("disc_scoring", check_choice("disc_scoring", self.disc_scoring, SCORERS))
         if self.torch_threads is not None:
             self._set("torch_threads", check_int("torch_threads", self.torch_threads, 1, 1024))
         if self.update_threads is not None:
@@ -147,6 +171,8 @@ class TrainConfig:
             if not sizes or any(isinstance(s, bool) or not isinstance(s, int) or s < 1 for s in sizes):
                 raise ValueError(f"{name} must be positive layer sizes like (256, 256), got {sizes!r}")
             object.__setattr__(self, name, tuple(sizes))
+        if not isinstance(self.env_kwargs, dict) or not all(isinstance(key, str) for key in self.env_kwargs):
+            raise TypeError(f"env_kwargs must be a dict of keywords, got {self.env_kwargs!r:.60}")
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
 
     def _set(self, name: str, value: Any) -> None:

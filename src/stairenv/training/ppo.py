@@ -50,7 +50,7 @@ from stairenv.pretrained import NumpyPolicy
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig, cpu_tensors, plain_config
 from stairenv.style.wrappers import AMPStyleReward, load_weights_only, refused_object
 from stairenv.tasks import curriculum
-from stairenv.training.config import TrainConfig
+from stairenv.training.config import LOG_STD_RANGE, TrainConfig
 from stairenv.training.distributed import LOCAL, Local
 
 #: the task's results logged at each episode's end (InterLevel's; other families log what they report)
@@ -61,6 +61,22 @@ CHECKPOINT_FORMAT = "stairenv-ppo-amp/1"
 
 class CheckpointError(ValueError):
     """A checkpoint that cannot be read as the lean trainer's (names the file and the fault)."""
+
+
+class RunMismatch(ValueError):
+    """A sound checkpoint whose networks (``part`` "networks") or discriminator ("discriminator") have other
+    sizes than the run taking it: ``saved`` and ``run`` are the two."""
+
+    def __init__(self, part: str, message: str, saved: Any, run: Any) -> None:
+        super().__init__(message)
+        self.part, self.saved, self.run = part, saved, run
+
+
+def network_sizes(weights: dict[str, Any]) -> tuple[int, tuple[int, ...], int]:
+    """``(observations, hidden layers, actions)`` of an ``ActorCritic``'s state dict."""
+    hidden = [int(weights[f"policy_net.{i}.weight"].shape[0]) for i in range(0, 2 * len(weights), 2)
+              if f"policy_net.{i}.weight" in weights]
+    return (int(weights["policy_net.0.weight"].shape[1]), tuple(hidden), int(weights["action_mean.weight"].shape[0]))
 
 
 # --- normalisers (VecNormalize's statistics, on arrays) ------------------------------------------------
@@ -568,7 +584,16 @@ class Trainer:
         rank r takes the style generators of saved rank r where there was one (else keeps its own,
         seeded ``seed + r``), and the worlds take the saved curriculum levels in order, repeated or cut
         to the new world count. The worlds' own generators need nothing: a checkpoint reset every world
-        with the seeds of its place in the run. Exact only for the same rank count."""
+        with the seeds of its place in the run. Exact only for the same rank count.
+
+        ``RunMismatch`` for networks or a discriminator of other sizes than this run's (``state`` checked by
+        ``check_checkpoint`` first: ``read_checkpoint`` does)."""
+        saved, mine = network_sizes(state["model"]), network_sizes(self.model.state_dict())
+        if saved != mine:
+            raise RunMismatch("networks", f"the checkpoint's policy maps {saved[0]} observations through hidden "
+                                          f"layers {list(saved[1])} to {saved[2]} actions; this run's maps {mine[0]} "
+                                          f"through {list(mine[1])} to {mine[2]} ({self.config.env_id})",
+                              saved, mine)
         self.model.load_state_dict(state["model"])
         self.optimizer.load_state_dict(state["optimizer"])
         self.normalizer.obs_rms.load(state["obs_rms"])
@@ -579,12 +604,14 @@ class Trainer:
                                                scoring=own.scoring, device=self.device)
             disc.scoring_threads, disc.noise_generator = own.scoring_threads, own.noise_generator
             if disc.input_dim != self.style.reference.dim:
-                raise ValueError(f"the checkpoint's discriminator judges {disc.input_dim} numbers, "
-                                 f"this run's reference windows have {self.style.reference.dim}")
+                raise RunMismatch("discriminator", f"the checkpoint's discriminator judges {disc.input_dim} "
+                                  f"numbers, this run's reference windows have {self.style.reference.dim}",
+                                  disc.input_dim, self.style.reference.dim)
             keep = self.style.config
             if weights_only and tuple(keep.hidden) != tuple(disc.config.hidden):
-                raise ValueError(f"the checkpoint's discriminator has hidden layers {list(disc.config.hidden)}, "
-                                 f"this run asks for {list(keep.hidden)} (--disc-hidden); its weights fix them")
+                raise RunMismatch("discriminator", f"the checkpoint's discriminator has hidden layers "
+                                  f"{list(disc.config.hidden)}, this run asks for {list(keep.hidden)} "
+                                  "(--disc-hidden); its weights fix them", disc.config.hidden, keep.hidden)
             self.style.disc = disc
             if weights_only:    # this run's settings of the discriminator's training, its learning rate too
                 disc.config = keep
@@ -644,6 +671,10 @@ class Trainer:
         if windows.shape != (size, buffer.data.shape[1]) or size > len(buffer.data) or windows.dtype != np.float32:
             raise CheckpointError(f"{file}: holds {windows.shape} {windows.dtype} windows, the checkpoint says "
                                   f"({size}, {buffer.data.shape[1]}) float32 in a buffer of {len(buffer.data)}")
+        if position >= len(buffer.data):
+            raise CheckpointError(f"{path}: entry style['replay_next'] is {position}, past the end of this run's "
+                                  f"replay buffer of {len(buffer.data)} windows")
+        check_replay(windows, file)
         buffer.data[:size] = windows
         buffer.size, buffer.next = size, position
         return True
@@ -696,8 +727,10 @@ def checkpoints_in(folder: str | Path) -> list[tuple[int, Path]]:
     return sorted(found)
 
 
-def read_checkpoint(path: str | Path) -> dict[str, Any]:
-    """A checkpoint's state, read without running code from the file; ``CheckpointError`` otherwise."""
+def read_checkpoint(path: str | Path, style: bool = True) -> dict[str, Any]:
+    """A checkpoint's state, read without running code from the file, every entry checked
+    (``check_checkpoint``; ``style=False``: not the discriminator's, which the caller replaces);
+    ``CheckpointError`` naming the file and the entry otherwise."""
     path = Path(path)
     if not path.is_file():
         raise CheckpointError(f"no checkpoint file {str(path)!r}")
@@ -713,7 +746,262 @@ def read_checkpoint(path: str | Path) -> dict[str, Any]:
                               "nothing in it was run") from None
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{path}: not a lean-trainer checkpoint (format {CHECKPOINT_FORMAT!r} expected)")
+    check_checkpoint(state, path, style=style)
     return state
+
+
+# --- checking a checkpoint's values ----------------------------------------------------------------
+#: the largest magnitude a saved replay window's feature may have (joint speeds stop at 250 rad/s, positions
+#: at a few hundred metres): beyond it a window is corrupt, and would blow up the discriminator's statistics
+MAX_FEATURE = 1e6
+
+
+def _bounds(low: float, high: float, low_open: bool) -> str:
+    """`` in [low, high]``, `` > 0``, ...: the range of a check, as its message says it."""
+    if high == math.inf:
+        return "" if low == -math.inf else f" {'>' if low_open else '>='} {low:g}"
+    return f" <= {high:g}" if low == -math.inf else f" in {'(' if low_open else '['}{low:g}, {high:g}]"
+
+
+#: the ``TrainConfig`` fields every lean checkpoint records (those of the first lean trainer); a field added
+#: since (``physics_threads``, ``amp_text_condition``, ``device``...) takes its default in an older checkpoint
+RECORDED_SETTINGS = (
+    "env_id", "env_kwargs", "num_envs", "physics", "seed", "total_steps", "rollout_steps", "epochs", "minibatch_size",
+    "learning_rate", "target_kl", "gamma", "gae_lambda", "clip_range", "ent_coef", "vf_coef", "max_grad_norm",
+    "hidden", "log_std_init", "clip_obs", "clip_reward", "style", "reference", "amp_history", "w_task", "w_style",
+    "disc_hidden", "disc_loss", "disc_lr", "disc_grad_penalty", "disc_grad_penalty_batch", "disc_weight_decay",
+    "disc_logit_reg", "disc_input_noise", "disc_batch_size", "disc_replay_size", "disc_update_interval",
+    "disc_updates", "disc_background", "disc_scoring", "torch_threads", "checkpoint_every")
+
+
+class _Check:
+    """Checks of a checkpoint's entries, each failure a ``CheckpointError`` naming the file and the entry
+    (``obs_rms['var']``)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = path
+
+    def fail(self, where: tuple, text: str) -> CheckpointError:
+        named = where[0] + "".join(f"[{key!r}]" for key in where[1:])
+        return CheckpointError(f"{self.path}: entry {named} {text}")
+
+    def entry(self, parent: dict, where: tuple, kind: type | None = dict) -> Any:
+        """``parent[where[-1]]`` (``parent`` is the entry ``where[:-1]``), which must be a ``kind``."""
+        if where[-1] not in parent:
+            raise self.fail(where, "is missing (not a whole lean-trainer checkpoint: altered, or written by "
+                                   "another program?)")
+        value = parent[where[-1]]
+        if kind is not None and (not isinstance(value, kind) or (kind is int and isinstance(value, bool))):
+            wanted = {dict: "a dict", int: "an integer", list: "a list", torch.Tensor: "a tensor", str: "a str"}[kind]
+            raise self.fail(where, f"is {type(value).__name__} {value!r:.60}; it must be {wanted}")
+        return value
+
+    def integer(self, parent: dict, where: tuple, least: int, most: int = 2**62) -> int:
+        value = self.entry(parent, where, int)
+        if not least <= value <= most:
+            raise self.fail(where, f"is {value}; it must lie in [{least}, {most}]")
+        return value
+
+    def number(self, value: Any, where: tuple, low: float = -math.inf, high: float = math.inf,
+               low_open: bool = False) -> float:
+        """A finite real number in [low, high] (or (low, high])."""
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(where, f"is {type(value).__name__} {value!r:.60}; it must be a number")
+        if not math.isfinite(value) or (value <= low if low_open else value < low) or value > high:
+            raise self.fail(where, f"is {value!r}; it must be a finite number{_bounds(low, high, low_open)}")
+        return float(value)
+
+    def values(self, tensor: torch.Tensor, where: tuple, low: float = -math.inf, high: float = math.inf,
+               low_open: bool = False) -> None:
+        """Every value of a floating-point ``tensor`` finite and in [low, high] (or (low, high])."""
+        if not tensor.is_floating_point():
+            raise self.fail(where, f"holds {tensor.dtype} values; it must hold floating-point numbers")
+        values = tensor.detach().to(torch.float64)
+        bad = ~torch.isfinite(values) | (values > high) | ((values <= low) if low_open else (values < low))
+        if bool(bad.any()):
+            first = tuple(int(i) for i in bad.nonzero()[0])
+            raise self.fail(where, f"holds {int(bad.sum())} value(s) that are not finite numbers"
+                                   f"{_bounds(low, high, low_open)} (the "
+                                   f"first{' at ' + str(first) if first else ''}: {float(values[first]):g})")
+
+    def tensors(self, saved: dict, where: tuple, expected: dict[str, torch.Tensor],
+                ranges: dict[str, tuple] | None = None) -> None:
+        """``saved`` holds exactly ``expected``'s names, each a tensor of its shape, its values finite (and
+        within ``ranges[name]``: low, high, low_open)."""
+        missing = [name for name in expected if name not in saved]
+        unknown = [str(name) for name in saved if name not in expected]
+        if missing or unknown:
+            raise self.fail(where, f"is not the network its settings describe (missing {missing}, unknown "
+                                   f"{unknown[:8]})")
+        for name, want in expected.items():
+            tensor = self.entry(saved, (*where, name), torch.Tensor)
+            if tuple(tensor.shape) != tuple(want.shape):
+                raise self.fail((*where, name), f"has shape {tuple(tensor.shape)}; the network needs "
+                                                f"{tuple(want.shape)}")
+            self.values(tensor, (*where, name), *(ranges or {}).get(name, ()))
+
+    def adam(self, saved: dict, where: tuple, optimizer: torch.optim.Optimizer) -> None:
+        """``saved`` an Adam state of ``optimizer``'s parameters: moments of their shapes, finite (the second
+        and the step count >= 0), finite positive rates."""
+        params = [p for group in optimizer.param_groups for p in group["params"]]
+        try:
+            optimizer.load_state_dict(saved)
+        except Exception as err:  # noqa: BLE001  (torch's checks raise several types)
+            raise self.fail(where, f"is not an Adam state of the network's {len(params)} parameters "
+                                   f"({type(err).__name__}: {err})") from None
+        for i, group in enumerate(saved["param_groups"]):
+            for key in ("lr", "eps"):
+                self.number(group.get(key), (*where, "param_groups", i, key), 0.0, 1e3, low_open=True)
+            self.number(group.get("weight_decay", 0.0), (*where, "param_groups", i, "weight_decay"), 0.0, 1e3)
+            betas = group.get("betas")
+            if not isinstance(betas, (tuple, list)) or len(betas) != 2:
+                raise self.fail((*where, "param_groups", i, "betas"), f"is {betas!r:.60}; it must be 2 numbers")
+            for beta in betas:
+                self.number(beta, (*where, "param_groups", i, "betas"), 0.0, 1.0)
+        held = sum(param in optimizer.state for param in params)
+        if 0 < held < len(params):    # none: saved before the first update; else every parameter's
+            raise self.fail((*where, "state"), f"holds the moments of {held} of the network's {len(params)} "
+                                               "parameters")
+        for index, param in enumerate(params):
+            for key, value in optimizer.state.get(param, {}).items():
+                at = (*where, "state", index, key)
+                if not isinstance(value, torch.Tensor):
+                    raise self.fail(at, f"is {type(value).__name__}; it must be a tensor")
+                if key != "step" and tuple(value.shape) != tuple(param.shape):
+                    raise self.fail(at, f"has shape {tuple(value.shape)}; its parameter has {tuple(param.shape)}")
+                self.values(value, at, -math.inf if key == "exp_avg" else 0.0)
+
+    def statistics(self, state: dict, name: str, shape: tuple[int, ...]) -> None:
+        """A normaliser's running statistics: finite means of ``shape``, positive finite variances and count."""
+        saved = self.entry(state, (name,))
+        for key in ("mean", "var"):
+            tensor = self.entry(saved, (name, key), torch.Tensor)
+            if tuple(tensor.shape) != shape:
+                raise self.fail((name, key), f"has shape {tuple(tensor.shape)}; it must be {shape}")
+            self.values(tensor, (name, key), *((0.0, math.inf, True) if key == "var" else ()))
+        self.number(self.entry(saved, (name, "count"), None), (name, "count"), 0.0, math.inf, low_open=True)
+
+    def generator(self, parent: dict, where: tuple, kind: str) -> None:
+        """A generator's state: numpy's bit generator (``kind`` "numpy") or torch's, as it would load."""
+        saved = self.entry(parent, where, dict if kind == "numpy" else torch.Tensor)
+        try:
+            if kind == "numpy":
+                np.random.default_rng().bit_generator.state = saved
+            else:
+                torch.Generator().set_state(saved)
+        except Exception as err:  # noqa: BLE001  (numpy and torch refuse a state with several types)
+            raise self.fail(where, f"is not a {kind} generator's state ({type(err).__name__}: {err})") from None
+
+
+def check_checkpoint(state: dict[str, Any], path: str | Path, style: bool = True,
+                     weights_only: bool = False) -> None:
+    """``CheckpointError`` naming ``path`` and the entry for anything in ``state`` a run cannot go on from:
+    a missing or mistyped entry, settings ``TrainConfig`` refuses or an unknown env, networks other than the
+    settings describe, weights, optimiser moments or statistics that are not finite, a log std outside
+    ``LOG_STD_RANGE``, variances or counts <= 0, a learning rate outside (0, 1], negative counters, or
+    generator states that do not load. ``style=False``: the discriminator's state is not looked at (the
+    caller starts a new one). ``weights_only``: ``state_from_sb3``'s state (networks, optimiser, statistics,
+    discriminator; the hidden layers in ``state["hidden"]``), which has no counters or generators.
+
+    One check for every reader: ``read_checkpoint`` runs it (``train_ppo.py --resume``, ``--init-from``,
+    ``export_policy.py``), ``train_ppo.py --init-from`` on an SB3 run's converted state. Building the
+    networks to compare with leaves torch's generator where it was."""
+    check = _Check(path)
+    if weights_only:
+        hidden, where = check.entry(state, ("hidden",), list), ("hidden",)
+    else:
+        saved = check.entry(state, ("config",))
+        for name in RECORDED_SETTINGS:    # a field added later takes its default (an older checkpoint lacks it)
+            check.entry(saved, ("config", name), None)
+        try:
+            config = TrainConfig.from_dict(saved)
+        except (TypeError, ValueError) as err:
+            raise check.fail(("config",), f"is not a run's settings: {err}") from None
+        if config.env_id not in gym.registry:
+            raise check.fail(("config", "env_id"), f"is {config.env_id!r:.60}, not a registered env id")
+        hidden, where = config.hidden, ("config", "hidden")
+        check.integer(state, ("steps",), 0)
+        check.integer(state, ("iterations",), 0)
+        check.integer(state, ("world_size",), 1, 1_000_000)
+        check.number(check.entry(state, ("learning_rate",), None), ("learning_rate",), 0.0, 1.0, low_open=True)
+        check.generator(state, ("torch_rng",), "torch")
+        levels = check.entry(state, ("curriculum_level",), list)
+
+        def level(value: Any) -> bool:
+            return value is None or (isinstance(value, int) and not isinstance(value, bool) and value >= 0)
+
+        if not all(level(v) or (isinstance(v, (list, tuple)) and all(level(x) and x is not None for x in v))
+                   for v in levels):
+            raise check.fail(("curriculum_level",), f"is {levels!r:.80}; it must be a list of levels (integers "
+                                                    ">= 0, None, or lists of integers: one per locomotion)")
+    if not hidden or not all(isinstance(h, int) and not isinstance(h, bool) and 1 <= h <= 1 << 16 for h in hidden):
+        raise check.fail(where, f"is {hidden!r:.60}; it must be positive layer sizes")
+    model = check.entry(state, ("model",))
+    sizes = []
+    for name, axis in (("policy_net.0.weight", 1), ("action_mean.weight", 0)):
+        tensor = check.entry(model, ("model", name), torch.Tensor)
+        if tensor.ndim != 2 or not 1 <= tensor.shape[axis] <= 1 << 20:
+            raise check.fail(("model", name), f"has shape {tuple(tensor.shape)}; it must be a layer's weights "
+                                              "(outputs, inputs)")
+        sizes.append(int(tensor.shape[axis]))
+    with torch.random.fork_rng(devices=[]):    # a resume restores torch's generator, a new run seeds it
+        networks = ActorCritic(sizes[0], sizes[1], tuple(hidden), 0.0)
+    check.tensors(model, ("model",), networks.state_dict(), {"log_std": LOG_STD_RANGE})
+    check.adam(check.entry(state, ("optimizer",)), ("optimizer",),
+               torch.optim.Adam(networks.parameters(), lr=1e-4, eps=1e-5))
+    check.statistics(state, "obs_rms", (sizes[0],))
+    check.statistics(state, "ret_rms", ())
+    if style and state.get("style") is not None:
+        _check_style(check, check.entry(state, ("style",)), weights_only)
+
+
+def _check_style(check: _Check, style: dict, weights_only: bool) -> None:
+    """A checkpoint's discriminator: its settings, weights, input statistics, optimiser and schedule, and of a
+    run (not ``weights_only``) its generators and the replay buffer's fill."""
+    disc = check.entry(style, ("style", "discriminator"))
+    where = ("style", "discriminator")
+    dim = check.integer(disc, (*where, "input_dim"), 1, 1 << 20)
+    settings = dict(check.entry(disc, (*where, "config")))
+    try:
+        config = DiscriminatorConfig(**{**settings, "hidden": tuple(settings.get("hidden") or ())})
+    except (TypeError, ValueError) as err:
+        raise check.fail((*where, "config"), f"is not a discriminator's settings: {err}") from None
+    with torch.random.fork_rng(devices=[]):
+        network = AMPDiscriminator(dim, config, backend="aten")
+    positive = (0.0, math.inf, True)
+    check.tensors(check.entry(disc, (*where, "model")), (*where, "model"), network.state_dict(),
+                  {"norm.var": positive, "norm.count": positive})
+    check.adam(check.entry(disc, (*where, "optimizer")), (*where, "optimizer"), network.optimizer)
+    check.integer(style, ("style", "rounds"), 0)
+    if weights_only:
+        return
+    check.integer(style, ("style", "pending"), 0)
+    size = check.integer(style, ("style", "replay_size"), 0, config.replay_size)
+    position = check.integer(style, ("style", "replay_next"), 0, max(config.replay_size - 1, 0))
+    if size < config.replay_size and position != size:
+        raise check.fail(("style", "replay_next"), f"is {position}; a buffer holding {size} of its "
+                                                   f"{config.replay_size} windows is filled next at {size}")
+    ranks = check.entry(style, ("style", "ranks"), list) if "ranks" in style else []
+    for i, generators in enumerate([style, *ranks]):
+        at = ("style",) if i == 0 else ("style", "ranks", i - 1)
+        if not isinstance(generators, dict):
+            raise check.fail(at, f"is {type(generators).__name__}; it must be a dict of generator states")
+        check.generator(generators, (*at, "rng"), "numpy")
+        check.generator(generators, (*at, "noise_rng"), "torch")
+
+
+def check_replay(windows: np.ndarray, path: str | Path) -> None:
+    """``CheckpointError`` naming ``path`` unless every saved replay window is finite and within
+    ``MAX_FEATURE``; read in blocks (a 200k-window buffer is ~170 MB)."""
+    for start in range(0, len(windows), 16384):
+        block = np.asarray(windows[start:start + 16384], dtype=np.float64)
+        bad = ~np.isfinite(block) | (np.abs(block) > MAX_FEATURE)
+        if bad.any():
+            row, column = (int(i) for i in np.argwhere(bad)[0])
+            raise CheckpointError(
+                f"{path}: replay window {start + row} holds {block[row, column]:g} (feature {column}); a saved "
+                f"window holds finite features within {MAX_FEATURE:g}, so the file is corrupt: delete it to "
+                "resume with an empty buffer (it refills within a round), or resume from another checkpoint")
 
 
 # --- building a run --------------------------------------------------------------------------------
