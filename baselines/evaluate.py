@@ -25,6 +25,7 @@ import sys
 
 from stairenv.evaluation.cli import env_kwarg_argument
 from stairenv.evaluation.interlevel import PAPER_STEP_HEIGHTS, evaluate
+from stairenv.evaluation.pushes import PUSH_HELP, push_summary
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,10 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--num-envs", type=int, default=1,
                         help="run the episodes on this many worlds of the batched env side by side (physics on "
                              "every core); 1 = one episode after another (default: %(default)s)")
-    parser.add_argument("--push-speed", type=float, default=0.0, metavar="V",
-                        help="kick each episode's character once: V m/s of horizontal velocity in a random "
-                             "direction before a random step 1-6 s in, both drawn from the episode's seed "
-                             "(the same pushes for every policy; default: %(default)s, no push)")
+    parser.add_argument("--push-speed", type=float, default=0.0, metavar="V", help=PUSH_HELP)
     parser.add_argument("--compare-paper", action="store_true", help="also print the published numbers")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -89,6 +87,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))
     print(report.format_table(compare_paper=args.compare_paper))
+    pushes = push_summary(report.meta, len(report.details))
+    if pushes:
+        print(pushes)
     if args.compare_paper:
         print("(paper): Shilton et al., AAAI 2025, Tables 1-3, 4096 trials per row; '-' = no successful climb.")
     if args.csv:

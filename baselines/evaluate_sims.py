@@ -7,6 +7,7 @@ Examples::
     python baselines/evaluate_sims.py --sit runs/sit/model.zip --lie runs/lie/model.zip --reach runs/reach/model.zip \\
         --walk runs/walk/model.zip --getup runs/getup/model.zip --csv sims.csv --json sims.json
     python baselines/evaluate_sims.py --policy kinematic --tables scripts --scripts-per-difficulty 4
+    python baselines/evaluate_sims.py --walk pretrained --tables skills --skills walk --push-speed 1.0
 
 Table 1 ("skills"): success rate (success at any step; 20 cm sit / reach / walk / get up,
 30 cm lie) and contact error (last step; also the mean smallest error) per skill, each on its
@@ -30,6 +31,7 @@ SKILLS = ("walk", "sit", "lie", "reach", "getup")
 
 def build_parser() -> argparse.ArgumentParser:
     from stairenv.evaluation.cli import env_kwarg_argument
+    from stairenv.evaluation.pushes import PUSH_HELP
     from stairenv.evaluation.sims import TABLE1_SKILLS
     from stairenv.screenplays.database import DIFFICULTIES
 
@@ -45,6 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--episodes", type=int, default=100, help="Table 1 episodes per skill (default: %(default)s)")
     parser.add_argument("--max-episode-steps", type=int, default=None,
                         help="Table 1 time limit in steps (default: the preset's, 300 = 10 s; get up 150)")
+    parser.add_argument("--push-speed", type=float, default=0.0, metavar="V",
+                        help="Table 1 only (with --tables skills): " + PUSH_HELP)
     parser.add_argument("--difficulties", nargs="+", choices=DIFFICULTIES, default=list(DIFFICULTIES))
     parser.add_argument("--scripts-per-difficulty", type=int, default=None,
                         help="Table 2: the first k scripts of each difficulty (default: all)")
@@ -72,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from stairenv.evaluation.pushes import push_summary
     from stairenv.evaluation.sims import evaluate_scripts, evaluate_skills, write_reports
     from stairenv.stories import KINEMATIC, MachineSettings, describe_policy
 
@@ -83,6 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("episodes", "repeats"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be >= 1, got {getattr(args, name)}")
+    if args.push_speed != 0.0 and "scripts" in args.tables:
+        parser.error("--push-speed pushes Table 1's episodes only: add --tables skills")
     env_kwargs = dict(args.env_kwarg)
     if args.text_encoder is not None:
         env_kwargs["text_encoder"] = args.text_encoder
@@ -99,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                                            episodes=args.episodes, seed=args.seed, env_kwargs=env_kwargs,
                                            max_episode_steps=args.max_episode_steps,
                                            progress_bar=not args.no_progress, label=args.label,
-                                           policy_captions=args.policy_captions))
+                                           policy_captions=args.policy_captions, push_speed=args.push_speed))
         if "scripts" in args.tables:
             settings = MachineSettings(dwell_seconds=args.dwell, max_seconds=args.max_seconds,
                                        stop_on_failure=not args.continue_on_failure)
@@ -112,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(error))
     for report in reports:
         print(report.format_table(compare_paper=args.compare_paper))
+        pushes = push_summary(report.meta["settings"], len(report.details))
+        if pushes:
+            print(pushes)
     if args.compare_paper:
         print("(paper): SIMS Table 1 (SIMS row, 4096 trials) and Table 2 (3D-FRONT scenes); walk and get up are "
               "not in the paper.")

@@ -6,6 +6,7 @@
 | ``interlevel`` | InterLevel Tables 1-3: progress, early termination, completion time on stairs |
 | ``plamo`` | PlaMo Table 2 tracking errors, scene episodes, the slalom test |
 | ``sims`` | SIMS Table 1 (skills) and Table 2 (scripts through the state machine) |
+| ``pushes`` | robustness: one seeded kick per episode (``push_speed``), for each paper module's evaluation |
 | ``policies`` | the old home of :func:`load_policy` (now :mod:`stairenv.policy_loading`), re-exported |
 | ``cli`` | command-line helpers (``--env-kwarg key=value``) |
 

@@ -38,6 +38,15 @@ import gymnasium as gym
 import numpy as np
 
 from stairenv.evaluation.gait import GAIT_FIELDS, GaitRecorder, GaitSummary, gait_columns, summarize
+from stairenv.evaluation.pushes import (  # noqa: F401  (PUSH_STREAM, apply_push, push_plan: their old home)
+    PUSH_STEPS,
+    PUSH_STREAM,
+    EpisodePush,
+    apply_push,
+    check_push_speed,
+    push_meta,
+    push_plan,
+)
 from stairenv.evaluation.report import Column, Layout, Report
 from stairenv.policy_loading import Policy, load_policy, policy_label
 from stairenv.world.stairs import PAPER_TEST_HEIGHTS
@@ -251,36 +260,6 @@ GAIT_LAYOUT = replace(
 )
 
 
-# --- pushes -------------------------------------------------------------------------
-#: the steps (policy steps, 30 per second) between which an episode's push comes: 1 to 6 s in
-PUSH_STEPS: tuple[int, int] = (30, 180)
-#: the stream of the episode's push draws (its step and direction), apart from the env's own rng:
-#: every policy meets the same push in the same episode
-PUSH_STREAM = 0x9055
-
-
-def push_plan(seed: int, speed: float) -> tuple[int, float] | None:
-    """The push of the episode reset with ``seed``: (step, direction in rad), drawn from the episode's
-    seed alone (``PUSH_STREAM``); None without a push (``speed`` 0)."""
-    if speed <= 0.0:
-        return None
-    rng = np.random.default_rng([int(seed), PUSH_STREAM])
-    return int(rng.integers(*PUSH_STEPS)), float(rng.uniform(-math.pi, math.pi))
-
-
-def apply_push(model: Any, data: Any, speed: float, angle: float) -> None:
-    """A horizontal velocity kick: ``speed`` (m/s) added to the root's world-frame linear velocity in
-    direction ``angle`` (rad; the root's free joint: its first three DoFs are world-frame velocity)."""
-    import mujoco
-
-    from stairenv.humanoid import BODY_NAMES
-
-    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BODY_NAMES[0])
-    dof = model.jnt_dofadr[model.body_jntadr[body]]
-    data.qvel[dof] += speed * math.cos(angle)
-    data.qvel[dof + 1] += speed * math.sin(angle)
-
-
 # --- the evaluation loop --------------------------------------------------------
 def _height_bins(edges: Sequence[float]) -> list[tuple[str, float, float]]:
     bounds = [-math.inf, *edges, math.inf]
@@ -303,8 +282,7 @@ class _EpisodeTracker:
     def __init__(self, index: int, seed: int, fixed_height: float | None, info: dict[str, Any],
                  recorder: GaitRecorder | None = None, data: Any = None, push_speed: float = 0.0) -> None:
         self.index, self.seed, self.fixed_height = index, seed, fixed_height
-        self.push_speed, self.push = push_speed, push_plan(seed, push_speed)
-        self.pushed = False
+        self.push = EpisodePush(seed, push_speed)
         self.recorder, self.data = recorder, data
         self.num_steps = int(info["stairs"]["num_steps"]) if recorder is not None else None
         self.step_height = float(info["stairs"]["step_height"])
@@ -318,9 +296,7 @@ class _EpisodeTracker:
 
     def before_step(self, env: Any) -> None:
         """The push, if this episode's comes before the step about to run (``env``: the unwrapped env)."""
-        if self.push is not None and not self.pushed and self.steps == self.push[0]:
-            apply_push(env.model, env.data, self.push_speed, self.push[1])
-            self.pushed = True
+        self.push.before_step(env, self.steps)
 
     def update(self, reward: float, terminated: bool, truncated: bool, info: dict[str, Any]) -> bool:
         """Record one step; True when it ended the episode."""
@@ -345,7 +321,7 @@ class _EpisodeTracker:
             progress=self.best, fell=self.fell, success=self.success, time=self.success_time,
             physics_unstable=self.unstable, truncated=self.truncated, steps=self.steps,
             episode_return=self.episode_return, gait=gait,
-            push_step=self.push[0] if self.pushed else None, push_angle=self.push[1] if self.pushed else None,
+            push_step=self.push.step, push_angle=self.push.angle,
         )
 
 
@@ -442,7 +418,7 @@ def evaluate(
     | height_bins | (0.075, 0.125, 0.175) | interior bin edges (m) grouping random heights; None or () for no bins |
     | gait | False | also record foot contacts and add the gait columns (:data:`GAIT_LAYOUT`) |
     | num_envs | 1 | worlds of the env's batched vector env that run the episodes side by side (physics on every core, the policy called on the batch); 1 = one env, episode after episode |
-    | push_speed | 0.0 | m/s in [0, 10]: each episode's character is kicked once, this horizontal speed added to its root in a random direction before a random step in ``PUSH_STEPS`` (1-6 s), both drawn from the episode's seed (``push_plan``: the same push for every policy); 0 = no push |
+    | push_speed | 0.0 | m/s in [0, 10]: each episode's character is kicked once, this horizontal speed added to its root in a random direction before a random step in ``PUSH_STEPS`` (1-6 s), both drawn from the episode's seed (``stairenv.evaluation.pushes``: the same push for every policy; an episode that ends first gets none); 0 = no push |
 
     If ``policy`` has a ``reset(seed)`` method it is called with each episode's seed
     before the episode (:class:`~stairenv.policy_loading.RandomPolicy` reseeds itself);
@@ -478,10 +454,7 @@ def evaluate(
         raise ValueError(f"max_episode_steps must be None or an integer >= 1, got {max_episode_steps!r}")
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-    if isinstance(push_speed, bool) or not isinstance(push_speed, (int, float, np.integer, np.floating)) or not (
-            0.0 <= float(push_speed) <= 10.0):
-        raise ValueError(f"push_speed must be a speed in [0, 10] m/s, got {push_speed!r}")
-    push_speed = float(push_speed)
+    push_speed = check_push_speed(push_speed)
     if not isinstance(policy, (str, os.PathLike)) and not callable(policy):
         raise ValueError(f"policy must be a callable (obs -> action) or a policy spec string, got {policy!r}")
     if env_id not in gym.registry:
@@ -584,9 +557,7 @@ def evaluate(
     meta = {"label": label, "env_id": env_id, "seed": int(seed), "episodes_per_group": int(episodes),
             "step_heights": heights, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
             "num_envs": int(num_envs) if batched else 1}
-    if push_speed > 0.0:
-        meta.update(push_speed=push_speed, push_steps=list(PUSH_STEPS),
-                    pushed=sum(e.push_step is not None for e in results))
+    meta.update(push_meta(push_speed, sum(e.push_step is not None for e in results)))
     if gait:
         for row, (_, members) in zip(rows, grouped):
             row.update(gait_columns([e.gait for e in members], [e.success for e in members]))

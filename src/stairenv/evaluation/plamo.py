@@ -7,15 +7,18 @@ crouch-walk, walk, run), :func:`tracking_errors` runs ``episodes`` episodes of
 head height and one speed as in the paper's Table 2 (``constant_paths``; a constant turn rate too), and
 reports the mean horizontal (XY) and vertical (Z) distance between the head and
 the path point due at each step, over all steps of all episodes; :func:`evaluate`
-gives them as a :class:`~stairenv.evaluation.report.Report`. Published
+gives them as a :class:`~stairenv.evaluation.report.Report`, with each episode's ending
+(:class:`TrackingEpisode`: early termination, a fall, off the path) as its details. Published
 numbers (PlaMo Table 2, e.g. walk on stairs 0.39 / 0.27 m) are in ``PAPER_TABLE2``
-and stand in each row's ``paper_*`` columns.
+and stand in each row's ``paper_*`` columns. With ``push_speed`` each episode's character is
+kicked once (:mod:`stairenv.evaluation.pushes`: the same push in the same episode for every policy).
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the envs)
+from stairenv.evaluation.pushes import EpisodePush, check_push_speed, push_meta
 from stairenv.evaluation.report import Column, Layout, Report
 from stairenv.policy_loading import load_policy, policy_label
 
@@ -86,6 +90,22 @@ SCENE_LAYOUT = Layout(
 )
 
 
+@dataclass(frozen=True)
+class TrackingEpisode:
+    """One tracking episode (a Table 2 cell has ``episodes`` of them)."""
+
+    terrain: str
+    locomotion: str
+    index: int                    # episode number within its cell
+    seed: int                     # the ``env.reset`` seed
+    steps: int                    # policy steps taken
+    terminated: bool              # ended early: a fall or off the path (the row's early termination)
+    fell: bool                    # the head came within ``min_head_height`` of the terrain
+    off_path: bool                # the head came more than ``max_xy_error`` from its target
+    push_step: int | None = None  # the step before which the push came (``push_speed``), None if none came
+    push_angle: float | None = None  # its direction in the world's xy plane (rad)
+
+
 def tracking_errors(
     policy: Callable[[np.ndarray], Any],
     terrains: Sequence[str] = TERRAINS,
@@ -97,17 +117,38 @@ def tracking_errors(
     env_kwargs: Mapping[str, Any] | None = None,
     progress_bar: bool = False,
     constant_paths: bool = True,
+    push_speed: float = 0.0,
 ) -> list[dict[str, Any]]:
     """One row (:data:`ROW_FIELDS`) per (terrain, locomotion): mean XY and Z error (m), steps,
     early terminations. ``env_kwargs`` go to every env (``terrain``, ``locomotion`` and
     ``constant_paths`` are set here; ``constant_paths=False``: heights and speeds change along a path
     within the locomotion's ranges, as in training); the height field is ``TRACKING_TERRAIN_SIZE`` on a
-    side unless ``env_kwargs`` says otherwise."""
+    side unless ``env_kwargs`` says otherwise. ``push_speed`` (m/s, 0 = none): each episode's character
+    is kicked once (:mod:`stairenv.evaluation.pushes`; an episode that ends before its push step gets none)."""
+    return _tracking(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
+                     progress_bar, constant_paths, push_speed)[0]
+
+
+def _tracking(
+    policy: Callable[[np.ndarray], Any],
+    terrains: Sequence[str],
+    locomotions: Sequence[str],
+    episodes: int,
+    seed: int,
+    env_id: str,
+    max_episode_steps: int | None,
+    env_kwargs: Mapping[str, Any] | None,
+    progress_bar: bool,
+    constant_paths: bool,
+    push_speed: float,
+) -> tuple[list[dict[str, Any]], list[TrackingEpisode]]:
+    """:func:`tracking_errors`'s rows and the episodes behind them."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    push_speed = check_push_speed(push_speed)
     from tqdm.auto import tqdm
 
-    rows = []
+    rows, details = [], []
     bar = tqdm(total=episodes * len(terrains) * len(locomotions), desc=f"tracking on {env_id}", unit="ep",
                disable=not progress_bar)
     try:
@@ -124,14 +165,22 @@ def tracking_errors(
                     if callable(getattr(policy, "reset", None)):
                         policy.reset(seed + episode)
                     obs, _ = env.reset(seed=seed + episode)
+                    push = EpisodePush(seed + episode, push_speed)
+                    steps = 0
                     while True:
+                        push.before_step(env.unwrapped, steps)
                         obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+                        steps += 1
                         if not info["physics_unstable"]:
                             xy.append(info["xy_error"])
                             z.append(info["z_error"])
                         if terminated or truncated:
                             terminated_count += bool(terminated)
                             break
+                    details.append(TrackingEpisode(
+                        terrain, locomotion, episode, seed + episode, steps, bool(terminated),
+                        bool(terminated and info.get("fell", False)), bool(terminated and info.get("off_path", False)),
+                        push.step, push.angle))
                     bar.update(1)
                 env.close()
                 paper = PAPER_TABLE2.get((terrain, locomotion))
@@ -144,7 +193,7 @@ def tracking_errors(
                 })
     finally:
         bar.close()
-    return rows
+    return rows, details
 
 
 def evaluate(
@@ -159,9 +208,13 @@ def evaluate(
     terrains: Sequence[str] = TERRAINS,
     locomotions: Sequence[str] = LOCOMOTIONS,
     constant_paths: bool = True,
+    push_speed: float = 0.0,
 ) -> Report:
     """PlaMo Table 2: :func:`tracking_errors` of ``policy`` (a callable or a spec for
-    :func:`~stairenv.policy_loading.load_policy`) as a report."""
+    :func:`~stairenv.policy_loading.load_policy`) as a report, each episode (:class:`TrackingEpisode`)
+    in its details. ``push_speed`` (m/s, 0 = none): one kick per episode (:mod:`stairenv.evaluation.pushes`);
+    the settings then record the speed, the window of steps and how many episodes it reached."""
+    push_speed = check_push_speed(push_speed)
     label = label or policy_label(policy)
     if isinstance(policy, (str, os.PathLike)):
         probe = gym.make(env_id, **(env_kwargs or {}))
@@ -169,11 +222,12 @@ def evaluate(
             policy = load_policy(os.fspath(policy), probe, seed=seed)
         finally:
             probe.close()
-    rows = tracking_errors(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
-                           progress_bar, constant_paths)
+    rows, details = _tracking(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
+                              progress_bar, constant_paths, push_speed)
     settings = {"env_id": env_id, "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
-                "max_episode_steps": max_episode_steps, "constant_paths": constant_paths}
-    return Report(label, rows, LAYOUT, meta={"table": "tracking", "label": label, "settings": settings})
+                "max_episode_steps": max_episode_steps, "constant_paths": constant_paths,
+                **push_meta(push_speed, sum(e.push_step is not None for e in details))}
+    return Report(label, rows, LAYOUT, details, meta={"table": "tracking", "label": label, "settings": settings})
 
 
 def format_rows(rows: Sequence[Mapping[str, Any]]) -> str:
@@ -290,7 +344,7 @@ def plot_planned_path(env_kwargs: dict[str, Any] | None = None, seed: int = 0, p
 
 __all__ = [
     "LAYOUT", "LOCOMOTIONS", "PAPER_TABLE2", "ROW_FIELDS", "SCENE_FIELDS", "SCENE_LAYOUT", "TERRAINS",
-    "TRACKING_TERRAIN_SIZE", "evaluate",
+    "TRACKING_TERRAIN_SIZE", "TrackingEpisode", "evaluate",
     "format_rows", "format_scene_rows", "plot_planned_path", "scene_episodes", "scene_report", "slalom_comparison",
     "tracking_errors", "write_rows",
 ]

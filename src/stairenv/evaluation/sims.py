@@ -7,7 +7,8 @@ r"""Evaluate SIMS skill policies the way the SIMS paper does (Tables 1 and 2).
   get up, not in the paper, 20 cm on the pelvis target). **Contact error (m)**: the primary
   contact's distance to its target at the episode's last step, averaged over episodes; we
   also report the mean of each episode's smallest error, the falls (early terminations) and
-  the unstable-physics truncations.
+  the unstable-physics truncations. With ``push_speed`` each episode's character is kicked once
+  (:mod:`stairenv.evaluation.pushes`: the same push in the same episode for every policy).
 * **Table 2** (:func:`evaluate_scripts`): the database's short scripts, grouped by difficulty
   (``Script.difficulty``: simple 2, mid 3-4, hard 5+ interactions), each run through the state
   machine (:mod:`stairenv.stories.machine`) in a room generated with the furniture it needs.
@@ -41,6 +42,7 @@ import gymnasium as gym
 import numpy as np
 
 import stairenv  # noqa: F401  (registers the envs)
+from stairenv.evaluation.pushes import EpisodePush, check_push_speed, push_meta
 from stairenv.evaluation.report import Column, Layout, Report, write_reports
 from stairenv.evaluation.report import merge_paper_rows as _merge_paper_rows
 from stairenv.policy_loading import load_policy, policy_label
@@ -94,6 +96,8 @@ class SkillEpisode:
     unstable: bool
     steps: int
     success_time: float | None  # first success (s)
+    push_step: int | None = None  # the step before which the push came (``push_speed``), None if none came
+    push_angle: float | None = None  # its direction in the world's xy plane (rad)
 
 
 @dataclass(frozen=True)
@@ -135,15 +139,17 @@ def _policy_names(policies: Mapping[str, PolicySpec]) -> dict[str, str]:
 
 # --- Table 1 -------------------------------------------------------------------------------------
 def _run_skill_episode(env: gym.Env, policy: Callable[[np.ndarray], Any], skill: str, seed: int,
-                       index: int) -> SkillEpisode:
+                       index: int, push_speed: float = 0.0) -> SkillEpisode:
     if callable(getattr(policy, "reset", None)):
         policy.reset(seed)
     obs, info = env.reset(seed=seed)
+    push = EpisodePush(seed, push_speed)
     error = best = float(info["contact_error"])
     success_time = float(info["time"]) if info["success"] else None
     fell = unstable = False
     steps = 0
     while True:
+        push.before_step(env.unwrapped, steps)
         obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
         steps += 1
         unstable = bool(info.get("physics_unstable", False))
@@ -156,7 +162,7 @@ def _run_skill_episode(env: gym.Env, policy: Callable[[np.ndarray], Any], skill:
             fell = bool(info.get("fell", False)) and not unstable
             break
     return SkillEpisode(skill, index, seed, _family(env, info), bool(info["success_once"]), error, best, fell,
-                        unstable, steps, success_time)
+                        unstable, steps, success_time, push.step, push.angle)
 
 
 def _family(env: gym.Env, info: Mapping[str, Any]) -> str | None:
@@ -189,6 +195,7 @@ def evaluate_skills(
     progress_bar: bool = False,
     label: str | None = None,
     policy_captions: bool = False,
+    push_speed: float = 0.0,
 ) -> Report:
     """SIMS Table 1: success rate and contact error per skill over ``episodes`` episodes each.
 
@@ -200,12 +207,14 @@ def evaluate_skills(
     | env_kwargs | None | extra ``gym.make`` keywords for every skill env (e.g. ``text_encoder="hashing"``) |
     | max_episode_steps | None | time limit in steps (None: the preset's, 10 s; get up 5 s) |
     | policy_captions | False | each skill with the captions its exported policy recorded (else the env's) |
+    | push_speed | 0.0 | m/s in [0, 10]: each episode's character is kicked once (:mod:`stairenv.evaluation.pushes`: a random step 30-179 and direction, both from the episode's seed; an episode that ends first gets none); 0 = no push |
     """
     if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     for skill in skills:
         if skill not in SKILL_ENV_IDS:
             raise ValueError(f"skills must be among {list(SKILL_ENV_IDS)}, got {skill!r}")
+    push_speed = check_push_speed(push_speed)
     specs = _per_skill(policy, skills)
     label = label or _label(specs)
     make_kwargs = dict(env_kwargs or {})
@@ -233,7 +242,7 @@ def evaluate_skills(
                     used_captions[skill] = [list(pair) for pair in skill_kwargs["captions"]]
                 results = []
                 for i in range(episodes):
-                    results.append(_run_skill_episode(env, act, skill, seed + i, i))
+                    results.append(_run_skill_episode(env, act, skill, seed + i, i, push_speed))
                     bar.update(1)
             finally:
                 env.close()
@@ -245,6 +254,7 @@ def evaluate_skills(
                 "max_episode_steps": max_episode_steps, "policies": _policy_names(specs)}
     if policy_captions:
         settings["policy_captions"] = used_captions
+    settings.update(push_meta(push_speed, sum(e.push_step is not None for e in details)))
     return _report("skills", label, rows, details, settings)
 
 
@@ -257,13 +267,15 @@ def evaluate(
     max_episode_steps: int | None = None,
     progress_bar: bool = False,
     label: str | None = None,
+    push_speed: float = 0.0,
 ) -> Report:
     """SIMS Table 1 for the skill of ``env_id`` (its ``skill`` keyword, or the one in ``env_kwargs``),
     as :func:`evaluate_skills` runs it; ``env_kwargs`` go to the skill's env."""
     kwargs = dict(env_kwargs or {})
     skill = kwargs.pop("skill", None) or gym.spec(env_id).kwargs.get("skill")
     return evaluate_skills(policy, skills=[skill], episodes=episodes, seed=seed, env_kwargs=kwargs,
-                           max_episode_steps=max_episode_steps, progress_bar=progress_bar, label=label)
+                           max_episode_steps=max_episode_steps, progress_bar=progress_bar, label=label,
+                           push_speed=push_speed)
 
 
 # --- Table 2 -------------------------------------------------------------------------------------
