@@ -670,3 +670,28 @@ def test_episode_log_reads_ended_worlds_from_columns_and_dicts():
     assert means["episode_floor_start/progress"] == 0.5    # world 1 started on the stairs; world 2 lacks it
     assert means["episode/success"] == pytest.approx(1 / 3) and means["episode_floor_start/success"] == 0.5
     assert log.length.tolist() == [0, 0, 0, 2] and log.task_return[3] == 5.0 and log.means() == {}
+
+
+def test_ranks_on_other_cpus_drift_within_a_tolerance_and_are_realigned(tmp_path, monkeypatch):
+    """Ranks on machines with other CPUs round their optimiser steps in other low bits, so their weights
+    drift apart by ~1e-7 (relative): a checkpoint used to stop such a run ("the ranks' weights differ",
+    an exact comparison). Now a drift within ``RANK_DRIFT_TOLERANCE`` realigns every rank on rank 0's
+    weights (the checkpoint's), and only a larger gap (a fault) stops the run, saying by how much."""
+    from stairenv.training import distributed
+
+    same = [torch.tensor([[3.0, 5.0], [-1.0, 2.0]], dtype=torch.float64)] * 3
+    assert distributed.relative_gap(same) == 0.0
+    drifted = [same[0], same[0] + torch.tensor([[5e-7, 5e-7], [0.0, 0.0]], dtype=torch.float64)]
+    assert distributed.relative_gap(drifted) == pytest.approx(1e-7)
+    apart = [same[0], same[0] * 1.01]
+    assert distributed.relative_gap(apart) > distributed.RANK_DRIFT_TOLERANCE
+
+    trainer = small_trainer()
+    broadcasts = []
+    monkeypatch.setattr(trainer.parallel, "broadcast", lambda module: broadcasts.append(module), raising=False)
+    monkeypatch.setattr(trainer.parallel, "weights_gap", lambda tensors: 1e-7, raising=False)
+    assert trainer.checkpoint(tmp_path / "drift.pt").is_file() and broadcasts == [trainer.model]
+    monkeypatch.setattr(trainer.parallel, "weights_gap", lambda tensors: 1e-3, raising=False)
+    with pytest.raises(RuntimeError, match="differ by 0.001"):
+        trainer.checkpoint(tmp_path / "apart.pt")
+    trainer.close()
