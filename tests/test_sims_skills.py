@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -208,6 +209,66 @@ def test_step_outcomes_of_mixed_skills_equal_each_world_alone():
             assert one.obs.tobytes() == row.obs.tobytes()
             assert (one.reward, one.terms, one.terminated, one.results) == (row.reward, row.terms, row.terminated,
                                                                            row.results)
+
+def _reference_step(env, state):
+    """One world's step outcome by ``stairenv.tasks.sims``' batch functions (numpy, its BLAS): the observation,
+    the goal's targets, the weighted reward terms (near, far, still: 0 for a contact goal) and the error."""
+    goal = env.goal
+    frames = task.root_frames(state)
+    targets = task.goal_targets([goal], state.body_pos)
+    obs = task.skill_observations(state, frames, [goal], targets, [env._heights], env.heightmap_size,
+                                  env.heightmap_extent, [env._z])
+    terms = task.skill_reward_values(state, frames, [goal], targets, np.array([env._prev_root_vel]),
+                                     [env._target_speed])[0]
+    error = task.skill_errors([goal], targets, state.body_pos)[0]
+    return obs[0], targets[0], (*terms, 0.0)[:3], error
+
+
+def test_compiled_step_equals_the_batch_functions_bit_for_bit():
+    """``task.skill_step`` (what ``SIMSEnv`` runs each step) against the batch functions it replaced on the
+    states the envs visit, the character also put next to its goal's root target (the near branches, walk's
+    still term) and on a masked-out goal body: the same bits. (The kernel writes numpy's BLAS calls out as
+    OpenBLAS' kernels round them, ``task.skill_step``'s section: a BLAS that rounds otherwise fails this.)"""
+    rng = np.random.default_rng(0)
+    for env_id in SKILL_IDS:
+        env = gym.make(env_id, fall_height=0.0, **FAST).unwrapped
+        env.reset(seed=1)
+        idx = indices(env)
+        for step in range(40):
+            env.step(rng.uniform(-1.0, 1.0, 28))
+            if step % 10 == 9:    # next to the root target, moving
+                env.data.qpos[idx.qpos_root.start:idx.qpos_root.start + 2] = (
+                    env.goal.root_target[:2] + rng.uniform(-0.5, 0.5, 2))
+                env.data.qvel[:3] = rng.uniform(-1.0, 1.0, 3)
+                env.data.qpos[idx.qpos_root.start + 3:idx.qpos_root.start + 7] = (
+                    rng.normal(size=4) / np.linalg.norm(rng.normal(size=4)))
+                mujoco.mj_forward(env.model, env.data)
+            state = env._read_state()
+            obs, targets, terms, error = _reference_step(env, state)
+            out = (np.empty((1, len(obs))), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
+                   np.empty((1, task.STEP_VALUES_SIZE)))
+            goal = env.goal
+            task.skill_step(0, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                            env._step_parameters, goal._flat, goal._owner, env._heights.heights, env._z,
+                            env._prev_root_vel, *out)
+            assert out[0][0].tobytes() == obs.tobytes(), env_id
+            assert out[1][0].tobytes() == targets.tobytes(), env_id
+            assert out[2][0, :4].tolist() == [*terms, error], env_id
+        # many more roots and velocities about the target: libm's pow rounds ~1 square in 1000 otherwise than x * x
+        base = env._read_state()
+        for _ in range(1000):
+            state = type(base)(*(np.array(field) for field in base))
+            state.body_pos[0, :, :2] += env.goal.root_target[:2] - state.body_pos[0, 0, :2] + rng.uniform(-2, 2, 2)
+            state.root_lin_vel[0] = rng.normal(0.0, 1.5, 3)
+            env._prev_root_vel = rng.normal(0.0, 1.5, 2)
+            obs, targets, terms, error = _reference_step(env, state)
+            values = np.empty((1, task.STEP_VALUES_SIZE))
+            task.skill_step(0, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                            env._step_parameters, goal._flat, goal._owner, env._heights.heights, env._z,
+                            env._prev_root_vel, np.empty((1, len(obs))), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
+                            values)
+            assert values[0, :4].tolist() == [*terms, error], env_id
+
 
 def test_observation_layout_and_text():
     env = SIMSEnv(skill="sit", families=("chair",), **FAST)

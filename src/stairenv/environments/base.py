@@ -28,7 +28,7 @@ from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.style.reference import ReferenceWindows
-from stairenv.tasks.kernels import all_finite, within_limits
+from stairenv.tasks.kernels import all_finite, pd_targets, within_limits
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
@@ -199,12 +199,13 @@ class HumanoidEnv(gym.Env):
         cls.__init__ = constructing
 
     def __setattr__(self, name: str, value) -> None:
-        state = self.__dict__
-        if (state.get("_init_depth", 1) == 0 and name in _config_keywords(state.get("config"))
-                and name not in self.STATE_ATTRIBUTES):
-            self.configure(**{name: value})
-        else:
-            object.__setattr__(self, name, value)
+        if name[0] != "_":    # keywords are public names: a private attribute (a step sets several) is just set
+            state = self.__dict__
+            if (state.get("_init_depth", 1) == 0 and name in _config_keywords(state.get("config"))
+                    and name not in self.STATE_ATTRIBUTES):
+                self.configure(**{name: value})
+                return
+        object.__setattr__(self, name, value)
 
     def __getattr__(self, name: str):
         # only for names not found otherwise: a keyword the env keeps no attribute of reads its config
@@ -579,16 +580,23 @@ class HumanoidEnv(gym.Env):
         """What comes after the physics: the divergence check, the step outcome, the style features and
         ``info``; ``step``'s result."""
         stable = self._physics_sound(self._expected_time)
-        self._steps += 1
+        self._step_count[0] += 1    # _steps += 1
         if not stable:
             return self._unstable_step()
-        state = self._read_state()
-        outcome = self._outcome = self._step_outcome(state)
-        self._amp.push(state)
-        info = self._full_info(outcome, unstable=False, terms=True)
+        outcome, amp_obs = self._step_outcome_and_style(self._read_state())
+        self._outcome = outcome
+        info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
         if self.render_mode == "human":
             self.render()
         return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
+
+    def _step_outcome_and_style(self, state) -> tuple[StepOutcome, np.ndarray | None]:
+        """A single world's step: ``_step_outcome(state)`` and the style features pushed onto ``self._amp``;
+        with the history's ``flat()`` where the class computes it alongside (SIMS: in the same compiled
+        call), else None (``_full_info`` reads it)."""
+        outcome = self._step_outcome(state)
+        self._amp.push(state)
+        return outcome, None
 
     #: True where ``_step_outcomes`` computes a batch's outcomes in one call: a batched env then finishes all its
     #: worlds with ``_finish_batch`` after the physics instead of ``_finish_step`` world by world.
@@ -836,8 +844,8 @@ class HumanoidEnv(gym.Env):
         return action
 
     def _apply_action(self, action: np.ndarray) -> None:
-        """PD targets ``offset + scale * action``."""
-        np.add(self._ctrl_offset, self._ctrl_scale * action, out=self._ctrl)
+        """PD targets ``offset + scale * action`` (numpy's two operations, in one compiled call)."""
+        pd_targets(self._ctrl_offset, self._ctrl_scale, action, self._ctrl)
 
     def _physics_sound(self, expected_time: float) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can
@@ -1044,7 +1052,11 @@ def _after_compile() -> None:
 
 @functools.cache
 def _keywords_of(config_type: type) -> frozenset[str]:
-    return frozenset(config_type.keyword_names())
+    names = frozenset(config_type.keyword_names())
+    private = sorted(name for name in names if name.startswith("_"))
+    if private:    # HumanoidEnv.__setattr__ sets private names without the keyword check
+        raise TypeError(f"{config_type.__name__}'s keywords must be public names, not {private}")
+    return names
 
 
 def _config_keywords(config) -> frozenset[str]:

@@ -41,6 +41,7 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
+from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
@@ -482,6 +483,9 @@ class SIMSEnv(HumanoidEnv):
                 self._condition_z[style] = self.embed_text(self.condition_texts[style])
             self._amp_z = self._condition_z[style]
         self._target_speed = speed
+        #: the goal's, the scene's and the speed's constants of the compiled step (``task.skill_step``)
+        self._step_parameters = task.step_parameters(goal, self._heights, speed, self.heightmap_size,
+                                                     self.heightmap_extent)
 
     def _start_tracking(self, state) -> None:
         self._success_once = False
@@ -823,44 +827,54 @@ class SIMSEnv(HumanoidEnv):
     @classmethod
     def _step_outcomes(cls, envs: list[SIMSEnv], state) -> list[StepOutcome]:
         """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
-        k): the root frames, the goals' targets (compiled, per world), the observations (proprioception in
-        one compiled call, each world's own scene heights), the reward terms' dots and sums and the
-        errors as arrays over the batch, row by row as one world computes them (``stairenv.tasks.sims``),
-        then per world the ends and the bookkeeping in Python floats, so a world's outcome has the same
-        bits alone or in any batch."""
-        first = envs[0]
-        goals = [env.goal for env in envs]
-        frames = task.root_frames(state)
-        targets = task.goal_targets(goals, state.body_pos)
-        obs = task.skill_observations(state, frames, goals, targets, [env._heights for env in envs],
-                                      first.heightmap_size, first.heightmap_extent, [env._z for env in envs])
-        prev_root_vel = np.array([env._prev_root_vel for env in envs])
-        values = task.skill_reward_values(state, frames, goals, targets, prev_root_vel,
-                                          [env._target_speed for env in envs])
-        errors = task.skill_errors(goals, targets, state.body_pos)
-        roots = frames.positions.tolist()
-        head_heights = state.body_pos[:, HEAD, 2].tolist()
-        root_vel = state.root_lin_vel[:, :2].copy()  # a copy: the single env's state views its data
+        k): each world's observation, goal targets, reward terms and error in one compiled call
+        (``task.skill_step``, with the bits of ``stairenv.tasks.sims``' batch functions), then per world the
+        ends and the bookkeeping in Python floats, so a world's outcome has the same bits alone or in any
+        batch."""
+        n = len(envs)
+        obs = np.empty((n, envs[0].observation_space.shape[0]))
+        targets = np.empty((n, task.NUM_CONTACT_JOINTS, 3))
+        values = np.empty((n, task.STEP_VALUES_SIZE))
+        body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel = (state.body_pos, state.body_mat, state.root_lin_vel,
+                                                                    state.root_ang_vel, state.dof_vel)
+        for k, env in enumerate(envs):
+            goal = env.goal
+            task.skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, env._step_parameters,
+                            goal._flat, goal._owner, env._heights.heights, env._z, env._prev_root_vel, obs, targets,
+                            values)
+        rows = values.tolist()
         outcomes = []
-        for k, (env, goal, terms, error) in enumerate(zip(envs, goals, values, errors)):
-            root = roots[k]
-            success = bool(error < task.SUCCESS_DISTANCE[goal.skill])
-            env._root_distance = math.hypot(goal.root_target[0] - root[0], goal.root_target[1] - root[1])
-            fell = bool(head_heights[k] < env.fall_height)
-            env._targets = targets[k]
-            env._prev_root_vel = root_vel[k]
-            env._success_once |= success
+        for k, env in enumerate(envs):
+            goal = env.goal
+            near, far, still, error, _, _, x, y, z, head_z = rows[k]
+            terms = (near, far, still) if goal.skill == "walk" else (near, far)
+            success = error < task.SUCCESS_DISTANCE[goal.skill]
+            attributes = env.__dict__    # plain attributes: written past HumanoidEnv.__setattr__'s keyword check
+            attributes["_root_distance"] = math.hypot(goal.root_target[0] - x, goal.root_target[1] - y)
+            fell = head_z < env.fall_height
+            attributes["_targets"] = targets[k]
+            attributes["_prev_root_vel"] = values[k, 4:6]
+            attributes["_success_once"] = env._success_once or success
             results = {"contact_error": error, "success": success, "fell": fell}
             ended = fell or (env.terminate_on_success and success)
             if env.stall_seconds is not None:  # only with the aid: the default info is unchanged
                 results["stalled"] = env._stall.stalled(error, env._steps) and not (fell or success)
                 ended = ended or results["stalled"]
             if env.min_root_height is not None:  # only with the aid: no sitting on the floor
-                results["grounded"] = bool(root[2] < env.min_root_height) and not fell
+                results["grounded"] = bool(z < env.min_root_height) and not fell
                 ended = ended or results["grounded"]
             # numpy's sum of fewer than 8 terms: left to right, as sum()
             outcomes.append(StepOutcome(obs[k], sum(terms), dict(zip(env._terms_names(), terms)), ended, results))
         return outcomes
+
+    def _step_outcome_and_style(self, state) -> tuple[StepOutcome, np.ndarray]:
+        """A single world's step outcome (``_step_outcomes``) and its style features pushed, each in one compiled
+        call; the style history's ``flat()`` with them."""
+        outcome = self._step_outcomes([self], state)[0]
+        frames = self._amp.frames
+        amp_obs = push_amp_features(0, frames, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
+                                    state.dof_pos, state.dof_vel, np.empty(frames.size))
+        return outcome, amp_obs
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         goal = self.goal

@@ -66,26 +66,45 @@ AMP_FEATURE_STRUCTURE: dict[str, slice] = {
 
 
 @jit
+def write_amp_features(row, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel):
+    """One world's features into ``row`` (105,): its ``body_pos`` (15, 3), ``body_mat`` (15, 3, 3), root
+    velocities (3,) and joint positions and velocities (28,)."""
+    R = body_mat[PELVIS]
+    p = body_pos[PELVIS]
+    _, c, s = heading_cos_sin(R)
+    row[0] = p[2] - min(body_pos[RIGHT_FOOT, 2], body_pos[LEFT_FOOT, 2])
+    write_root_rotation_6d(row, 1, R, c, s)
+    write_heading_vector(row, 7, root_lin_vel[0], root_lin_vel[1], root_lin_vel[2], c, s)
+    write_local_angular_velocity(row, 10, R, root_ang_vel, c, s)
+    for k in range(BALL_JOINTS.shape[0]):
+        j = BALL_JOINTS[k]
+        write_relative_rotation_6d(row, 13 + 6 * k, body_mat[PARENT_ROWS[j]], body_mat[JOINT_ROWS[j]])
+    for k in range(HINGE_DOFS.shape[0]):
+        row[61 + k] = dof_pos[HINGE_DOFS[k]]
+    row[65:93] = dof_vel
+    for k in range(KEY_ROWS.shape[0]):
+        q = body_pos[KEY_ROWS[k]]
+        write_heading_vector(row, 93 + 3 * k, q[0] - p[0], q[1] - p[1], q[2] - p[2], c, s)
+
+
+@jit
+def push_amp_features(k, frames, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, flat):
+    """``FeatureHistory.push`` of world k's state (row k of the batch's state arrays) into its history's
+    ``frames`` (K, 105), and their ``flat()`` into ``flat`` (K * 105,): one compiled call."""
+    last = frames.shape[0] - 1
+    for i in range(last):
+        frames[i, :] = frames[i + 1, :]
+    write_amp_features(frames[last], body_pos[k], body_mat[k], root_lin_vel[k], root_ang_vel[k], dof_pos[k],
+                       dof_vel[k])
+    for i in range(frames.shape[0]):
+        flat[i * AMP_FEATURE_SIZE:(i + 1) * AMP_FEATURE_SIZE] = frames[i]
+    return flat
+
+
+@jit
 def _feature_kernel(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, out):
     for b in range(body_pos.shape[0]):
-        row = out[b]
-        R = body_mat[b, PELVIS]
-        p = body_pos[b, PELVIS]
-        _, c, s = heading_cos_sin(R)
-        row[0] = p[2] - min(body_pos[b, RIGHT_FOOT, 2], body_pos[b, LEFT_FOOT, 2])
-        write_root_rotation_6d(row, 1, R, c, s)
-        v = root_lin_vel[b]
-        write_heading_vector(row, 7, v[0], v[1], v[2], c, s)
-        write_local_angular_velocity(row, 10, R, root_ang_vel[b], c, s)
-        for k in range(BALL_JOINTS.shape[0]):
-            j = BALL_JOINTS[k]
-            write_relative_rotation_6d(row, 13 + 6 * k, body_mat[b, PARENT_ROWS[j]], body_mat[b, JOINT_ROWS[j]])
-        for k in range(HINGE_DOFS.shape[0]):
-            row[61 + k] = dof_pos[b, HINGE_DOFS[k]]
-        row[65:93] = dof_vel[b]
-        for k in range(KEY_ROWS.shape[0]):
-            q = body_pos[b, KEY_ROWS[k]]
-            write_heading_vector(row, 93 + 3 * k, q[0] - p[0], q[1] - p[1], q[2] - p[2], c, s)
+        write_amp_features(out[b], body_pos[b], body_mat[b], root_lin_vel[b], root_ang_vel[b], dof_pos[b], dof_vel[b])
     return out
 
 

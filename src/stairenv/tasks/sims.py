@@ -42,7 +42,14 @@ import numpy as np
 from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.humanoid.state import PELVIS, HumanoidState
 from stairenv.rotations import yaw_matrix
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, proprioception
+from stairenv.tasks.kernels import (
+    PROPRIOCEPTION_SIZE,
+    fma,
+    heading_cos_sin,
+    jit,
+    proprioception,
+    write_proprioception,
+)
 from stairenv.tasks.terms import RewardTerm, term_names, weighted_values
 from stairenv.world.furniture import PlacedFurniture
 
@@ -550,3 +557,159 @@ class SceneHeights:
         return egocentric_heights(self.heights, self.origin[0], self.origin[1], self.cell_size, float(root[0]),
                                   float(root[1]), float(root[2]), float(yaw), int(size), float(extent),
                                   np.empty(size * size) if out is None else out)
+
+
+# --- the compiled step --------------------------------------------------------------------------
+# ``skill_step`` computes one world's step outcome (what ``root_frames``, ``goal_targets``,
+# ``skill_observations``, ``skill_reward_values`` and ``skill_errors`` compute for it) in one native call,
+# with the same bits: every operation in the order and rounding those functions use. Three of them are
+# numpy's BLAS (OpenBLAS) calls, written out as its kernels compute them for these sizes: a dot product of
+# 2 or 3 numbers (``row_dots``: ``cblas_ddot``) as an unfused sum from +0, the 15 x 3 by 3 x 3 product into
+# the heading frame (``np.matmul``: ``cblas_dgemm``) as a fused multiply-add chain from +0. Python's
+# ``x ** 2`` is libm's ``pow(x, 2.0)``, which rounds some squares differently from x * x, so the kernel
+# calls pow too, with the exponent read at run time (``STEP_SQUARE``) so that the compiler cannot turn it
+# into x * x. ``tests/test_sims_skills.py`` compares the kernel with those functions bit for bit.
+
+#: Where ``step_parameters`` puts a world's constants of ``skill_step`` (one float64 row, fixed while the
+#: goal and the scene are).
+STEP_ROOT_TARGET = 0                   # x* (3)
+STEP_PRIMARY = 3                       # the primary body's row
+STEP_WALK = 4                          # 1.0: the walk reward (WALK_TERMS); 0.0: the contact reward
+STEP_TARGET_SPEED = 5                  # v* (m/s)
+STEP_HEIGHTS = 6                       # the height grid's origin x, y and cell size (3)
+STEP_HEIGHTMAP = 9                     # heightmap_size, heightmap_extent (2)
+STEP_SQUARE = 11                       # 2.0: the exponent of the squares Python writes x ** 2
+STEP_MASK = 12                         # the goal's mask, 1.0 / 0.0 (15)
+STEP_PARAMETERS_SIZE = STEP_MASK + NUM_CONTACT_JOINTS
+#: The columns of ``skill_step``'s ``values`` row: the weighted reward terms (near, far, still: 0 for a
+#: contact goal, which has none), the error (``skill_errors``), the root's ground velocity (the next step's
+#: previous one), the root's position and the head's height.
+STEP_VALUES = ("reward_near", "reward_far", "reward_still", "error", "root_vel_x", "root_vel_y",
+               "root_x", "root_y", "root_z", "head_z")
+STEP_VALUES_SIZE = len(STEP_VALUES)
+_HEAD = BODY_NAMES.index("head")
+_WALK_W = (WALK_WEIGHTS.near, WALK_WEIGHTS.far, WALK_WEIGHTS.still, WALK_WEIGHTS.far_position,
+           WALK_WEIGHTS.far_velocity, WALK_WEIGHTS.far_facing)
+_CONTACT_W = (CONTACT_WEIGHTS.near, CONTACT_WEIGHTS.far, CONTACT_WEIGHTS.still, CONTACT_WEIGHTS.far_position,
+              CONTACT_WEIGHTS.far_velocity, CONTACT_WEIGHTS.far_facing)
+
+
+def step_parameters(goal: ContactGoal, heights: SceneHeights, target_speed: float, heightmap_size: int,
+                    heightmap_extent: float) -> np.ndarray:
+    """(STEP_PARAMETERS_SIZE,) a world's constants of ``skill_step`` (the layout ``STEP_*``)."""
+    params = np.empty(STEP_PARAMETERS_SIZE)
+    params[STEP_ROOT_TARGET:STEP_ROOT_TARGET + 3] = goal.root_target
+    params[STEP_PRIMARY] = goal.primary
+    params[STEP_WALK] = 1.0 if goal.skill == "walk" else 0.0
+    params[STEP_TARGET_SPEED] = target_speed
+    params[STEP_HEIGHTS:STEP_HEIGHTS + 3] = (heights.origin[0], heights.origin[1], heights.cell_size)
+    params[STEP_HEIGHTMAP:STEP_HEIGHTMAP + 2] = (heightmap_size, heightmap_extent)
+    params[STEP_SQUARE] = 2.0
+    params[STEP_MASK:STEP_MASK + NUM_CONTACT_JOINTS] = goal.mask
+    return params
+
+
+@jit
+def _blas_dot2(a0, a1, b0, b1):
+    """``row_dots`` of two 2-vectors: OpenBLAS' ddot (unfused, from +0), then numpy's 0. + it."""
+    dot = 0.0
+    dot += a0 * b0
+    dot += a1 * b1
+    return 0.0 + dot
+
+
+@jit
+def _blas_dot3(a0, a1, a2, b0, b1, b2):
+    """``row_dots`` of two 3-vectors (as ``_blas_dot2``)."""
+    dot = 0.0
+    dot += a0 * b0
+    dot += a1 * b1
+    dot += a2 * b2
+    return 0.0 + dot
+
+
+@jit
+def _heading_row(r0, r1, r2, h0, h1, h2):
+    """One entry of (rel @ heading) as OpenBLAS' dgemm kernel rounds it: fused multiply-adds from +0 down the
+    column (h0, h1, h2) of the heading matrix."""
+    return fma(r2, h2, fma(r1, h1, fma(r0, h0, 0.0)))
+
+
+@jit
+def _pairwise_sum15(a):
+    """numpy's sum of the 15 entries of ``a`` (``np.sum(..., axis=-1)``: its pairwise sum, 8 partial sums)."""
+    res = ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
+    for i in range(8, 15):
+        res += a[i]
+    return 0.0 + res
+
+
+@jit
+def skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, params, points, owner, heights, text,
+               prev_root_vel, obs, targets, values):
+    """World k's step outcome (row k of the batch's state arrays, of ``obs``, ``targets`` (B, 15, 3) and
+    ``values`` (B, STEP_VALUES_SIZE)): the observation, the goal's targets (``goal_targets``), the weighted
+    reward terms, the error and what the env keeps (``STEP_VALUES``). ``params``: ``step_parameters``;
+    ``points``, ``owner``: the goal's target points and their bodies; ``heights``: the scene's height grid;
+    ``text``: the text embedding; ``prev_root_vel`` (2,): the root's ground velocity a step before."""
+    joints = body_pos[k]
+    yaw, c, s = heading_cos_sin(body_mat[k, PELVIS])
+    rx, ry, rz = joints[PELVIS, 0], joints[PELVIS, 1], joints[PELVIS, 2]
+    row = obs[k]
+    # proprioception and the heightmap, as ``skill_observations``
+    write_proprioception(row, body_mat[k], root_lin_vel[k], root_ang_vel[k], dof_vel[k], rz, c, s)
+    size = int(params[STEP_HEIGHTMAP])
+    g0 = PROPRIOCEPTION_SIZE + size * size
+    egocentric_heights(heights, params[STEP_HEIGHTS], params[STEP_HEIGHTS + 1], params[STEP_HEIGHTS + 2], rx, ry,
+                       rz, yaw, size, params[STEP_HEIGHTMAP + 1], row[PROPRIOCEPTION_SIZE:g0])
+    # the goal: targets relative to the root, masked, into the heading frame; the mask; the text
+    t = nearest_targets(points, owner, joints, targets[k])
+    g1 = g0 + 3 * NUM_CONTACT_JOINTS
+    near_terms = np.empty(NUM_CONTACT_JOINTS)
+    for j in range(NUM_CONTACT_JOINTS):
+        m = params[STEP_MASK + j]
+        r0, r1, r2 = (t[j, 0] - rx) * m, (t[j, 1] - ry) * m, (t[j, 2] - rz) * m
+        row[g0 + 3 * j] = _heading_row(r0, r1, r2, c, s, 0.0)
+        row[g0 + 3 * j + 1] = _heading_row(r0, r1, r2, -s, c, 0.0)
+        row[g0 + 3 * j + 2] = _heading_row(r0, r1, r2, 0.0, 0.0, 1.0)
+        row[g1 + j] = m
+        e0, e1, e2 = t[j, 0] - joints[j, 0], t[j, 1] - joints[j, 1], t[j, 2] - joints[j, 2]
+        near_terms[j] = ((e0 * e0 + e1 * e1) + e2 * e2) * m
+    row[g1 + NUM_CONTACT_JOINTS:] = text
+    # the reward (``direction_terms``, ``walk_reward_values`` / ``contact_reward_values``)
+    two = params[STEP_SQUARE]
+    d0, d1 = params[STEP_ROOT_TARGET] - rx, params[STEP_ROOT_TARGET + 1] - ry
+    dist2 = _blas_dot2(d0, d1, d0, d1)
+    norm = math.sqrt(dist2)
+    u0 = u1 = 0.0
+    if norm > 1e-9:
+        u0, u1 = d0 / norm, d1 / norm
+    vx, vy = root_lin_vel[k, 0], root_lin_vel[k, 1]
+    along = _blas_dot2(u0, u1, vx, vy)
+    facing = _blas_dot2(u0, u1, c, s)
+    velocity = math.exp(-2.0 * math.pow(abs(params[STEP_TARGET_SPEED] - along), two))
+    facing = math.pow(facing if facing > 0.0 else 0.0, two)
+    walk = params[STEP_WALK] != 0.0
+    w = _WALK_W if walk else _CONTACT_W
+    near2 = dist2 if walk else _pairwise_sum15(near_terms)
+    out = values[k]
+    out[0] = w[0] * math.exp(-10.0 * near2)
+    far = 1.0
+    still = 0.0
+    if dist2 > NEAR_SQUARED_DISTANCE:
+        far = w[3] * math.exp(-0.5 * dist2) + w[4] * velocity + w[5] * facing
+    elif walk:
+        c0, c1 = vx - prev_root_vel[0], vy - prev_root_vel[1]
+        still = math.exp(-2.0 * _blas_dot2(c0, c1, c0, c1))
+    out[1] = w[1] * far
+    out[2] = w[2] * still if walk else 0.0
+    # the error (``skill_errors``)
+    if walk:
+        out[3] = math.hypot(params[STEP_ROOT_TARGET] - rx, params[STEP_ROOT_TARGET + 1] - ry)
+    else:
+        p = int(params[STEP_PRIMARY])
+        o0, o1, o2 = t[p, 0] - joints[p, 0], t[p, 1] - joints[p, 1], t[p, 2] - joints[p, 2]
+        out[3] = math.sqrt(_blas_dot3(o0, o1, o2, o0, o1, o2))
+    out[4], out[5] = vx, vy
+    out[6], out[7], out[8] = rx, ry, rz
+    out[9] = joints[_HEAD, 2]
