@@ -28,12 +28,13 @@ from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.style.reference import ReferenceWindows
-from stairenv.tasks.kernels import all_finite, pd_targets, within_limits
+from stairenv.tasks.kernels import all_finite, no_warnings_within_limits, pd_targets
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
 _DIVERGENCE_WARNINGS = [_BADQACC, _BADQVEL, _BADQPOS]
+_DIVERGENCE_WARNING_ROWS = np.array(_DIVERGENCE_WARNINGS, dtype=np.int64)
 
 # Speeds no body of this character reaches while the physics is sound. Saturated
 # actions (bang-bang, clipped Gaussians) peak below ~90 rad/s at the joints and the
@@ -44,6 +45,7 @@ MAX_ROOT_SPEED = 50.0          # m/s, the root's linear velocity
 # dtype kinds an action may have (bool, integers, floats): complex, strings and objects are refused
 # rather than converted (float64 would drop an imaginary part silently).
 NUMERIC_KINDS = frozenset("biuf")
+_FLOAT64 = np.dtype(np.float64)    # numpy's one native float64 dtype (an array's dtype is this very object)
 #: start poses: standing, a frame of a reference clip, or either (``hybrid_fraction`` of them reference)
 INITS = ("default", "reference", "hybrid")
 
@@ -583,20 +585,13 @@ class HumanoidEnv(gym.Env):
         self._step_count[0] += 1    # _steps += 1
         if not stable:
             return self._unstable_step()
-        outcome, amp_obs = self._step_outcome_and_style(self._read_state())
-        self._outcome = outcome
-        info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
+        state = self._read_state()
+        outcome = self._outcome = self._step_outcome(state)
+        self._amp.push(state)
+        info = self._full_info(outcome, unstable=False, terms=True)
         if self.render_mode == "human":
             self.render()
         return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
-
-    def _step_outcome_and_style(self, state) -> tuple[StepOutcome, np.ndarray | None]:
-        """A single world's step: ``_step_outcome(state)`` and the style features pushed onto ``self._amp``;
-        with the history's ``flat()`` where the class computes it alongside (SIMS: in the same compiled
-        call), else None (``_full_info`` reads it)."""
-        outcome = self._step_outcome(state)
-        self._amp.push(state)
-        return outcome, None
 
     #: True where ``_step_outcomes`` computes a batch's outcomes in one call: a batched env then finishes all its
     #: worlds with ``_finish_batch`` after the physics instead of ``_finish_step`` world by world.
@@ -786,8 +781,10 @@ class HumanoidEnv(gym.Env):
         """``info``: the task's part, then what every env reports. ``amp_obs``: the style history's
         ``flat()`` where the caller has it already (``_finish_worlds``: a row of the batch's)."""
         info = self._info(outcome.results)
-        info.update(time=self._steps * self.dt, physics_unstable=unstable,
-                    amp_obs=self._amp.flat() if amp_obs is None else amp_obs, reference_start=self._reference_start)
+        info["time"] = self._steps * self.dt
+        info["physics_unstable"] = unstable
+        info["amp_obs"] = self._amp.flat() if amp_obs is None else amp_obs
+        info["reference_start"] = self._reference_start
         if terms:
             info.update(outcome.terms)
         return info
@@ -829,7 +826,7 @@ class HumanoidEnv(gym.Env):
     def _check_action(self, action) -> np.ndarray:
         """``action`` as float64 (28,); ``ValueError`` for a wrong shape, a non-numeric dtype (complex,
         strings, objects) or NaN/inf, ``ResetNeeded`` before a reset."""
-        if type(action) is not np.ndarray or action.dtype != np.float64:    # the usual float64 array skips this
+        if type(action) is not np.ndarray or action.dtype is not _FLOAT64:    # the usual float64 array skips this
             action = np.asarray(action)
             if action.dtype.kind not in NUMERIC_KINDS:
                 raise ValueError(f"action must be real numbers, got dtype {action.dtype}")
@@ -849,14 +846,12 @@ class HumanoidEnv(gym.Env):
 
     def _physics_sound(self, expected_time: float) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can
-        (``_speeds_plausible``); otherwise body poses brought up to qpos."""
+        (``_state_sound``); otherwise body poses brought up to qpos."""
         data = self.data
         # MuJoCo resets the data when positions, velocities or accelerations blow up:
         # the time jumps back and the warning counts (zeroed at every episode reset by
         # mj_resetData) go up. Otherwise qpos and qvel are finite by its checks.
-        warnings = self._warning_counts
-        if (data.time < expected_time - 1e-9 or warnings[_BADQACC] or warnings[_BADQVEL] or warnings[_BADQPOS]
-                or not self._speeds_plausible()):
+        if data.time < expected_time - 1e-9 or not self._state_sound():
             self._mark_unstable()
             return False
         # mj_step leaves body poses at the start of its last substep: bring them up to qpos.
@@ -869,8 +864,7 @@ class HumanoidEnv(gym.Env):
         same effects: its checks as arrays over the batch where the class keeps them (else world by world).
         ``poses_current``: the worlds' ``mj_kinematics`` already ran (``_bring_up_poses``), so it is not run
         again for the stable worlds."""
-        if cls._physics_sound is not HumanoidEnv._physics_sound or \
-                cls._speeds_plausible is not HumanoidEnv._speeds_plausible:
+        if cls._physics_sound is not HumanoidEnv._physics_sound or cls._state_sound is not HumanoidEnv._state_sound:
             return np.array([env._physics_sound(env._expected_time) for env in envs], dtype=bool)
         times = np.array([env.data.time for env in envs])
         expected = np.array([env._expected_time for env in envs])
@@ -911,9 +905,12 @@ class HumanoidEnv(gym.Env):
         self._needs_reset = True
         gym.logger.warn("physics became unstable; episode truncated (info['physics_unstable'] = True)")
 
-    def _speeds_plausible(self) -> bool:
-        """False once the character moves faster than its body can (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``)."""
-        return within_limits(self._speeds, 0, self._speed_limits)
+    def _state_sound(self) -> bool:
+        """False once MuJoCo has flagged a divergence (its warnings of bad accelerations, velocities or
+        positions, counted since the episode's reset) or the character moves faster than its body can
+        (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``): one compiled pass."""
+        return no_warnings_within_limits(self._warning_counts, _DIVERGENCE_WARNING_ROWS, self._speeds,
+                                         self._speed_limits)
 
     # --- rendering ----------------------------------------------------------
     def _render_lines(self) -> tuple:

@@ -41,7 +41,6 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
-from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
@@ -64,6 +63,9 @@ START_TRIES = 4
 REACH_TURNS = (0.0, *(sign * k * math.pi / 8 for k in range(1, 8) for sign in (1.0, -1.0)), math.pi)
 _DOF = {name: k for k, name in enumerate(DOF_NAMES)}
 CONTACT_NAMES = task.CONTACT_JOINTS
+_NEAR, _FAR, _STILL = task.WALK_REWARD_TERMS    # the reward terms' info keys (a contact goal's: the first two)
+if task.CONTACT_REWARD_TERMS != (_NEAR, _FAR):
+    raise ImportError("SIMSEnv._world_outcome expects the contact reward's terms to be the walk reward's first two")
 
 
 @cache
@@ -268,6 +270,10 @@ class SIMSEnv(HumanoidEnv):
         }
         self.goal: task.ContactGoal | None = None
         self._targets: np.ndarray | None = None
+        #: what a single world's step writes (``_step_outcome_and_style``): the observation, the goal's
+        #: targets and ``task.STEP_VALUES``, each a batch of one
+        self._step_buffers = (np.empty((1, size)), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
+                              np.empty((1, task.STEP_VALUES_SIZE)))
 
     # the keywords: SIMSConfig's fields, defaults included (``config=`` stays out of the signature)
     __init__.__signature__ = keyword_signature(SIMSConfig)
@@ -486,6 +492,8 @@ class SIMSEnv(HumanoidEnv):
         #: the goal's, the scene's and the speed's constants of the compiled step (``task.skill_step``)
         self._step_parameters = task.step_parameters(goal, self._heights, speed, self.heightmap_size,
                                                      self.heightmap_extent)
+        self._root_target_xy = (float(goal.root_target[0]), float(goal.root_target[1]))
+        self._amp_condition = self._amp_z.astype(np.float32)    # info["amp_condition"]: a copy each step
 
     def _start_tracking(self, state) -> None:
         self._success_once = False
@@ -815,9 +823,6 @@ class SIMSEnv(HumanoidEnv):
             data.qpos[self._idx.qpos_root.start + 2] += 0.002 - lowest
 
     # --- observation and reward ---------------------------------------------------------------
-    def _terms_names(self) -> tuple[str, ...]:
-        return task.WALK_REWARD_TERMS if self.goal.skill == "walk" else task.CONTACT_REWARD_TERMS
-
     BATCH_OUTCOMES = True
 
     def _step_outcome(self, state) -> StepOutcome:
@@ -829,8 +834,8 @@ class SIMSEnv(HumanoidEnv):
         """The step outcomes of ``envs`` (worlds of one configuration; row k of the batch ``state`` is world
         k): each world's observation, goal targets, reward terms and error in one compiled call
         (``task.skill_step``, with the bits of ``stairenv.tasks.sims``' batch functions), then per world the
-        ends and the bookkeeping in Python floats, so a world's outcome has the same bits alone or in any
-        batch."""
+        ends and the bookkeeping in Python floats (``_world_outcome``), so a world's outcome has the same bits
+        alone or in any batch."""
         n = len(envs)
         obs = np.empty((n, envs[0].observation_space.shape[0]))
         targets = np.empty((n, task.NUM_CONTACT_JOINTS, 3))
@@ -842,57 +847,84 @@ class SIMSEnv(HumanoidEnv):
             task.skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, env._step_parameters,
                             goal._flat, goal._owner, env._heights.heights, env._z, env._prev_root_vel, obs, targets,
                             values)
-        rows = values.tolist()
         outcomes = []
-        for k, env in enumerate(envs):
-            goal = env.goal
-            near, far, still, error, _, _, x, y, z, head_z = rows[k]
-            terms = (near, far, still) if goal.skill == "walk" else (near, far)
-            success = error < task.SUCCESS_DISTANCE[goal.skill]
-            attributes = env.__dict__    # plain attributes: written past HumanoidEnv.__setattr__'s keyword check
-            attributes["_root_distance"] = math.hypot(goal.root_target[0] - x, goal.root_target[1] - y)
-            fell = head_z < env.fall_height
-            attributes["_targets"] = targets[k]
-            attributes["_prev_root_vel"] = values[k, 4:6]
-            attributes["_success_once"] = env._success_once or success
-            results = {"contact_error": error, "success": success, "fell": fell}
-            ended = fell or (env.terminate_on_success and success)
-            if env.stall_seconds is not None:  # only with the aid: the default info is unchanged
-                results["stalled"] = env._stall.stalled(error, env._steps) and not (fell or success)
-                ended = ended or results["stalled"]
-            if env.min_root_height is not None:  # only with the aid: no sitting on the floor
-                results["grounded"] = bool(z < env.min_root_height) and not fell
-                ended = ended or results["grounded"]
-            # numpy's sum of fewer than 8 terms: left to right, as sum()
-            outcomes.append(StepOutcome(obs[k], sum(terms), dict(zip(env._terms_names(), terms)), ended, results))
+        for k, (env, row) in enumerate(zip(envs, values.tolist())):
+            env._prev_root_vel = values[k, 4:6]
+            outcomes.append(env._world_outcome(obs[k], targets[k], row))
         return outcomes
 
-    def _step_outcome_and_style(self, state) -> tuple[StepOutcome, np.ndarray]:
-        """A single world's step outcome (``_step_outcomes``) and its style features pushed, each in one compiled
-        call; the style history's ``flat()`` with them."""
-        outcome = self._step_outcomes([self], state)[0]
-        frames = self._amp.frames
-        amp_obs = push_amp_features(0, frames, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
-                                    state.dof_pos, state.dof_vel, np.empty(frames.size))
-        return outcome, amp_obs
+    def _finish_step(self):
+        """``HumanoidEnv._finish_step`` of a single world written out for SIMS, the same results in fewer Python
+        steps (what a step costs over its physics: ``benchmarks/bench_sims_step.py``): the task and the style
+        features in one compiled call (``task.skill_step_and_style``) into this world's own arrays
+        (``_step_buffers``; a step returns a copy of the observation, an unstable step keeps one), then
+        ``_world_outcome`` and the info."""
+        if not self._physics_sound(self._expected_time):
+            self._step_count[0] += 1
+            return self._unstable_step()
+        self._step_count[0] += 1
+        state = self._read_state()
+        obs, targets, values = self._step_buffers
+        goal, frames = self.goal, self._amp.frames
+        amp_obs = np.empty(frames.size)
+        task.skill_step_and_style(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
+                                  state.dof_pos, state.dof_vel, self._step_parameters, goal._flat, goal._owner,
+                                  self._heights.heights, self._z, self._prev_root_vel, obs, targets, values, frames,
+                                  amp_obs)
+        outcome = self._world_outcome(obs[0], targets[0], values.tolist()[0])
+        # the ``_outcome`` setter's work: a SIMS world's last outcome is its own (no ``_step_outcome_batch``, so a
+        # batched env never shares its rows)
+        self.__dict__["_last_outcome"] = outcome
+        info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
+        if self.render_mode == "human":
+            self.render()
+        return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
 
-    def _info(self, results: dict[str, Any]) -> dict[str, Any]:
+    def _world_outcome(self, obs: np.ndarray, targets: np.ndarray, values: list[float]) -> StepOutcome:
+        """The step outcome of this world from its row of ``task.skill_step``'s results (``values``: its
+        ``STEP_VALUES``, Python floats): success, the fall and the aids' ends, the bookkeeping."""
         goal = self.goal
-        if self.interaction_start_fraction > 0.0:  # only with the aid: the default info is unchanged
-            return {**self._base_info(goal, results), "interaction_start": self._interaction_start}
-        return self._base_info(goal, results)
+        near, far, still, error, _, _, x, y, z, head_z = values
+        skill = goal.skill
+        success = error < task.SUCCESS_DISTANCE[skill]
+        fell = head_z < self.fall_height
+        target_x, target_y = self._root_target_xy
+        attributes = self.__dict__    # private attributes, set directly (HumanoidEnv.__setattr__ checks keywords)
+        attributes["_root_distance"] = math.hypot(target_x - x, target_y - y)
+        attributes["_targets"] = targets
+        attributes["_success_once"] = self._success_once or success
+        results = {"contact_error": error, "success": success, "fell": fell}
+        ended = fell or (self.terminate_on_success and success)
+        if self.stall_seconds is not None:  # only with the aid: the default info is unchanged
+            results["stalled"] = self._stall.stalled(error, self._steps) and not (fell or success)
+            ended = ended or results["stalled"]
+        if self.min_root_height is not None:  # only with the aid: no sitting on the floor
+            results["grounded"] = bool(z < self.min_root_height) and not fell
+            ended = ended or results["grounded"]
+        # the terms (task.WALK_REWARD_TERMS, CONTACT_REWARD_TERMS) and their sum, left to right as numpy's sum of
+        # fewer than 8 numbers
+        if skill == "walk":
+            return StepOutcome(obs, sum((near, far, still)), {_NEAR: near, _FAR: far, _STILL: still}, ended, results)
+        return StepOutcome(obs, sum((near, far)), {_NEAR: near, _FAR: far}, ended, results)
 
-    def _base_info(self, goal: task.ContactGoal, results: dict[str, Any]) -> dict[str, Any]:
-        return {
-            "skill": goal.skill,
-            "furniture": goal.furniture,
-            "part": goal.part,
-            "caption": self.caption,
-            "style": self.style,
-            **results,
-            "success_once": self._success_once,
-            "amp_condition": self._amp_z.astype(np.float32),
-        }
+    def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool,
+                   amp_obs: np.ndarray | None = None) -> dict[str, Any]:
+        """``HumanoidEnv._full_info`` in one dict: the task's part (the goal, the caption, the outcome's
+        results, ``success_once``, ``amp_condition``; ``interaction_start`` with that aid), then what every
+        env reports, then the reward terms."""
+        goal = self.goal
+        info = {"skill": goal.skill, "furniture": goal.furniture, "part": goal.part, "caption": self.caption,
+                "style": self.style, **outcome.results, "success_once": self._success_once,
+                "amp_condition": self._amp_condition.copy()}
+        if self.interaction_start_fraction > 0.0:  # only with the aid: the default info is unchanged
+            info["interaction_start"] = self._interaction_start
+        info["time"] = int(self._step_count[0]) * self.dt    # _steps * dt
+        info["physics_unstable"] = unstable
+        info["amp_obs"] = self._amp.flat() if amp_obs is None else amp_obs
+        info["reference_start"] = bool(self._reference_flag[0])    # _reference_start
+        if terms:
+            info.update(outcome.terms)
+        return info
 
     # --- rendering ----------------------------------------------------------------------------
     def _render_lines(self) -> tuple:

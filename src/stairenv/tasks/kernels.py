@@ -120,6 +120,16 @@ def within_limits(values, start, limits):
 
 
 @jit
+def no_warnings_within_limits(warnings, rows, values, limits):
+    """Whether ``warnings[rows]`` are all 0 (MuJoCo's counts of the warnings named by ``rows``) and
+    ``within_limits(values, 0, limits)``: the divergence and speed checks after a step in one native call."""
+    for i in range(rows.shape[0]):
+        if warnings[rows[i]] != 0:
+            return False
+    return within_limits(values, 0, limits)
+
+
+@jit
 def pd_targets(offset, scale, action, out):
     """``out[:] = offset + scale * action`` (the PD targets of an action), each entry rounded as numpy's
     multiply then add round it: one native call instead of two ufunc calls."""

@@ -42,6 +42,7 @@ import numpy as np
 from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.humanoid.state import PELVIS, HumanoidState
 from stairenv.rotations import yaw_matrix
+from stairenv.style.features import push_amp_features
 from stairenv.tasks.kernels import (
     PROPRIOCEPTION_SIZE,
     fma,
@@ -713,3 +714,16 @@ def skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, param
     out[4], out[5] = vx, vy
     out[6], out[7], out[8] = rx, ry, rz
     out[9] = joints[_HEAD, 2]
+
+
+@jit
+def skill_step_and_style(body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, params, points, owner,
+                         heights, text, prev_root_vel, obs, targets, values, frames, amp_obs):
+    """A single world's step in one compiled call: ``skill_step`` of the world (row 0 of the arrays), its
+    root's ground velocity then kept in ``prev_root_vel`` (in place) for the next step, and its style
+    features pushed onto the history ``frames`` (K, 105) with their ``flat()`` in ``amp_obs``
+    (``stairenv.style.features.push_amp_features``)."""
+    skill_step(0, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, params, points, owner, heights, text,
+               prev_root_vel, obs, targets, values)
+    prev_root_vel[0], prev_root_vel[1] = values[0, 4], values[0, 5]
+    push_amp_features(0, frames, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, amp_obs)
