@@ -349,6 +349,19 @@ def test_step_before_reset_raises():
     env = InterLevelEnv()
     with pytest.raises(gym.error.ResetNeeded):
         env.step(np.zeros(28))
+    with pytest.raises(ValueError, match="finite"):    # a bad action is named first, before a reset too
+        env.step(np.full(28, np.nan))
+
+
+def test_a_refused_action_writes_no_ctrl():
+    """A step's one-call path for float actions (checked and applied together) writes nothing for a NaN."""
+    env = gym.make("InterLevel-v0").unwrapped
+    env.reset(seed=0)
+    ctrl = env.data.ctrl.copy()
+    for dtype in (np.float64, np.float32):
+        with pytest.raises(ValueError, match="finite"):
+            env.step(np.r_[np.full(27, 0.5), np.nan].astype(dtype))
+        np.testing.assert_array_equal(env.data.ctrl, ctrl)
 
 
 def test_out_of_range_actions_act_as_the_range_limits():

@@ -270,6 +270,33 @@ def test_compiled_step_equals_the_batch_functions_bit_for_bit():
             assert values[0, :4].tolist() == [*terms, error], env_id
 
 
+def test_a_steps_outcome_and_info_are_world_outcome_and_full_info():
+    """``SIMSEnv._finish_step`` writes ``_world_outcome`` and ``_full_info`` out where no training aid adds to
+    them: a step's outcome and info against those two on the step's own kernel results, the info's keys in the
+    same order; with an aid the step calls them."""
+    rng = np.random.default_rng(3)
+    for env_id, aids in (("SIMS-Walk-v0", {}), ("SIMS-Sit-v0", {}), ("SIMS-Sit-v0", {"min_root_height": 0.3})):
+        env = gym.make(env_id, fall_height=0.0, **FAST, **aids).unwrapped
+        assert env._plain_outcomes == (not aids)
+        env.reset(seed=2)
+        for _ in range(15):
+            obs, reward, terminated, truncated, info = env.step(rng.uniform(-0.5, 0.5, 28))
+            outcome = env._outcome
+            buffers = env._step_buffers
+            near, far, still, error, _, _, x, y, z, head_z = buffers[2].tolist()
+            again = env._world_outcome(buffers[0], buffers[1], near, far, still, error, x, y, z, head_z)
+            assert again.obs.tobytes() == outcome.obs.tobytes() == obs.tobytes()
+            assert (again.reward, again.terms, again.terminated, again.results) == (
+                reward, outcome.terms, terminated, outcome.results)
+            full = env._full_info(again, unstable=False, terms=True, amp_obs=info["amp_obs"])
+            assert list(full) == list(info), env_id
+            for key, value in full.items():
+                if isinstance(value, np.ndarray):
+                    assert value.dtype == info[key].dtype and value.tobytes() == info[key].tobytes(), key
+                else:
+                    assert type(value) is type(info[key]) and value == info[key], key
+
+
 def test_observation_layout_and_text():
     env = SIMSEnv(skill="sit", families=("chair",), **FAST)
     obs, info = env.reset(seed=3)

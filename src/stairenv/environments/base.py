@@ -28,13 +28,14 @@ from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.style.features import FeatureHistory, amp_features
 from stairenv.style.reference import ReferenceWindows
-from stairenv.tasks.kernels import all_finite, no_warnings_within_limits, pd_targets
+from stairenv.tasks.kernels import all_finite, finite_pd_targets, no_warnings_within_limits, pd_targets
 from stairenv.validation import check_choice, check_float, check_int
 
 _BADQACC, _BADQVEL, _BADQPOS = (int(w) for w in (
     mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS))
 _DIVERGENCE_WARNINGS = [_BADQACC, _BADQVEL, _BADQPOS]
-_DIVERGENCE_WARNING_ROWS = np.array(_DIVERGENCE_WARNINGS, dtype=np.int64)
+#: the rows of ``MjData.warning`` that flag a divergence, for compiled checks (``_state_sound``)
+DIVERGENCE_WARNING_ROWS = np.array(_DIVERGENCE_WARNINGS, dtype=np.int64)
 
 # Speeds no body of this character reaches while the physics is sound. Saturated
 # actions (bang-bang, clipped Gaussians) peak below ~90 rad/s at the joints and the
@@ -46,6 +47,8 @@ MAX_ROOT_SPEED = 50.0          # m/s, the root's linear velocity
 # rather than converted (float64 would drop an imaginary part silently).
 NUMERIC_KINDS = frozenset("biuf")
 _FLOAT64 = np.dtype(np.float64)    # numpy's one native float64 dtype (an array's dtype is this very object)
+_ACTION_DTYPES = (_FLOAT64, np.dtype(np.float32))    # what step's one-call path takes (float32 widens exactly)
+_ACTION_SHAPE = (NUM_DOFS,)
 #: start poses: standing, a frame of a reference clip, or either (``hybrid_fraction`` of them reference)
 INITS = ("default", "reference", "hybrid")
 
@@ -180,10 +183,15 @@ class HumanoidEnv(gym.Env):
     #: scene; SIMS's ``room``): set freely, never through ``configure``
     STATE_ATTRIBUTES: frozenset[str] = frozenset()
 
+    #: whether the class checks and applies actions as this class does (``step``'s one-call path for them)
+    _plain_action = True
+
     def __init_subclass__(cls, **kwargs) -> None:
         """Each subclass's ``__init__`` counts as construction: until the outermost returns, keyword attributes
         are set as plain attributes; afterwards assigning one goes through ``configure``."""
         super().__init_subclass__(**kwargs)
+        cls._plain_action = (cls._check_action is HumanoidEnv._check_action and cls._prepare_step is
+                             HumanoidEnv._prepare_step and cls._apply_action is HumanoidEnv._apply_action)
         init = cls.__dict__.get("__init__")
         if init is None or getattr(init, "_counts_construction", False):
             return
@@ -533,7 +541,14 @@ class HumanoidEnv(gym.Env):
         return dict(last.results)
 
     def step(self, action):
-        self._prepare_step(self._check_action(action))
+        if (self._plain_action and type(action) is np.ndarray and action.dtype in _ACTION_DTYPES
+                and action.shape == _ACTION_SHAPE and not self._needs_reset
+                and finite_pd_targets(self._ctrl_offset, self._ctrl_scale, action, self._ctrl)):
+            # the usual action (a float array, finite, after a reset): checked and its PD targets written in one
+            # compiled call, as _check_action then _apply_action would; anything else takes those two
+            self._after_action()
+        else:
+            self._prepare_step(self._check_action(action))
         self._physics()
         obs, reward, terminated, truncated, info = self._finish_step()
         return obs.copy(), reward, terminated, truncated, info    # as reset's: the caller's own array
@@ -909,7 +924,7 @@ class HumanoidEnv(gym.Env):
         """False once MuJoCo has flagged a divergence (its warnings of bad accelerations, velocities or
         positions, counted since the episode's reset) or the character moves faster than its body can
         (``MAX_JOINT_SPEED``, ``MAX_ROOT_SPEED``): one compiled pass."""
-        return no_warnings_within_limits(self._warning_counts, _DIVERGENCE_WARNING_ROWS, self._speeds,
+        return no_warnings_within_limits(self._warning_counts, DIVERGENCE_WARNING_ROWS, self._speeds,
                                          self._speed_limits)
 
     # --- rendering ----------------------------------------------------------

@@ -14,7 +14,7 @@ from gymnasium import spaces
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from stairenv.environments.base import HumanoidEnv, StepOutcome
+from stairenv.environments.base import DIVERGENCE_WARNING_ROWS, HumanoidEnv, StepOutcome
 from stairenv.environments.config import document_keywords, keyword_signature, resolve
 # the checks of SIMS' keywords are SIMSConfig's; named here too, as before
 from stairenv.environments.sims_config import (  # noqa: F401
@@ -270,10 +270,12 @@ class SIMSEnv(HumanoidEnv):
         }
         self.goal: task.ContactGoal | None = None
         self._targets: np.ndarray | None = None
-        #: what a single world's step writes (``_step_outcome_and_style``): the observation, the goal's
-        #: targets and ``task.STEP_VALUES``, each a batch of one
-        self._step_buffers = (np.empty((1, size)), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
-                              np.empty((1, task.STEP_VALUES_SIZE)))
+        #: what a single world's step writes (``_finish_step``): the observation, the goal's targets and
+        #: ``task.STEP_VALUES``
+        self._step_buffers = (np.empty(size), np.empty((task.NUM_CONTACT_JOINTS, 3)), np.empty(task.STEP_VALUES_SIZE))
+        #: no training aid adds to a step's results or info (those keywords are fixed once the env is built)
+        self._plain_outcomes = (self.stall_seconds is None and self.min_root_height is None
+                                and not self.interaction_start_fraction > 0.0)
 
     # the keywords: SIMSConfig's fields, defaults included (``config=`` stays out of the signature)
     __init__.__signature__ = keyword_signature(SIMSConfig)
@@ -850,41 +852,76 @@ class SIMSEnv(HumanoidEnv):
         outcomes = []
         for k, (env, row) in enumerate(zip(envs, values.tolist())):
             env._prev_root_vel = values[k, 4:6]
-            outcomes.append(env._world_outcome(obs[k], targets[k], row))
+            near, far, still, error, _, _, x, y, z, head_z = row
+            outcomes.append(env._world_outcome(obs[k], targets[k], near, far, still, error, x, y, z, head_z))
         return outcomes
 
     def _finish_step(self):
         """``HumanoidEnv._finish_step`` of a single world written out for SIMS, the same results in fewer Python
-        steps (what a step costs over its physics: ``benchmarks/bench_sims_step.py``): the task and the style
-        features in one compiled call (``task.skill_step_and_style``) into this world's own arrays
-        (``_step_buffers``; a step returns a copy of the observation, an unstable step keeps one), then
-        ``_world_outcome`` and the info."""
-        if not self._physics_sound(self._expected_time):
+        steps (what a step costs over its physics: ``benchmarks/bench_sims_step.py``): the time check, the
+        poses brought up to qpos, then one compiled call (``task.skill_step_and_style``) counts the step, runs
+        ``_physics_sound``'s other checks (``_state_sound``) and, where they pass, the task and the style
+        features, into this world's own arrays (``_step_buffers``; a step returns a copy of the observation, an
+        unstable step keeps one). Then the outcome and the info: ``_world_outcome`` and ``_full_info``, written
+        out here where no training aid adds to them (``_plain_outcomes``). (The poses come up before the
+        checks, as a batched env brings them up: an unsound step reads none of them.)"""
+        data = self.data
+        if data.time < self._expected_time - 1e-9:    # MuJoCo reset the data (_physics_sound)
             self._step_count[0] += 1
+            self._mark_unstable()
             return self._unstable_step()
-        self._step_count[0] += 1
+        mujoco.mj_kinematics(self.model, data)    # _bring_up_poses
         state = self._read_state()
         obs, targets, values = self._step_buffers
-        goal, frames = self.goal, self._amp.frames
+        goal, frames, count = self.goal, self._amp.frames, self._step_count
         amp_obs = np.empty(frames.size)
-        task.skill_step_and_style(state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel,
-                                  state.dof_pos, state.dof_vel, self._step_parameters, goal._flat, goal._owner,
-                                  self._heights.heights, self._z, self._prev_root_vel, obs, targets, values, frames,
-                                  amp_obs)
-        outcome = self._world_outcome(obs[0], targets[0], values.tolist()[0])
-        # the ``_outcome`` setter's work: a SIMS world's last outcome is its own (no ``_step_outcome_batch``, so a
-        # batched env never shares its rows)
-        self.__dict__["_last_outcome"] = outcome
-        info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
+        sound, near, far, still, error, x, y, z, head_z = task.skill_step_and_style(
+            count, self._warning_counts, DIVERGENCE_WARNING_ROWS, self._speeds, self._speed_limits,
+            state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_pos, state.dof_vel,
+            self._step_parameters, goal._flat, goal._owner, self._heights.heights, self._z, self._prev_root_vel, obs,
+            targets, values, frames, amp_obs)
+        if not sound:
+            self._mark_unstable()
+            return self._unstable_step()
+        attributes = self.__dict__    # private attributes, set directly (HumanoidEnv.__setattr__ checks keywords)
+        if not self._plain_outcomes:
+            outcome = attributes["_last_outcome"] = self._world_outcome(obs, targets, near, far, still, error, x, y,
+                                                                        z, head_z)
+            info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
+        else:    # _world_outcome and _full_info without the aids (tests/test_sims_skills.py compares them)
+            skill = goal.skill
+            success = error < task.SUCCESS_DISTANCE[skill]
+            fell = head_z < self.fall_height
+            target_x, target_y = self._root_target_xy
+            attributes["_root_distance"] = math.hypot(target_x - x, target_y - y)
+            attributes["_targets"] = targets
+            success_once = attributes["_success_once"] = self._success_once or success
+            results = {"contact_error": error, "success": success, "fell": fell}
+            ended = fell or (self.terminate_on_success and success)
+            if skill == "walk":
+                terms = {_NEAR: near, _FAR: far, _STILL: still}
+                reward = sum((near, far, still))
+            else:
+                terms = {_NEAR: near, _FAR: far}
+                reward = sum((near, far))
+            # the ``_outcome`` setter's work: a SIMS world's last outcome is its own (no ``_step_outcome_batch``,
+            # so a batched env never shares its rows)
+            outcome = attributes["_last_outcome"] = StepOutcome(obs, reward, terms, ended, results)
+            info = {"skill": skill, "furniture": goal.furniture, "part": goal.part, "caption": self.caption,
+                    "style": self.style, **results, "success_once": success_once,
+                    "amp_condition": self._amp_condition.copy(), "time": int(count[0]) * self.dt,
+                    "physics_unstable": False, "amp_obs": amp_obs, "reference_start": bool(self._reference_flag[0]),
+                    **terms}
         if self.render_mode == "human":
             self.render()
         return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
 
-    def _world_outcome(self, obs: np.ndarray, targets: np.ndarray, values: list[float]) -> StepOutcome:
-        """The step outcome of this world from its row of ``task.skill_step``'s results (``values``: its
-        ``STEP_VALUES``, Python floats): success, the fall and the aids' ends, the bookkeeping."""
+    def _world_outcome(self, obs: np.ndarray, targets: np.ndarray, near: float, far: float, still: float,
+                       error: float, x: float, y: float, z: float, head_z: float) -> StepOutcome:
+        """The step outcome of this world from ``task.skill_step``'s results (the weighted reward terms, the
+        error, the root's position and the head's height, Python floats): success, the fall and the aids' ends,
+        the bookkeeping."""
         goal = self.goal
-        near, far, still, error, _, _, x, y, z, head_z = values
         skill = goal.skill
         success = error < task.SUCCESS_DISTANCE[skill]
         fell = head_z < self.fall_height

@@ -136,3 +136,14 @@ def pd_targets(offset, scale, action, out):
     for i in range(out.shape[0]):
         out[i] = offset[i] + scale[i] * action[i]
     return out
+
+
+@jit
+def finite_pd_targets(offset, scale, action, out):
+    """``pd_targets`` of ``action`` if every entry of it is finite (True), else nothing written (False): an
+    action's check for NaN and inf and its PD targets in one native call."""
+    for i in range(action.shape[0]):
+        if not math.isfinite(action[i]):
+            return False
+    pd_targets(offset, scale, action, out)
+    return True
