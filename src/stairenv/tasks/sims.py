@@ -25,9 +25,10 @@ with the pelvis target at standing height in front of the furniture.
 Each term is a small pure function of ``SkillRewardInputs`` (``near_term``, ``far_term``,
 ``still_term``), named and weighed in ``WALK_TERMS`` / ``CONTACT_TERMS``; the weights are held in
 one place, ``WALK_WEIGHTS`` and ``CONTACT_WEIGHTS``. ``root_frames``, ``goal_targets``,
-``skill_observations``, ``skill_reward_values`` and ``skill_errors`` are what ``SIMSEnv`` calls each
-step, on a batch of worlds (one world: a batch of one) with the same bits for a world alone or in any
-batch; ``walk_reward_terms`` and ``contact_reward_terms`` are one world's rewards.
+``skill_observations``, ``skill_reward_values`` and ``skill_errors`` compute a step on a batch of worlds (one
+world: a batch of one) with the same bits for a world alone or in any batch; they are the specification of
+``skill_step``, which ``SIMSEnv`` calls each step (one world's step in one compiled call, the same bits:
+``tests/test_sims_skills.py``). ``walk_reward_terms`` and ``contact_reward_terms`` are one world's rewards.
 """
 
 from __future__ import annotations
