@@ -231,3 +231,35 @@ def test_a_generated_scene_carries_its_tiles_and_the_same_seed_the_same_scene():
         for q in range(a.tiles.shape[1]):
             r0, c0 = a.tiles.row_edges[p], a.tiles.col_edges[q]
             assert labels[r0, c0] == a.tiles.kinds[p, q]
+
+
+def test_a_scene_s_compiled_ground_reading_is_scene_height_at():
+    """PlaMoScene reads its heightmap compiled (``terrain.clamped_bilinear_at``): ``Scene.height_at``'s values
+    (``map_coordinates`` of order 1, the border continued) to 1e-15 m, inside the grid and beyond it."""
+    env = gym.make("PlaMoScene-v0")
+    env.reset(seed=3)
+    u = env.unwrapped
+    xy = np.random.default_rng(0).uniform(-9.0, 9.0, (20000, 2))
+    np.testing.assert_allclose(u.ground_height(xy), u.scene.height_at(xy), rtol=0, atol=1e-15)
+    heightmap = np.empty(u.heightmap_size ** 2)
+    state = u._read_state()
+    root, head = state.body_pos[0, 0], state.body_pos[0, 2]
+    under_root, under_head = u._terrain_samples(heightmap, root, 0.6, 0.8, head)
+    from stairenv.tasks.plamo import heightmap_offsets
+    gx, gy = heightmap_offsets(u.heightmap_size, u.heightmap_extent)
+    points = np.column_stack((root[0] + 0.6 * gx - 0.8 * gy, root[1] + 0.8 * gx + 0.6 * gy))
+    np.testing.assert_allclose(heightmap, u.scene.height_at(points) - root[2], rtol=0, atol=1e-15)
+    assert under_root == pytest.approx(float(u.scene.height_at(root[:2])), abs=1e-15)
+    assert under_head == pytest.approx(float(u.scene.height_at(head[:2])), abs=1e-15)
+    env.close()
+
+
+def test_a_ball_s_position_at_one_time_has_the_bits_of_the_array_form():
+    """``WaypointLoop.position`` of one float time (every step of PlaMoScene) runs on Python floats: the same
+    bits as the numpy form over an array of times."""
+    for seed in range(4):
+        scene = generate_scene(SceneConfig(), np.random.default_rng(seed))
+        for obstacle in scene.dynamic_obstacles:
+            times = np.random.default_rng(seed).uniform(0.0, 300.0, 2000)
+            one_by_one = np.array([obstacle.position(float(t)) for t in times])
+            np.testing.assert_array_equal(one_by_one, obstacle.position(times))

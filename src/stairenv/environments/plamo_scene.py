@@ -27,6 +27,7 @@ from stairenv.planning.replan import predict_collision, replan, wait_for_obstacl
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
 from stairenv.world.scenes import add_scene_to_spec, generate_scene, slalom_scene
+from stairenv.world.terrain import clamped_bilinear_heights
 
 LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
 PATH_DT = 0.1  # the followed path is sampled every 0.1 s
@@ -131,7 +132,20 @@ class PlaMoSceneEnv(PlaMoEnv):
         self._terrain_slots = self._terrain_view = None    # the scene's (``_build_scene``)
 
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
-        return self.scene.height_at(xy)
+        """The scene's ground (``Scene.height_at``'s bilinear reading, compiled)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        flat = np.ascontiguousarray(xy[..., :2].reshape(-1, 2))
+        scene = self.scene
+        out = clamped_bilinear_heights(scene.heights, scene.origin[0], scene.origin[1], scene.cell_size, flat,
+                                       np.empty(flat.shape[0]))
+        return out.reshape(xy.shape[:-1])
+
+    def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
+                         head: np.ndarray) -> tuple[float, float]:
+        """``PlaMoEnv``'s, compiled on the scene's height map."""
+        scene = self.scene
+        return task.write_grid_heightmap(out, scene.heights, scene.origin[0], scene.origin[1], scene.cell_size,
+                                         root, c, s, self.heightmap_size, self.heightmap_extent, head)
 
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:

@@ -109,3 +109,25 @@ def bilinear_heights(heights, size, xy, out):
     for p in range(xy.shape[0]):
         out[p] = bilinear_at(heights, size, xy[p, 0], xy[p, 1])
     return out
+
+
+@jit
+def clamped_bilinear_at(heights, x0, y0, cell, x, y):
+    """The height at (x, y) on a grid of cell-centre samples (sample (i, j) at x0 + (j + 0.5) cell,
+    y0 + (i + 0.5) cell; at least 2 x 2), bilinear between them and the border samples continued beyond
+    (``Scene.height_at``'s reading: ``map_coordinates`` of order 1, mode "nearest"; equal to ~1e-15 m)."""
+    rows, cols = heights.shape
+    u = min(max((x - x0) / cell - 0.5, 0.0), cols - 1.0)
+    v = min(max((y - y0) / cell - 0.5, 0.0), rows - 1.0)
+    j, i = min(int(math.floor(u)), cols - 2), min(int(math.floor(v)), rows - 2)
+    fu, fv = u - j, v - i
+    return ((1 - fv) * ((1 - fu) * heights[i, j] + fu * heights[i, j + 1])
+            + fv * ((1 - fu) * heights[i + 1, j] + fu * heights[i + 1, j + 1]))
+
+
+@jit
+def clamped_bilinear_heights(heights, x0, y0, cell, xy, out):
+    """``clamped_bilinear_at`` of each row of ``xy`` (P, 2) into ``out`` (P,); returns ``out``."""
+    for p in range(xy.shape[0]):
+        out[p] = clamped_bilinear_at(heights, x0, y0, cell, xy[p, 0], xy[p, 1])
+    return out
