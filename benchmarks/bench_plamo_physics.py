@@ -1,7 +1,7 @@
 """PlaMo's physics against InterLevel's, its env step against its physics, PlaMoScene's reset: ratios from one run.
 
     python benchmarks/bench_plamo_physics.py [--seeds 3] [--ground-steps 200] [--walk-steps 300] [--rounds 5]
-                                             [--env-steps 300] [--resets 30] [--json out.json]
+                                             [--env-seeds 8] [--env-steps 300] [--resets 30] [--json out.json]
 
 1. **Physics per step** (``mj_step`` x frame_skip, nothing else): the env's own model and a recorded state are
    copied, then the recorded ctrl is replayed on the copy. Cases: InterLevel-v0, and PlaMo-v0 on each terrain
@@ -319,7 +319,7 @@ def main() -> None:
     parser.add_argument("--ground-steps", type=int, default=200)
     parser.add_argument("--walk-steps", type=int, default=300)
     parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--env-seeds", type=int, default=3)
+    parser.add_argument("--env-seeds", type=int, default=8)
     parser.add_argument("--env-steps", type=int, default=300)
     parser.add_argument("--resets", type=int, default=30)
     parser.add_argument("--json", default=None)
