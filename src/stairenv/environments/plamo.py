@@ -41,7 +41,9 @@ class PlaMoEnv(HumanoidEnv):
     r"""Path following (PlaMo, Sec. 3.2): the head tracks a timed 3-D path over generated terrain.
 
     Every reset draws a terrain (``terrain``: flat, slope, rough, stairs or mixed
-    patches of 4 m, written into a height field) and a random head path from the
+    patches of 4 m; the task reads its height samples, the model holds it as tiles near
+    the character: the ground plane, stairs as boxes, a height field per slope or rough
+    patch, ``stairenv.world.tiles``, ``docs/terrain_layout.md``) and a random head path from the
     character's start: head heights first (smooth changes within ``head_range``),
     then speeds, coupled to the height as in PlaMo (``path_generator="coupled"``,
     v_max(z) = min(1 + 4 (z - 0.4) / 0.8, 5) m/s) or not (``"naive"``, the paper's
@@ -122,7 +124,7 @@ class PlaMoEnv(HumanoidEnv):
     given instead (keywords beside it must agree with it), and ``env.unwrapped.config`` is the resolved
     config. The table below is made from the config's fields.
 
-    **Memory bound**: the height field has ``terrain_size / terrain_cell_size + 1`` samples per side
+    **Memory bound**: the terrain has ``terrain_size / terrain_cell_size + 1`` height samples per side
     and may hold at most ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m
     or 20 m at 0.01 m; building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
     need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
