@@ -179,9 +179,9 @@ class TerrainSlots:
 
     A slot is one static body with ``max_boxes`` boxes and one height field of ``samples`` x ``samples``
     at ``cell_size`` (a stairs tile uses the boxes, a slope or rough tile the height field; what it does not
-    use waits ``PARK_DEPTH`` below it, shrunk). One body a slot, not one a geom: every body costs MuJoCo's
-    passes over bodies at every substep (measured on the ground: 24 one-geom bodies 18% of a step, 4 bodies
-    of 6 geoms under 2%). A slot is rewritten by its body's pose, its geoms' poses, sizes and bounding boxes,
+    use waits ``PARK_DEPTH`` below it, shrunk). One body a slot, not one a geom: every body is in MuJoCo's
+    passes over bodies at every substep (measured with four tiles of stairs around a character on the
+    ground: one body a box 7-10% of a step over the bare model, one body a slot 5-6%). A slot is rewritten by its body's pose, its geoms' poses, sizes and bounding boxes,
     its height-field samples and its bounding-volume hierarchy, recomputed from them (``_refit``).
 
     Call ``bind(model)`` after compiling. Per episode: ``set_terrain(model, tiles)`` (empties every slot),
