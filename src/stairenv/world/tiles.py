@@ -190,25 +190,26 @@ class TerrainSlots:
     """
 
     def __init__(self, spec: mujoco.MjSpec, samples: int, cell_size: float, max_boxes: int, slots: int = 4,
-                 field: bool = True, prefix: str = "terrain") -> None:
+                 field: bool = True, prefix: str = "terrain", material: str | None = None) -> None:
         self.samples, self.cell_size = int(samples), float(cell_size)
         self.max_boxes, self.field, self.prefix = int(max_boxes), bool(field), prefix
         # a terrain of flat tiles needs none (``for_kinds``)
         self.slots = int(slots) if (self.max_boxes or self.field) else 0
         half = 0.5 * (self.samples - 1) * self.cell_size
         self._half = half
+        look = {"material": material} if material else {"rgba": list(TERRAIN_RGBA)}
         for s in range(self.slots):
             body = spec.worldbody.add_body(name=f"{prefix}{s}", pos=[0.0, 0.0, 0.0])
             for b in range(self.max_boxes):
                 body.add_geom(name=f"{prefix}{s}_box{b}", type=mujoco.mjtGeom.mjGEOM_BOX, size=_PARKED_HALF.tolist(),
-                              pos=[0.0, 0.0, -PARK_DEPTH], rgba=list(TERRAIN_RGBA), condim=3)
+                              pos=[0.0, 0.0, -PARK_DEPTH], condim=3, **look)
             if self.field:
                 name = f"{prefix}{s}_field"
                 spec.add_hfield(name=name, nrow=self.samples, ncol=self.samples,
                                 size=[half, half, _PARKED_TOP, HFIELD_BASE],
                                 userdata=np.zeros(self.samples ** 2).tolist())
                 body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name,
-                              pos=[0.0, 0.0, -PARK_DEPTH], rgba=list(TERRAIN_RGBA), condim=3)
+                              pos=[0.0, 0.0, -PARK_DEPTH], condim=3, **look)
         self._ids = None
         self.tiles: TerrainTiles | None = None
         self._slot_tile: list[tuple[int, int] | None] = [None] * self.slots
@@ -419,7 +420,7 @@ class TerrainView:
     draws over it where it is held."""
 
     def __init__(self, spec: mujoco.MjSpec, rows: int, cols: int, cell_size: float, name: str = "terrain_view",
-                 max_height: float = 2.0) -> None:
+                 max_height: float = 2.0, material: str | None = None) -> None:
         self.rows, self.cols, self.cell_size, self.name = int(rows), int(cols), float(cell_size), name
         self.max_height = float(max_height)
         spec.add_hfield(name=name, nrow=self.rows, ncol=self.cols,
@@ -427,8 +428,9 @@ class TerrainView:
                               self.max_height, 0.05],
                         userdata=np.zeros(self.rows * self.cols).tolist())
         body = spec.worldbody.add_body(name=name, pos=[0.0, 0.0, -0.002])
-        body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name, rgba=list(TERRAIN_RGBA),
-                      contype=0, conaffinity=0)
+        look = {"material": material} if material else {"rgba": list(TERRAIN_RGBA)}
+        body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname=name, contype=0, conaffinity=0,
+                      **look)
         self._adr = None
 
     def bind(self, model: mujoco.MjModel) -> None:

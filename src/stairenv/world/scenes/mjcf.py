@@ -189,10 +189,13 @@ def add_scene_to_spec(spec: mujoco.MjSpec, scene: Scene, *, prefix: str = "scene
         max_boxes = max((len(h) for _, h, _ in tiled.boxes.values()), default=0) if boxes else 0
         terrain_slots = TerrainSlots(spec, tiled.tile_samples, c, max_boxes,
                                      min(tiled.max_tiles_near(FOCUS_RADIUS), tiled.kinds.size), field,
-                                     prefix=f"{prefix}_tile")
+                                     prefix=f"{prefix}_tile", material=f"{prefix}_ground")
         if view:
             terrain_view = TerrainView(spec, rows, cols, c, name=f"{prefix}_view",
-                                       max_height=max(float(scene.heights.max()), 1e-3))
+                                       max_height=max(float(scene.heights.max()), 1e-3), material=f"{prefix}_ground")
+        for geom in spec.worldbody.geoms:    # the flat ground is the plane: drawn as the scene's ground
+            if geom.type == mujoco.mjtGeom.mjGEOM_PLANE:
+                geom.material = f"{prefix}_ground"
     else:
         hfield_name = terrain_geom_name = f"{prefix}_terrain"
         hfield = spec.add_hfield(name=hfield_name, nrow=rows + 2, ncol=cols + 2,
