@@ -16,6 +16,8 @@ CASES = {
     "bench_amp": ["--steps", "20", "--rounds", "1", "--n-envs", "2", "--variants", "small,paper-bg,paper-par-bg"],
     "bench_amp_batch": ["--dummy-n", "2", "--batched-n", "2", "--transitions", "8", "--rounds", "1", "--train", "off"],
     "bench_step": ["--steps", "40", "--rounds", "1", "--resets", "4"],
+    "bench_plamo_physics": ["--seeds", "1", "--ground-steps", "10", "--walk-steps", "10", "--rounds", "1",
+                            "--env-seeds", "1", "--env-steps", "10", "--resets", "2"],
     "bench_sims": ["--steps", "40", "--rounds", "1", "--resets", "3"],
     "bench_planning": ["--rounds", "1", "--no-nx-full", "--crop", "60"],
     "bench_retrieval": ["--rooms", "20", "--stories", "1"],

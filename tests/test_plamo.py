@@ -14,7 +14,8 @@ import stairenv  # noqa: F401
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.humanoid import HumanoidIndices
 from stairenv.tasks import plamo as task
-from stairenv.world.terrain import HeightfieldSlot, bilinear_height, terrain_heights
+from stairenv.world.terrain import MAX_STAIRS_LEVELS, bilinear_height, terrain_heights, terrain_tiles
+from stairenv.world.tiles import TerrainSlots
 
 
 @pytest.mark.parametrize("env_id", ["PlaMo-v0", "PlaMoNaivePaths-v0"])
@@ -151,29 +152,33 @@ def test_unstable_physics_truncates():
 
 
 @pytest.mark.parametrize("kind", ["stairs", "slope", "mixed"])
-def test_height_field_matches_the_height_array(kind):
-    """A sphere dropped on the written height field rests at the array's height there."""
+def test_terrain_tiles_hold_the_height_array(kind):
+    """A sphere dropped on the terrain's tiles (the plane at 0, stairs boxes, slope and rough height fields,
+    brought in under it by ``focus``) rests at the array's height there."""
     spec = mujoco.MjSpec()
-    slot = HeightfieldSlot(spec, 16.0, 0.1)
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.1])
+    tiles = terrain_tiles(kind, np.random.default_rng(4))
+    slots = TerrainSlots(spec, tiles.tile_samples, tiles.cell_size, MAX_STAIRS_LEVELS, 4)
     body = spec.worldbody.add_body(name="ball", pos=[0, 0, 3])
     body.add_freejoint()
     body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0])
     model = spec.compile()
     data = mujoco.MjData(model)
-    slot.bind(model)
+    slots.bind(model)
+    slots.set_terrain(model, tiles)
+    heights = tiles.heights
     rng = np.random.default_rng(4)
-    heights = terrain_heights(kind, rng)
-    slot.write(model, heights)
     # Probe flat spots (treads, plateaus, floor): where the 3x3 neighbourhood is level.
     n = heights.shape[0]
     checked = 0
     for i, j in rng.integers(2, n - 2, (400, 2)):
-        if np.ptp(heights[i - 1:i + 2, j - 1:j + 2]) > 1e-9 or checked >= 5:
+        if np.ptp(heights[i - 1:i + 2, j - 1:j + 2]) > 1e-9 or checked >= 6:
             continue
         xy = np.array([-8.0 + 0.1 * j, -8.0 + 0.1 * i])
         mujoco.mj_resetData(model, data)
         data.qpos[:3] = [*xy, heights[i, j] + 0.3]
         for _ in range(300):
+            slots.focus(model, data.qpos[:2])
             mujoco.mj_step(model, data)
         assert data.qpos[2] - 0.05 == pytest.approx(bilinear_height(heights, 16.0, xy), abs=0.01)
         checked += 1

@@ -234,8 +234,8 @@ def _locomotion(value) -> Locomotion:
 
 @checked_config
 class PlaMoTerrain:
-    """The height field: its kind, size and resolution ([2, 200] and [0.01, 1] m, checked by
-    ``HeightfieldSlot``), at most ``MAX_TERRAIN_CELLS`` samples (checked first: it allocates)."""
+    """The terrain: its kind, size and resolution of its height samples ([2, 200] and [0.01, 1] m, checked
+    when the env builds its model), at most ``MAX_TERRAIN_CELLS`` samples (checked first: it allocates)."""
 
     kind: str = checked("mixed", Check("choice", options=TERRAIN_KINDS, keyword="terrain"),
                         '"flat", "slope", "rough", "stairs" or "mixed"')

@@ -21,7 +21,9 @@ from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest
 from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
-from stairenv.world.terrain import HeightfieldSlot, bilinear_height, terrain_heights
+from stairenv.validation import check_number
+from stairenv.world.terrain import MAX_STAIRS_LEVELS, MAX_TERRAIN_HEIGHT, bilinear_height, terrain_tiles
+from stairenv.world.tiles import FOCUS_RADIUS, TILE_KINDS, TerrainSlots, TerrainView, slot_contents
 
 # The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
 HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
@@ -39,7 +41,9 @@ class PlaMoEnv(HumanoidEnv):
     r"""Path following (PlaMo, Sec. 3.2): the head tracks a timed 3-D path over generated terrain.
 
     Every reset draws a terrain (``terrain``: flat, slope, rough, stairs or mixed
-    patches of 4 m, written into a height field) and a random head path from the
+    patches of 4 m; the task reads its height samples, the model holds it as tiles near
+    the character: the ground plane, stairs as boxes, a height field per slope or rough
+    patch, ``stairenv.world.tiles``, ``docs/terrain_layout.md``) and a random head path from the
     character's start: head heights first (smooth changes within ``head_range``),
     then speeds, coupled to the height as in PlaMo (``path_generator="coupled"``,
     v_max(z) = min(1 + 4 (z - 0.4) / 0.8, 5) m/s) or not (``"naive"``, the paper's
@@ -120,7 +124,7 @@ class PlaMoEnv(HumanoidEnv):
     given instead (keywords beside it must agree with it), and ``env.unwrapped.config`` is the resolved
     config. The table below is made from the config's fields.
 
-    **Memory bound**: the height field has ``terrain_size / terrain_cell_size + 1`` samples per side
+    **Memory bound**: the terrain has ``terrain_size / terrain_cell_size + 1`` height samples per side
     and may hold at most ``MAX_TERRAIN_CELLS`` = 2001^2 (about 4 million) samples, e.g. 200 m at 0.1 m
     or 20 m at 0.01 m; building it costs ~52 bytes a sample, ~200 MB at the bound. A larger grid (200 m at 0.01 m would
     need ~20 GB) raises ``ValueError`` naming both keywords and the memory it would need.
@@ -192,24 +196,53 @@ class PlaMoEnv(HumanoidEnv):
 
     # --- terrain --------------------------------------------------------------
     def _build_initial_world(self, pd_gains: str, terrain_size: float, terrain_cell_size: float) -> None:
-        """The model, with a height field that every reset rewrites."""
+        """The model: the terrain's tile slots (``stairenv.world.tiles``) on the humanoid's ground plane, and
+        (to render) the whole terrain drawn as a height field that touches nothing; every reset rewrites them."""
+        self._terrain_size = check_number("terrain_size", terrain_size, 2.0, 200.0)
+        self._terrain_cell_size = check_number("terrain_cell_size", terrain_cell_size, 0.01, 1.0)
         spec = load_humanoid_spec(pd_gains)
-        self._terrain_slot = HeightfieldSlot(spec, terrain_size, terrain_cell_size)
+        self._tiles = terrain_tiles("flat", np.random.default_rng(0), self._terrain_size, self._terrain_cell_size)
+        n = self._tiles.heights.shape[0]
+        # slots for the tiles within reach, holding what this env's terrain kind needs (none on flat ground)
+        boxes, field = slot_contents(TILE_KINDS if self.terrain == "mixed" else (self.terrain,))
+        self._terrain_slots = TerrainSlots(spec, self._tiles.tile_samples, self._tiles.cell_size,
+                                           MAX_STAIRS_LEVELS if boxes else 0,
+                                           min(self._tiles.max_tiles_near(FOCUS_RADIUS), self._tiles.kinds.size), field)
+        # what a film shows of the terrain beyond the slots (the slots' geoms draw over it); not built
+        # without a render mode: a body that no contact needs still costs every substep a little
+        self._terrain_view = None if self.render_mode is None else TerrainView(
+            spec, n, n, self._tiles.cell_size, max_height=MAX_TERRAIN_HEIGHT)
         self._compile(spec)
-        self._terrain_slot.bind(self.model)
-        self._heights = np.zeros((self._terrain_slot.n, self._terrain_slot.n))
+        self._terrain_slots.bind(self.model)
+        self._terrain_slots.set_terrain(self.model, self._tiles)
+        if self._terrain_view is not None:
+            self._terrain_view.bind(self.model)
+        self._heights = self._tiles.heights
 
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
-        return bilinear_height(self._heights, self._terrain_slot.size, xy)
+        return bilinear_height(self._heights, self._terrain_size, xy)
 
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         if self.speed_levels:
             # options={"episode_cut": True}: the episode in progress was cut short (a trainer's checkpoint)
             self._judge_speed_level(judge_last=not (options or {}).get("episode_cut", False))
-        self._heights = terrain_heights(self.terrain, rng, self._terrain_slot.size, self._terrain_slot.cell_size)
-        self._terrain_slot.write(self.model, self._heights)
+        self._tiles = terrain_tiles(self.terrain, rng, self._terrain_size, self._terrain_cell_size)
+        self._heights = self._tiles.heights
+        self._terrain_slots.set_terrain(self.model, self._tiles)
+        if self._terrain_view is not None:
+            self._terrain_view.write(self.model, self._heights, self._tiles.origin)
         self._terrain_dirty = True
+
+    def _focus_terrain(self, xy) -> None:
+        """The terrain's tiles within reach of ``xy`` (the root) in the model's slots (where it has them)."""
+        if self._terrain_slots is not None:
+            self._terrain_slots.focus(self.model, xy)
+
+    def _before_physics(self) -> None:
+        """The tiles the character can reach during this step in the model (a new one as it comes near)."""
+        if self._terrain_slots is not None:
+            self._terrain_slots.focus(self.model, self.data.qpos[:2])
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         start = rng.uniform(-1.0, 1.0, 2)
@@ -222,6 +255,7 @@ class PlaMoEnv(HumanoidEnv):
             self._draw_path(rng)
             kind = nearest_locomotion(float(self.path.head[0]), float(self.path.speed[0]), self._starts_by_locomotion)
             reference = self._reference_pose(rng, self._starts_by_locomotion[kind])
+        self._focus_terrain(start)
         self._place_at(start, heading, reference, self._floor_under(start))
         return reference is not None
 
@@ -292,7 +326,7 @@ class PlaMoEnv(HumanoidEnv):
         by_locomotion = self.speed_levels_by_locomotion and self.curriculum_level is not None
         self.path = task.random_head_path(
             self.episode_path_config(), rng, self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0, start, heading,
-            self.ground_height, arena_half=self._terrain_slot.size / 2 - 1.5,
+            self.ground_height, arena_half=self._terrain_size / 2 - 1.5,
             scale_speeds=self._locomotion_speed_scales if by_locomotion else None,
         )
 
@@ -420,7 +454,7 @@ class PlaMoEnv(HumanoidEnv):
         height) written to ``out``, and the terrain height under the root and under ``head``: compiled on
         this env's height field, else (a subclass's own ``ground_height``) one ``ground_height`` call."""
         if type(self).ground_height is PlaMoEnv.ground_height:
-            return task.write_terrain_heightmap(out, self._heights, self._terrain_slot.size, root, c, s,
+            return task.write_terrain_heightmap(out, self._heights, self._terrain_size, root, c, s,
                                                 self.heightmap_size, self.heightmap_extent, head)
         if getattr(self, "_heightmap_offsets", None) is None:
             self._heightmap_offsets = task.heightmap_offsets(self.heightmap_size, self.heightmap_extent)
@@ -439,12 +473,18 @@ class PlaMoEnv(HumanoidEnv):
 
     # --- rendering ----------------------------------------------------------
     def render(self):
-        # A renderer made now uploads the current height field itself; an existing one
-        # still holds the previous episode's terrain.
-        if self._terrain_dirty and self._camera is not None:
-            mujoco.mjr_uploadHField(self.model, self._camera.renderer._mjr_context,
-                                    self.model.hfield(self._terrain_slot.name).id)
+        # A renderer made now uploads the height fields itself; an existing one still holds what they
+        # held when it last drew (the previous episode's terrain, the tiles the slots held then).
+        slots, view = self._terrain_slots, self._terrain_view
+        if self._camera is not None:
+            context = self._camera.renderer._mjr_context
+            if self._terrain_dirty and view is not None:
+                mujoco.mjr_uploadHField(self.model, context, view.hfield_id)
+            for hfield in (slots.dirty if slots is not None else ()):
+                mujoco.mjr_uploadHField(self.model, context, hfield)
         self._terrain_dirty = False
+        if slots is not None:
+            slots.dirty.clear()
         return super().render()
 
     def _render_lines(self) -> tuple:

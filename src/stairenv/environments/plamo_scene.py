@@ -27,6 +27,7 @@ from stairenv.planning.replan import predict_collision, replan, wait_for_obstacl
 from stairenv.planning.waypoints import Trajectory
 from stairenv.tasks import plamo as task
 from stairenv.world.scenes import add_scene_to_spec, generate_scene, slalom_scene
+from stairenv.world.terrain import clamped_bilinear_heights
 
 LOCOMOTION_VERBS = {"crawl": "crawl", "crouch-walk": "crouch", "walk": "walk", "run": "run"}
 PATH_DT = 0.1  # the followed path is sampled every 0.1 s
@@ -128,9 +129,23 @@ class PlaMoSceneEnv(PlaMoEnv):
         """Nothing yet: the first ``reset`` builds the scene (its model); the time step is the humanoid's."""
         self._pd_gains = pd_gains
         self.dt = load_humanoid_spec(pd_gains).option.timestep * self.frame_skip
+        self._terrain_slots = self._terrain_view = None    # the scene's (``_build_scene``)
 
     def ground_height(self, xy: np.ndarray) -> np.ndarray:
-        return self.scene.height_at(xy)
+        """The scene's ground (``Scene.height_at``'s bilinear reading, compiled)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        flat = np.ascontiguousarray(xy[..., :2].reshape(-1, 2))
+        scene = self.scene
+        out = clamped_bilinear_heights(scene.heights, scene.origin[0], scene.origin[1], scene.cell_size, flat,
+                                       np.empty(flat.shape[0]))
+        return out.reshape(xy.shape[:-1])
+
+    def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
+                         head: np.ndarray) -> tuple[float, float]:
+        """``PlaMoEnv``'s, compiled on the scene's height map."""
+        scene = self.scene
+        return task.write_grid_heightmap(out, scene.heights, scene.origin[0], scene.origin[1], scene.cell_size,
+                                         root, c, s, self.heightmap_size, self.heightmap_extent, head)
 
     # --- episode ------------------------------------------------------------
     def _build_world(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
@@ -181,6 +196,7 @@ class PlaMoSceneEnv(PlaMoEnv):
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Standing at the route's start, facing along it; the scene's moving obstacles at time 0."""
         self._scene_handles.update(self.model, self.data, 0.0)
+        self._focus_terrain(self._start_xy)
         self._place_at(self._start_xy, float(self.path.yaw[0]), None, self._floor_under(self._start_xy))
         return False
 
@@ -188,7 +204,9 @@ class PlaMoSceneEnv(PlaMoEnv):
         """Nothing: the route is planned with the world (the start depends on it)."""
 
     def _before_physics(self) -> None:
-        """Move the obstacles; every ``replan_every`` seconds replan around them."""
+        """The terrain's tiles within reach (``PlaMoEnv``'s), move the obstacles; every ``replan_every`` seconds
+        replan around them."""
+        super()._before_physics()
         self._scene_handles.update(self.model, self.data, self.data.time)
         if self._steps % max(int(round(self.replan_every / self.dt)), 1) == 0:
             self._maybe_replan(self._steps * self.dt)
@@ -237,9 +255,13 @@ class PlaMoSceneEnv(PlaMoEnv):
             raise RuntimeError(f"scene (the keyword: size {config.size}, num_landmarks {config.num_landmarks}, "
                                f"landmark_separation {config.landmark_separation:g}): {error}") from None
         spec = load_humanoid_spec(self._pd_gains)
-        self._scene_handles = add_scene_to_spec(spec, self.scene)
+        # the terrain as tiles (stairs boxes, a height field per slope or rough patch, near the character),
+        # drawn whole only when it renders
+        self._scene_handles = add_scene_to_spec(spec, self.scene, tiles=True, view=self.render_mode is not None)
         self._compile(spec)
         self._scene_handles.bind(self.model)
+        self._terrain_slots, self._terrain_view = self._scene_handles.terrain_slots, self._scene_handles.terrain_view
+        self._terrain_dirty = False    # a renderer made for this model uploads its height fields itself
         self._camera_distance, self._camera_elevation = 7.0, -30.0
         self._planner = Planner(self.scene.planning_grid(cell_size=0.1))
 

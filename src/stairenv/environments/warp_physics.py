@@ -49,10 +49,12 @@ back-end (``info["physics_unstable"]``), while its speed check catches the rest.
 Which ids: InterLevel-v0 and its ablations (InterLevel2D-v0, InterSceneStairs-v0): one model structure
 for every world, only box sizes and poses per world. Not supported, refused with a ``ValueError``:
 
-- PlaMo (PlaMo-v0, PlaMoNaivePaths-v0, PlaMoScene-v0): each world's terrain is a height field rewritten
-  at every reset (``HeightfieldSlot``), and MuJoCo Warp has no per-world height-field data (``hfield_data``
-  is shared by all worlds). It would take per-world height fields in MuJoCo Warp, or terrain made of boxes
-  (as the staircase is) with the same number of boxes in every world.
+- PlaMo (PlaMo-v0, PlaMoNaivePaths-v0, PlaMoScene-v0): each world's terrain is held in tile slots
+  (``stairenv.world.tiles.TerrainSlots``: boxes for stairs, whose poses and sizes could be per-world fields
+  as the treads' are, and a height field per slope or rough tile, rewritten per world), and MuJoCo Warp has
+  no per-world height-field data (``hfield_data`` is shared by all worlds). It would take routing each
+  world's slot height fields to height-field assets of its own (a per-world ``geom_dataid``,
+  ``docs/terrain_layout.md``).
 - SIMS (the five SIMS-* skills): each reset builds a room of furniture bodies and recompiles the model,
   so the worlds differ in their number of bodies and geoms, which one Warp model cannot hold. It would
   take a fixed set of furniture slots (parked bodies with convex parts resized per world, as
@@ -83,10 +85,10 @@ _CONTACTFULL = int(mujoco.mjtWarning.mjWARN_CONTACTFULL)
 
 #: why each unsupported env class is refused (see the module docstring)
 UNSUPPORTED = {
-    "PlaMoEnv": "PlaMo rewrites a per-world height field at every reset and MuJoCo Warp has no per-world "
-                "height-field data",
-    "PlaMoSceneEnv": "PlaMo scenes rewrite a per-world height field at every reset and MuJoCo Warp has no "
-                     "per-world height-field data",
+    "PlaMoEnv": "PlaMo rewrites per-world height fields (its slope and rough tiles) at every reset and MuJoCo "
+                "Warp has no per-world height-field data",
+    "PlaMoSceneEnv": "PlaMo scenes rewrite per-world height fields (their slope and rough tiles) at every reset "
+                     "and MuJoCo Warp has no per-world height-field data",
     "SIMSEnv": "SIMS builds each world's furniture as bodies and recompiles the model at every reset, so "
                "worlds differ in their bodies and geoms, which one MuJoCo Warp model cannot hold",
 }

@@ -35,7 +35,7 @@ import numpy as np
 from stairenv.numba_jit import jit
 from stairenv.tasks.terms import RewardTerm, term_names, weighted_terms, weighted_values
 from stairenv.validation import check_number, check_range
-from stairenv.world.terrain import bilinear_at
+from stairenv.world.terrain import bilinear_at, clamped_bilinear_at
 
 Z_MIN, Z_KNEE, V_MAX = 0.4, 1.2, 5.0
 C_POS, C_HEIGHT, C_DIR, C_BODY = 2.0, 10.0, 20.0, 0.1
@@ -311,3 +311,21 @@ def write_terrain_heightmap(out, heights, terrain_size, root, c, s, size, extent
             out[k] = bilinear_at(heights, terrain_size, x, y) - root[2]
             k += 1
     return bilinear_at(heights, terrain_size, root[0], root[1]), bilinear_at(heights, terrain_size, head[0], head[1])
+
+
+@jit
+def write_grid_heightmap(out, heights, x0, y0, cell, root, c, s, size, extent, head):
+    """``write_terrain_heightmap`` on a grid of cell-centre samples read by ``terrain.clamped_bilinear_at``
+    (a scene's height map, ``Scene.height_at``'s reading): the heightmap written to ``out``, and the terrain
+    height under the root and under ``head``, returned."""
+    k = 0
+    for a in range(size):
+        gy = (a + 0.5) / size * extent - extent / 2
+        for b in range(size):
+            gx = (b + 0.5) / size * extent - extent / 2
+            x = root[0] + c * gx - s * gy
+            y = root[1] + s * gx + c * gy
+            out[k] = clamped_bilinear_at(heights, x0, y0, cell, x, y) - root[2]
+            k += 1
+    return (clamped_bilinear_at(heights, x0, y0, cell, root[0], root[1]),
+            clamped_bilinear_at(heights, x0, y0, cell, head[0], head[1]))

@@ -19,10 +19,11 @@ from stairenv.world.scenes.patches import (
     RoughPatchConfig,
     SlopePatchConfig,
     StairsPatchConfig,
-    generate_patch,
+    generate_patch_shape,
 )
 from stairenv.world.scenes.reachability import connected_free_space
 from stairenv.world.scenes.shapes import Box, check_floats, check_int_range, check_integer, yaw_axes
+from stairenv.world.tiles import TerrainTiles, stairs_boxes
 
 
 # --- random scenes -------------------------------------------------------------------------------
@@ -380,13 +381,18 @@ def generate_scene(config: SceneConfig, rng: np.random.Generator) -> Scene:
     heights = np.zeros((rows, cols))
     labels = np.zeros((rows, cols), dtype=np.uint8)
     flat_patch_rects: list[tuple[float, float, float, float]] = []
+    stairs = {}
     for pi in range(patches_y):
         for pj in range(patches_x):
             r0, r1, c0, c1 = row_edges[pi], row_edges[pi + 1], col_edges[pj], col_edges[pj + 1]
             kind = int(kinds[pi, pj])
-            heights[r0:r1, c0:c1] = generate_patch(config.patch_configs[kind], rng, shape=(r1 - r0, c1 - c0),
-                                                   cell_size=c)
+            heights[r0:r1, c0:c1], shape = generate_patch_shape(config.patch_configs[kind], rng,
+                                                                shape=(r1 - r0, c1 - c0), cell_size=c)
             labels[r0:r1, c0:c1] = kind
+            if TERRAIN_KINDS[kind] == "stairs":
+                boxes = stairs_boxes(shape, (origin[0] + 0.5 * (c0 + c1) * c, origin[1] + 0.5 * (r0 + r1) * c))
+                if boxes is not None:
+                    stairs[pi, pj] = boxes
             if kind == 0:
                 flat_patch_rects.append((origin[0] + c0 * c, origin[0] + c1 * c, origin[1] + r0 * c, origin[1] + r1 * c))
 
@@ -407,8 +413,12 @@ def generate_scene(config: SceneConfig, rng: np.random.Generator) -> Scene:
         balls = _place_balls(config, rng, scene, grid, region, to_wall)
         if balls is None:
             continue
+        # the terrain as tiles (``stairenv.world.tiles``): sample (i, j) is cell (i, j)'s centre, a tile
+        # spans its patch's cells and the next patch's first ones
+        tiles = TerrainTiles(heights, (origin[0] + 0.5 * c, origin[1] + 0.5 * c), c, row_edges, col_edges,
+                             kinds.astype(np.uint8), stairs, outside="edge")
         return Scene(heights, c, origin, walls=walls, ceilings=slabs, dynamic_obstacles=balls,
-                     landmarks=landmarks, terrain_labels=labels)
+                     landmarks=landmarks, terrain_labels=labels, tiles=tiles)
     raise RuntimeError(
         f"generate_scene: no room for {config.num_landmarks} landmarks (or the balls) after "
         f"{config.max_attempts} attempts; use a larger size, more flat patches, fewer walls, "

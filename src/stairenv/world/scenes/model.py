@@ -114,6 +114,7 @@ class Scene:
     | dynamic_obstacles | moving balls (``DynamicObstacle``) with predictable motion |
     | landmarks | named goal regions (``Landmark``), names unique |
     | terrain_labels | optional (H, W) uint8: index into ``TERRAIN_KINDS`` of the patch each cell belongs to |
+    | tiles | optional ``stairenv.world.tiles.TerrainTiles``: the terrain as its patches (kinds, stairs boxes), which ``add_scene_to_spec`` builds the collision model from; set by ``generate_scene``, not compared, not saved (a loaded scene's terrain is one height field) |
 
     ``Scene`` compares by value (``==``), arrays included.
     """
@@ -126,6 +127,7 @@ class Scene:
     dynamic_obstacles: list[DynamicObstacle] = field(default_factory=list)
     landmarks: list[Landmark] = field(default_factory=list)
     terrain_labels: np.ndarray | None = None
+    tiles: Any = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         self.heights = np.array(self.heights, dtype=np.float64)

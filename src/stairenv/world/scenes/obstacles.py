@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import abc
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
@@ -122,6 +123,8 @@ class WaypointLoop(MotionModel):
     kind: ClassVar[str] = "waypoint_loop"
     _points: np.ndarray = field(init=False, repr=False, compare=False)
     _cumulative: np.ndarray = field(init=False, repr=False, compare=False)
+    _points_list: list = field(init=False, repr=False, compare=False)
+    _cumulative_list: list = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         try:
@@ -142,6 +145,8 @@ class WaypointLoop(MotionModel):
             raise ValueError("waypoints must not all coincide (the loop has zero length)")
         object.__setattr__(self, "_points", closed)
         object.__setattr__(self, "_cumulative", np.concatenate(([0.0], np.cumsum(lengths))))
+        object.__setattr__(self, "_points_list", closed.tolist())
+        object.__setattr__(self, "_cumulative_list", self._cumulative.tolist())
 
     @classmethod
     def back_and_forth(cls, path: Sequence[Sequence[float]], speed: float, phase: float = 0.0) -> WaypointLoop:
@@ -160,11 +165,26 @@ class WaypointLoop(MotionModel):
         return k, s
 
     def position(self, t: float | np.ndarray) -> np.ndarray:
+        if isinstance(t, float):    # one time (the env's every step): the same operations on Python floats
+            return np.array(self._position_at(t))
         k, s = self._segment(t)
         start, end = self._points[k], self._points[k + 1]
         seg = np.maximum(self._cumulative[k + 1] - self._cumulative[k], 1e-12)
         frac = ((s - self._cumulative[k]) / seg)[..., None]
         return start + frac * (end - start)
+
+    def _position_at(self, t: float) -> tuple[float, float, float]:
+        """``position`` at one time, its numpy operations done on Python floats (``%`` is ``np.mod``'s
+        remainder, ``bisect_right`` the clipped ``searchsorted``): the same bits, ~10x faster."""
+        cumulative, points = self._cumulative_list, self._points_list
+        length = cumulative[-1]
+        s = (self.phase * length + self.speed * t) % length
+        k = min(max(bisect.bisect_right(cumulative, s) - 1, 0), len(points) - 2)
+        start, end = points[k], points[k + 1]
+        seg = max(cumulative[k + 1] - cumulative[k], 1e-12)
+        frac = (s - cumulative[k]) / seg
+        return (start[0] + frac * (end[0] - start[0]), start[1] + frac * (end[1] - start[1]),
+                start[2] + frac * (end[2] - start[2]))
 
     def velocity_at(self, t: float | np.ndarray) -> np.ndarray:
         k, _ = self._segment(t)

@@ -1,5 +1,7 @@
 """Terrain patch generators, pure functions of (config, rng): ``flat_patch``, ``slope_patch``,
-``rough_patch``, ``stairs_patch``; ``generate_patch`` dispatches on the config's type."""
+``rough_patch``, ``stairs_patch``; ``generate_patch`` dispatches on the config's type. The ``*_shape``
+forms also return what was drawn (``StairsShape``, ``SlopeShape``), from which the terrain's collision
+geometry is built (``stairenv.world.terrain``: stairs as boxes)."""
 
 from __future__ import annotations
 
@@ -133,9 +135,54 @@ def _patch_xy(shape: tuple[int, int], cell_size: float) -> tuple[np.ndarray, np.
     return tuple(grid)
 
 
-def _fitted_footprint_depth(rng: np.random.Generator, shape: tuple[int, int], cell_size: float,
-                            border: float, aspect: tuple[float, float]) -> np.ndarray:
-    """How far each cell centre lies inside a random rotated rectangle (negative outside).
+@dataclass(frozen=True)
+class Footprint:
+    """A patch's feature footprint: a rectangle centred on the patch, its long side along ``yaw``
+    (``u`` = x cos(yaw) + y sin(yaw) in the patch frame), half sides ``half_long`` (along u) and
+    ``half_short``."""
+
+    yaw: float
+    half_long: float
+    half_short: float
+
+
+@dataclass(frozen=True)
+class StairsShape:
+    """What ``stairs_patch`` drew: level k (1..``num_steps``) is the footprint shrunk by (k - 1) ``tread``
+    on every side, ``k step_height`` high (a solid box from 0). ``footprint`` None: no room, no stairs."""
+
+    footprint: Footprint | None
+    step_height: float
+    tread: float
+    num_steps: int
+
+    def levels(self) -> list[tuple[float, float, float]]:
+        """(half_long, half_short, top) of each level's box, bottom level first (empty levels left out)."""
+        if self.footprint is None:
+            return []
+        out = []
+        for k in range(1, self.num_steps + 1):
+            inset = (k - 1) * self.tread
+            half_long, half_short = self.footprint.half_long - inset, self.footprint.half_short - inset
+            if half_long <= 0.0 or half_short <= 0.0:
+                break
+            out.append((half_long, half_short, k * self.step_height))
+        return out
+
+
+@dataclass(frozen=True)
+class SlopeShape:
+    """What ``slope_patch`` drew: a hill rising at ``angle`` (rad) from the footprint's edge to a
+    plateau ``height`` high (``footprint`` None: no room, no hill)."""
+
+    footprint: Footprint | None
+    angle: float
+    height: float
+
+
+def _fitted_footprint(rng: np.random.Generator, shape: tuple[int, int], cell_size: float,
+                      border: float, aspect: tuple[float, float]) -> tuple[np.ndarray, Footprint | None]:
+    """How far each cell centre lies inside a random rotated rectangle (negative outside), and the rectangle.
 
     The rectangle has a random yaw and aspect ratio and is the largest such that fits
     ``border`` inside the patch, centred on it. Depth = min(hu - |u|, hv - |v|), which grows
@@ -147,13 +194,13 @@ def _fitted_footprint_depth(rng: np.random.Generator, shape: tuple[int, int], ce
     room_x = 0.5 * shape[1] * cell_size - border
     room_y = 0.5 * shape[0] * cell_size - border
     if room_x <= 0.0 or room_y <= 0.0:
-        return np.full(shape, -1.0)
+        return np.full(shape, -1.0), None
     c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
     half_long = min(room_x / (c + ratio * s), room_y / (s + ratio * c))
     half_short = ratio * half_long
     u = x * math.cos(yaw) + y * math.sin(yaw)
     v = -x * math.sin(yaw) + y * math.cos(yaw)
-    return np.minimum(half_long - np.abs(u), half_short - np.abs(v))
+    return np.minimum(half_long - np.abs(u), half_short - np.abs(v)), Footprint(yaw, half_long, half_short)
 
 
 def flat_patch(config: FlatPatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
@@ -165,11 +212,17 @@ def flat_patch(config: FlatPatchConfig, rng: np.random.Generator, *, shape: tupl
 def slope_patch(config: SlopePatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
                 cell_size: float) -> np.ndarray:
     """Heights (m) of a hill with inclines of a random angle (see ``SlopePatchConfig``); in [0, height]."""
+    return slope_patch_shape(config, rng, shape=shape, cell_size=cell_size)[0]
+
+
+def slope_patch_shape(config: SlopePatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
+                      cell_size: float) -> tuple[np.ndarray, SlopeShape]:
+    """``slope_patch``'s heights (the same draws, the same bits) and the hill they sample."""
     shape = _check_patch_shape(shape, cell_size)
     angle = math.radians(rng.uniform(*config.angle_deg))
     height = rng.uniform(*config.height)
-    depth = _fitted_footprint_depth(rng, shape, cell_size, config.border, config.aspect)
-    return np.minimum(height, math.tan(angle) * np.maximum(depth, 0.0))
+    depth, footprint = _fitted_footprint(rng, shape, cell_size, config.border, config.aspect)
+    return np.minimum(height, math.tan(angle) * np.maximum(depth, 0.0)), SlopeShape(footprint, angle, height)
 
 
 def rough_patch(config: RoughPatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
@@ -194,20 +247,34 @@ def stairs_patch(config: StairsPatchConfig, rng: np.random.Generator, *, shape: 
                  cell_size: float) -> np.ndarray:
     """Heights (m) of stairs (see ``StairsPatchConfig``): multiples of the sampled step height
     in [0, num_steps * step_height]."""
+    return stairs_patch_shape(config, rng, shape=shape, cell_size=cell_size)[0]
+
+
+def stairs_patch_shape(config: StairsPatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
+                       cell_size: float) -> tuple[np.ndarray, StairsShape]:
+    """``stairs_patch``'s heights (the same draws, the same bits) and the stairs they sample: at every cell
+    centre the height is the top of the highest level (``StairsShape.levels``) whose box holds it."""
     shape = _check_patch_shape(shape, cell_size)
     step_height = rng.uniform(*config.step_height)
     tread = rng.uniform(*config.tread_depth)
     num_steps = int(rng.integers(config.num_steps[0], config.num_steps[1] + 1))
-    depth = _fitted_footprint_depth(rng, shape, cell_size, config.border, config.aspect)
+    depth, footprint = _fitted_footprint(rng, shape, cell_size, config.border, config.aspect)
     level = np.where(depth > 0.0, np.minimum(num_steps, np.floor(depth / tread) + 1), 0.0)
-    return step_height * level
+    return step_height * level, StairsShape(footprint, step_height, tread, num_steps)
 
 
 def generate_patch(config: PatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
                    cell_size: float) -> np.ndarray:
     """Heights (m) of one patch of the kind ``config`` describes (dispatches on its type)."""
-    generators = {FlatPatchConfig: flat_patch, SlopePatchConfig: slope_patch,
-                  RoughPatchConfig: rough_patch, StairsPatchConfig: stairs_patch}
+    return generate_patch_shape(config, rng, shape=shape, cell_size=cell_size)[0]
+
+
+def generate_patch_shape(config: PatchConfig, rng: np.random.Generator, *, shape: tuple[int, int],
+                         cell_size: float) -> tuple[np.ndarray, StairsShape | SlopeShape | None]:
+    """``generate_patch``'s heights (the same draws, the same bits) and, for stairs and slopes, the shape
+    they sample (``StairsShape``, ``SlopeShape``; None for flat and rough patches)."""
+    generators = {FlatPatchConfig: lambda *a, **k: (flat_patch(*a, **k), None), SlopePatchConfig: slope_patch_shape,
+                  RoughPatchConfig: lambda *a, **k: (rough_patch(*a, **k), None), StairsPatchConfig: stairs_patch_shape}
     generator = generators.get(type(config))
     if generator is None:
         raise ValueError(f"config must be one of {[c.__name__ for c in generators]}, got {type(config).__name__}")
