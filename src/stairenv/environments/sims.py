@@ -41,10 +41,11 @@ from stairenv.motion import interaction_starts
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.planning.grid import PlanningGrid
+from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
-from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
+from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, no_warnings_within_limits
 from stairenv.validation import check_choice
 from stairenv.world.furniture import (
     LYING_FAMILIES,
@@ -112,6 +113,31 @@ def seated_joint_angles() -> np.ndarray:
         q[_DOF[f"{side}_knee"]] = math.pi / 2
         q[_DOF[f"{side}_elbow"]] = -0.4
     return q
+
+
+# The task (stairenv.tasks.sims) and the style features (stairenv.style.features) of one world's step in one
+# compiled call: here, where the env brings its layers together (a task does not import the style).
+@jit
+def skill_step_and_style(step_count, warnings, warning_rows, speeds, speed_limits, body_pos, body_mat, root_lin_vel,
+                         root_ang_vel, dof_pos, dof_vel, params, points, owner, heights, text, prev_root_vel, obs,
+                         targets, values, frames, amp_obs):
+    """A single world's step after its physics in one compiled call: the step counted (``step_count[0]``);
+    the divergence and speed checks (``stairenv.tasks.kernels.no_warnings_within_limits`` of MuJoCo's
+    ``warnings`` at ``warning_rows`` and the ``speeds``); if they pass, ``task.skill_step`` of the world (its state
+    arrays a batch of one; ``obs`` (size,), ``targets`` (15, 3), ``values`` (STEP_VALUES_SIZE,) its own), its
+    root's ground velocity kept in ``prev_root_vel`` (in place) for the next step and its style features pushed
+    onto the history ``frames`` (K, 105) with their ``flat()`` in ``amp_obs``
+    (``stairenv.style.features.push_amp_features``). Returns whether the checks passed and, if so, the
+    ``STEP_VALUES`` that the env reads (the reward terms, the error, the root's position, the head's height)."""
+    step_count[0] += 1
+    if not no_warnings_within_limits(warnings, warning_rows, speeds, speed_limits):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    task.skill_step(0, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, params, points, owner, heights, text,
+               prev_root_vel, obs.reshape((1, obs.shape[0])), targets.reshape((1, task.NUM_CONTACT_JOINTS, 3)),
+               values.reshape((1, task.STEP_VALUES_SIZE)))
+    prev_root_vel[0], prev_root_vel[1] = values[4], values[5]
+    push_amp_features(0, frames, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, amp_obs)
+    return True, values[0], values[1], values[2], values[3], values[6], values[7], values[8], values[9]
 
 
 @document_keywords(SIMSConfig)
@@ -875,7 +901,7 @@ class SIMSEnv(HumanoidEnv):
         obs, targets, values = self._step_buffers
         goal, frames, count = self.goal, self._amp.frames, self._step_count
         amp_obs = np.empty(frames.size)
-        sound, near, far, still, error, x, y, z, head_z = task.skill_step_and_style(
+        sound, near, far, still, error, x, y, z, head_z = skill_step_and_style(
             count, self._warning_counts, DIVERGENCE_WARNING_ROWS, self._speeds, self._speed_limits,
             state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_pos, state.dof_vel,
             self._step_parameters, goal._flat, goal._owner, self._heights.heights, self._z, self._prev_root_vel, obs,

@@ -43,13 +43,11 @@ import numpy as np
 from stairenv.humanoid import BODY_NAMES, STANDING_ROOT_HEIGHT
 from stairenv.humanoid.state import PELVIS, HumanoidState
 from stairenv.rotations import yaw_matrix
-from stairenv.style.features import push_amp_features
 from stairenv.tasks.kernels import (
     PROPRIOCEPTION_SIZE,
     fma,
     heading_cos_sin,
     jit,
-    no_warnings_within_limits,
     proprioception,
     write_proprioception,
 )
@@ -716,26 +714,3 @@ def skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, param
     out[4], out[5] = vx, vy
     out[6], out[7], out[8] = rx, ry, rz
     out[9] = joints[_HEAD, 2]
-
-
-@jit
-def skill_step_and_style(step_count, warnings, warning_rows, speeds, speed_limits, body_pos, body_mat, root_lin_vel,
-                         root_ang_vel, dof_pos, dof_vel, params, points, owner, heights, text, prev_root_vel, obs,
-                         targets, values, frames, amp_obs):
-    """A single world's step after its physics in one compiled call: the step counted (``step_count[0]``);
-    the divergence and speed checks (``stairenv.tasks.kernels.no_warnings_within_limits`` of MuJoCo's
-    ``warnings`` at ``warning_rows`` and the ``speeds``); if they pass, ``skill_step`` of the world (its state
-    arrays a batch of one; ``obs`` (size,), ``targets`` (15, 3), ``values`` (STEP_VALUES_SIZE,) its own), its
-    root's ground velocity kept in ``prev_root_vel`` (in place) for the next step and its style features pushed
-    onto the history ``frames`` (K, 105) with their ``flat()`` in ``amp_obs``
-    (``stairenv.style.features.push_amp_features``). Returns whether the checks passed and, if so, the
-    ``STEP_VALUES`` that the env reads (the reward terms, the error, the root's position, the head's height)."""
-    step_count[0] += 1
-    if not no_warnings_within_limits(warnings, warning_rows, speeds, speed_limits):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    skill_step(0, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, params, points, owner, heights, text,
-               prev_root_vel, obs.reshape((1, obs.shape[0])), targets.reshape((1, NUM_CONTACT_JOINTS, 3)),
-               values.reshape((1, STEP_VALUES_SIZE)))
-    prev_root_vel[0], prev_root_vel[1] = values[4], values[5]
-    push_amp_features(0, frames, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_pos, dof_vel, amp_obs)
-    return True, values[0], values[1], values[2], values[3], values[6], values[7], values[8], values[9]
