@@ -28,6 +28,7 @@ import numpy as np
 
 from stairenv.pretrained import (MAX_LAYERS, MAX_WIDTH, NumpyPolicy, PolicyFileError, check_text_encoder, load_file,
                                  shipped_policy_path)
+from stairenv.safe_pickle import numpy_globals, pickled_array
 
 Policy = Callable[[np.ndarray], Any]
 
@@ -453,73 +454,9 @@ def _records(*names: str) -> dict[tuple[str, str], type]:
 
 _VECNORMALIZE = "stable_baselines3.common.vec_env.vec_normalize.VecNormalize"
 _RUNNING_MEAN_STD = "stable_baselines3.common.running_mean_std.RunningMeanStd"
-#: numpy's type codes read from a statistics pickle: bool, integers, floats
-_STATISTICS_TYPE_CODE = re.compile(r"b1|[iu][1248]|f[248]")
-
-
-class _PickledDtype:
-    """Stands in for ``numpy.dtype``: the type code and byte order only."""
-
-    def __init__(self, code: object = None, align: object = False, copy: object = False) -> None:
-        self.code, self.byteorder = code, "="
-
-    def __setstate__(self, state: object) -> None:
-        if isinstance(state, tuple) and len(state) > 1 and state[1] in ("<", ">"):
-            self.byteorder = state[1]
-
-    def resolve(self) -> np.dtype:
-        if not (isinstance(self.code, str) and _STATISTICS_TYPE_CODE.fullmatch(self.code)):
-            raise ValueError(f"unsupported array type {self.code!r}")
-        return np.dtype(self.code).newbyteorder(self.byteorder)
-
-
-class _PickledArray:
-    """Stands in for ``numpy.ndarray``: its pickled state, made an array by :func:`_pickled_array`."""
-
-    def __init__(self, state: object = None) -> None:
-        self.state = state
-
-    def __setstate__(self, state: object) -> None:
-        self.state = state
-
-
-def _pickled_array(value: object, what: str) -> np.ndarray:
-    state = value.state if isinstance(value, _PickledArray) else None
-    if not (isinstance(state, tuple) and len(state) == 5 and isinstance(state[2], _PickledDtype)):
-        raise ValueError(f"{what} is not a numpy array")
-    _, shape, dtype, fortran, data = state
-    if not (isinstance(shape, tuple) and len(shape) <= 8 and all(type(n) is int and n >= 0 for n in shape)):
-        raise ValueError(f"{what}: malformed array shape {shape!r}")
-    resolved = dtype.resolve()
-    size = int(np.prod(shape, dtype=object)) * resolved.itemsize  # python ints: no overflow
-    if not (isinstance(data, (bytes, bytearray)) and len(data) == size):
-        raise ValueError(f"{what}: an array of shape {shape} and type {resolved} does not match its data")
-    return np.frombuffer(bytes(data), resolved).reshape(shape, order="F" if fortran else "C").copy()
-
-
-def _reconstruct(subtype: object, shape: object, typecode: object) -> _PickledArray:
-    return _PickledArray()  # numpy's allocates ``shape``; nothing is allocated before the bytes are checked
-
-
-def _frombuffer(buffer: object, dtype: object, shape: object, order: object) -> _PickledArray:
-    return _PickledArray((1, shape, dtype, order == "F", bytes(buffer) if isinstance(buffer, (bytes, bytearray))
-                          else None))
-
-
-def _numpy_scalar(dtype: object, data: object = None) -> np.generic:
-    resolved = dtype.resolve() if isinstance(dtype, _PickledDtype) else None
-    if resolved is None or not isinstance(data, bytes) or len(data) != resolved.itemsize:
-        raise ValueError("malformed numpy scalar")
-    return np.frombuffer(data, resolved)[0]
-
-
 _STATISTICS_GLOBALS: dict[tuple[str, str], Any] = {
     **_records(_VECNORMALIZE, _RUNNING_MEAN_STD, "gymnasium.spaces.box.Box", "gym.spaces.box.Box"),
-    ("numpy", "ndarray"): _PickledArray,
-    ("numpy", "dtype"): _PickledDtype,
-    **{(f"numpy.{core}.multiarray", "_reconstruct"): _reconstruct for core in ("core", "_core")},
-    **{(f"numpy.{core}.multiarray", "scalar"): _numpy_scalar for core in ("core", "_core")},
-    **{(f"numpy.{core}.numeric", "_frombuffer"): _frombuffer for core in ("core", "_core")},
+    **numpy_globals(frombuffer=True),
 }
 
 
@@ -568,8 +505,8 @@ def read_statistics(path: str | os.PathLike) -> VecNormalizeStatistics:
         raise PolicyFileError(f"{path}: its obs_rms is not one RunningMeanStd (statistics of Dict observations are "
                               "not read)")
     try:
-        mean = _pickled_array(rms.state.get("mean"), "obs_rms.mean")
-        var = _pickled_array(rms.state.get("var"), "obs_rms.var")
+        mean = pickled_array(rms.state.get("mean"), "obs_rms.mean")
+        var = pickled_array(rms.state.get("var"), "obs_rms.var")
     except ValueError as err:
         raise PolicyFileError(f"{path}: {err}") from None
     if mean.ndim != 1 or mean.size == 0 or var.shape != mean.shape or mean.dtype.kind != "f" or var.dtype.kind != "f":

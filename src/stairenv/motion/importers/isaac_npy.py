@@ -36,7 +36,6 @@ from __future__ import annotations
 import io
 import math
 import pickle
-import re
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any
@@ -48,56 +47,9 @@ from stairenv.humanoid import BODY_NAMES, JOINTS, PARENT_INDICES, humanoid_model
 from stairenv.motion.clip import MotionClip, MotionFileError
 from stairenv.motion.importers.common import (MAX_JOINTS, check_timing, check_values, compose, fk_position_error,
                                        joints_to_qpos, make_clip, read_limited)
+from stairenv.safe_pickle import NUMBER_OR_OBJECT_CODES, PickledArray, numpy_globals, pickled_array
 
-# numpy's type codes a poselib file uses: bool, integers, floats; objects for the outer container.
-_TYPE_CODE = re.compile(r"b1|[iu][1248]|f[248]|O8")
-
-
-class _Dtype:
-    """Stands in for ``numpy.dtype`` while unpickling: keeps the type code and byte order only."""
-
-    def __init__(self, code: object = None, align: object = False, copy: object = False) -> None:
-        self.code, self.byteorder = code, "="
-
-    def __setstate__(self, state: object) -> None:
-        if isinstance(state, tuple) and len(state) > 1 and state[1] in ("<", ">"):
-            self.byteorder = state[1]
-
-    def resolve(self) -> np.dtype:
-        if not (isinstance(self.code, str) and _TYPE_CODE.fullmatch(self.code)):
-            raise ValueError(f"unsupported array type {self.code!r}")
-        return np.dtype(self.code).newbyteorder(self.byteorder)
-
-
-class _Array:
-    """Stands in for a pickled ``numpy.ndarray``: keeps its pickled state for ``_array``."""
-
-    state: object = None
-
-    def __setstate__(self, state: object) -> None:
-        self.state = state
-
-
-def _reconstruct(subtype: object, shape: object, typecode: object) -> _Array:
-    """numpy's ``_reconstruct`` allocates ``shape``; the stand-in allocates nothing."""
-    return _Array()
-
-
-def _scalar(dtype: object, data: object) -> np.generic:
-    """numpy's ``scalar(dtype, bytes)``: one bool, integer or float from its bytes."""
-    resolved = dtype.resolve() if isinstance(dtype, _Dtype) else None
-    if resolved is None or resolved.hasobject or not isinstance(data, bytes) or len(data) != resolved.itemsize:
-        raise ValueError("malformed numpy scalar")
-    return np.frombuffer(data, resolved)[0]
-
-
-_SAFE_GLOBALS: dict[tuple[str, str], Any] = {
-    ("collections", "OrderedDict"): OrderedDict,
-    ("numpy", "ndarray"): _Array,
-    ("numpy", "dtype"): _Dtype,
-    **{(module, "_reconstruct"): _reconstruct for module in ("numpy.core.multiarray", "numpy._core.multiarray")},
-    **{(module, "scalar"): _scalar for module in ("numpy.core.multiarray", "numpy._core.multiarray")},
-}
+_SAFE_GLOBALS: dict[tuple[str, str], Any] = {("collections", "OrderedDict"): OrderedDict, **numpy_globals()}
 
 
 class _SafeUnpickler(pickle.Unpickler):
@@ -109,26 +61,9 @@ class _SafeUnpickler(pickle.Unpickler):
         return _SAFE_GLOBALS[(module, name)]
 
 
-def _array(value: _Array) -> np.ndarray:
-    """The array a pickled ndarray state describes, once its shape, type and data agree."""
-    state = value.state
-    if not (isinstance(state, tuple) and len(state) == 5 and isinstance(state[2], _Dtype)):
-        raise ValueError("malformed array")
-    _, shape, dtype, fortran, data = state
-    if not (isinstance(shape, tuple) and len(shape) <= 8 and all(type(n) is int and n >= 0 for n in shape)):
-        raise ValueError(f"malformed array shape {shape!r}")
-    resolved, count = dtype.resolve(), math.prod(shape)
-    order = "F" if fortran else "C"
-    if resolved.hasobject:  # a list of the elements, one per entry
-        if not (isinstance(data, list) and len(data) == count):
-            raise ValueError(f"object array of shape {shape} does not match its data")
-        out = np.empty(count, dtype=object)
-        for i, item in enumerate(data):
-            out[i] = item
-        return out.reshape(shape, order=order)
-    if not (isinstance(data, (bytes, bytearray)) and len(data) == count * resolved.itemsize):
-        raise ValueError(f"array of shape {shape} and type {resolved} does not match its data")
-    return np.frombuffer(data, resolved).reshape(shape, order=order)
+def _array(value: PickledArray) -> np.ndarray:
+    """The array a pickled ndarray state describes (numbers, or a container's objects)."""
+    return pickled_array(value, codes=NUMBER_OR_OBJECT_CODES)
 
 
 def _unpickle(path: Path) -> object:
@@ -146,7 +81,7 @@ def _unpickle(path: Path) -> object:
         if shape != ():
             raise MotionFileError(f"{path}: expected one pickled dict, got an object array of shape {shape}")
         top = _SafeUnpickler(stream).load()
-        return _array(top).item() if isinstance(top, _Array) else top
+        return _array(top).item() if isinstance(top, PickledArray) else top
     except MotionFileError:
         raise
     except Exception as err:  # refused names, truncation, malformed opcodes or arrays: many types
@@ -188,7 +123,7 @@ def read_isaac_npy(path: str | Path) -> dict[str, Any]:
     def plain(value: object, what: str) -> object:
         """``value`` with a pickled array made into an ndarray."""
         try:
-            return _array(value) if isinstance(value, _Array) else value
+            return _array(value) if isinstance(value, PickledArray) else value
         except ValueError as err:
             raise MotionFileError(f"{path}: {what}: {err}") from err
 
