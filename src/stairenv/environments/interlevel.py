@@ -186,22 +186,9 @@ class InterLevelEnv(HumanoidEnv):
         "stall_seconds", "stall_distance", "curriculum_demote_below", "curriculum_promote_at"))
 
     def _apply_config(self, config: InterLevelConfig) -> None:
-        rewards, termination, start, aids = config.reward, config.termination, config.start, config.training_aids
-        set_ = object.__setattr__    # these attributes are the config's, derived here
-        set_(self, "reward_config", rewards.terms)
-        set_(self, "_reward_array", rewards.terms.as_array())  # what the compiled step takes
-        set_(self, "success_reward", rewards.success_reward)
-        set_(self, "failure_reward", rewards.failure_reward)
-        set_(self, "success_radius", termination.success_radius)
-        set_(self, "terminate_on_success", termination.terminate_on_success)
-        set_(self, "termination_height", termination.termination_height)
-        set_(self, "start_radius", start.start_radius)
-        set_(self, "random_start_heading", start.random_start_heading)
-        set_(self, "reset_noise_scale", start.reset_noise_scale)
-        set_(self, "stall_seconds", aids.stall_seconds)
-        set_(self, "stall_distance", aids.stall_distance)
-        set_(self, "curriculum_demote_below", aids.curriculum_demote_below)
-        set_(self, "curriculum_promote_at", aids.curriculum_promote_at)
+        super()._apply_config(config)    # an attribute per live keyword, as the config has it
+        object.__setattr__(self, "reward_config", config.reward.terms)
+        object.__setattr__(self, "_reward_array", config.reward.terms.as_array())  # what the compiled step takes
 
     # --- episode ------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
