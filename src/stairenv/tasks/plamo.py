@@ -297,19 +297,23 @@ def write_path_observation(out, points, dt, t, head, c, s, spacing):
 
 
 @jit
+def heightmap_point(k, root, c, s, size, extent):
+    """The world (x, y) of sample k (row-major, size x size) of the heightmap grid of ``extent`` m about the
+    root, turned by its yaw (c, s: cosine and sine): ``heightmap_points``' k-th point."""
+    a, b = k // size, k % size
+    gy = (a + 0.5) / size * extent - extent / 2
+    gx = (b + 0.5) / size * extent - extent / 2
+    return root[0] + c * gx - s * gy, root[1] + s * gx + c * gy
+
+
+@jit
 def write_terrain_heightmap(out, heights, terrain_size, root, c, s, size, extent, head):
     """On a ``terrain.bilinear_height`` field: the heightmap (``heightmap_points`` of the root, c and s
     the cosine and sine of its yaw, terrain height minus root height) written to ``out`` (size * size),
     and the terrain height under the root and under ``head``, returned. The same bits as the numpy forms."""
-    k = 0
-    for a in range(size):
-        gy = (a + 0.5) / size * extent - extent / 2
-        for b in range(size):
-            gx = (b + 0.5) / size * extent - extent / 2
-            x = root[0] + c * gx - s * gy
-            y = root[1] + s * gx + c * gy
-            out[k] = bilinear_at(heights, terrain_size, x, y) - root[2]
-            k += 1
+    for k in range(size * size):
+        x, y = heightmap_point(k, root, c, s, size, extent)
+        out[k] = bilinear_at(heights, terrain_size, x, y) - root[2]
     return bilinear_at(heights, terrain_size, root[0], root[1]), bilinear_at(heights, terrain_size, head[0], head[1])
 
 
@@ -318,14 +322,8 @@ def write_grid_heightmap(out, heights, x0, y0, cell, root, c, s, size, extent, h
     """``write_terrain_heightmap`` on a grid of cell-centre samples read by ``terrain.clamped_bilinear_at``
     (a scene's height map, ``Scene.height_at``'s reading): the heightmap written to ``out``, and the terrain
     height under the root and under ``head``, returned."""
-    k = 0
-    for a in range(size):
-        gy = (a + 0.5) / size * extent - extent / 2
-        for b in range(size):
-            gx = (b + 0.5) / size * extent - extent / 2
-            x = root[0] + c * gx - s * gy
-            y = root[1] + s * gx + c * gy
-            out[k] = clamped_bilinear_at(heights, x0, y0, cell, x, y) - root[2]
-            k += 1
+    for k in range(size * size):
+        x, y = heightmap_point(k, root, c, s, size, extent)
+        out[k] = clamped_bilinear_at(heights, x0, y0, cell, x, y) - root[2]
     return (clamped_bilinear_at(heights, x0, y0, cell, root[0], root[1]),
             clamped_bilinear_at(heights, x0, y0, cell, head[0], head[1]))
