@@ -170,10 +170,12 @@ def test_a_config_built_directly_is_checked_too():
 @pytest.mark.parametrize("config_cls, aids_cls, kwargs, evaluated", [
     (InterLevelConfig, InterLevelTrainingAids,
      {"init": "hybrid", "hybrid_fraction": 0.3, "stairs_start_fraction": 0.5, "stall_seconds": 4.0,
-      "step_height_levels": 3, "curriculum_promote_at": 0.8, "w_velocity": 0.5}, {"w_velocity": 0.5}),
+      "step_height_levels": 3, "curriculum_promote_at": 0.8, "push_speed": (0.5, 1.0), "w_velocity": 0.5},
+     {"w_velocity": 0.5}),
     (SIMSConfig, SIMSTrainingAids,
      {"init": "hybrid", "interaction_start_fraction": 0.5, "start_distance_levels": 3, "stall_seconds": 2.0,
-      "text_encoder": "hashing", "fall_height": 0.3}, {"text_encoder": "hashing", "fall_height": 0.3}),
+      "push_interval": (1.0, 3.0), "text_encoder": "hashing", "fall_height": 0.3},
+     {"text_encoder": "hashing", "fall_height": 0.3}),
 ])
 def test_the_evaluation_drops_the_configs_training_aids(baseline_script, config_cls, aids_cls, kwargs, evaluated):
     train_ppo = baseline_script("train_ppo")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import operator
 import os
 import warnings
@@ -22,7 +23,7 @@ from stairenv.humanoid import NUM_DOFS, PD_GAINS, STANDING_ROOT_HEIGHT, Humanoid
 from stairenv.humanoid.kinematics import humanoid_geoms, humanoid_lowest_z
 from stairenv.humanoid.model import dof_ranges
 from stairenv.humanoid.placement import place_reference_state
-from stairenv.humanoid.state import read_state, stack_states, states_from_arrays
+from stairenv.humanoid.state import push_root, read_state, stack_states, states_from_arrays
 from stairenv.motion.rsi import BUILTIN_REFERENCE_SETS, level_clips, load_reference_library
 from stairenv.rendering import RENDER_MODES, FollowCamera, HumanViewer
 from stairenv.rotations import yaw_to_quat_wxyz
@@ -431,6 +432,30 @@ class HumanoidEnv(gym.Env):
         self._library = None if self.init == "default" else self.start_clips(load_reference_library(
             self.DEFAULT_REFERENCE_MOTION if reference_motion is None else reference_motion))
 
+    #: training pushes (``_setup_pushes``): each kick's speed range (m/s), None = none
+    _push_speed: tuple[float, float] | None = None
+
+    def _setup_pushes(self, push_speed: tuple[float, float] | None, push_interval: tuple[float, float]) -> None:
+        """Training pushes (the ``push_speed`` and ``push_interval`` keywords, checked by the config): from
+        the first step of an episode, a kick (``push_root``) of a speed drawn from ``push_speed`` in a
+        direction drawn uniformly every ``push_interval`` seconds (each interval drawn, in whole steps);
+        the draws come from the env's ``np_random``, so a seeded episode meets the same kicks. Only a
+        training aid: the evaluations push with their own plan (``stairenv.evaluation.pushes``)."""
+        self._push_speed = push_speed
+        self._push_interval = push_interval
+        self._next_push = 0
+
+    def _push_if_due(self) -> None:
+        """Before the physics of a step: at an episode's first step draw when its first push comes; at that
+        step kick the root and draw the next."""
+        steps, rng = self._steps, self.np_random
+        if steps == 0 or steps == self._next_push:
+            if steps:
+                push_root(self.model, self.data, float(rng.uniform(*self._push_speed)),
+                          float(rng.uniform(-math.pi, math.pi)))
+            low, high = (max(1, round(seconds / self.dt)) for seconds in self._push_interval)
+            self._next_push = steps + int(rng.integers(low, high, endpoint=True))
+
     # --- the episode template ---------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = type(self)._reset_worlds([self], [seed], [options])[0]
@@ -561,7 +586,10 @@ class HumanoidEnv(gym.Env):
         self._after_action()
 
     def _after_action(self) -> None:
-        """``_prepare_step`` once the action is applied: ``_before_physics``, the time the physics must reach."""
+        """``_prepare_step`` once the action is applied: a training push where one is due, ``_before_physics``,
+        the time the physics must reach."""
+        if self._push_speed is not None:
+            self._push_if_due()
         self._before_physics()
         self._expected_time = self.data.time + self.dt    # dt: frame_skip timesteps
 
@@ -587,6 +615,9 @@ class HumanoidEnv(gym.Env):
         no world's ctrl written. Only for classes with the plain action map and no ``_before_physics``."""
         if cls._apply_action is not HumanoidEnv._apply_action or cls._before_physics is not HumanoidEnv._before_physics:
             raise ValueError(f"{cls.__name__} changes its ctrl world by world; its state cannot stay on the device")
+        if any(env._push_speed is not None for env in envs):
+            raise ValueError("push_speed (training pushes) kicks a world's velocity world by world; its state cannot "
+                             "stay on the device: train with push_speed=None there, or without state_on_device")
         return _pd_targets(envs, actions, rows)
 
     def _physics(self) -> None:

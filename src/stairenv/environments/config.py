@@ -155,7 +155,22 @@ class ReferenceStarts:
 
 
 @checked_config
-class InterLevelTrainingAids(ReferenceStarts):
+class FamilyTrainingAids(ReferenceStarts):
+    """The training aids of every family: reference-state starts and pushes (``HumanoidEnv._setup_pushes``):
+    kicks of ``push_speed`` m/s (drawn from the range) added to the root's horizontal velocity in a random
+    direction, one every ``push_interval`` seconds (drawn from the range; the first that long after the
+    start), so that a policy learns to recover (legged_gym's ``push_robots``). Off by default."""
+
+    push_speed: tuple[float, float] | None = checked(
+        None, Check("pair", 0.0, 10.0, optional=True),
+        "training pushes: each kick's speed (m/s) drawn from this (min, max), in a random direction; None = none")
+    push_interval: tuple[float, float] = checked(
+        (2.0, 5.0), Check("pair", 0.05, 3600.0),
+        "seconds between training pushes, drawn from this (min, max) (the first: after the start)")
+
+
+@checked_config
+class InterLevelTrainingAids(FamilyTrainingAids):
     """What only shapes training: the final evaluation builds its env without these keywords
     (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
 
@@ -277,7 +292,7 @@ class PlaMoTermination:
 
 
 @checked_config
-class PlaMoTrainingAids(ReferenceStarts):
+class PlaMoTrainingAids(FamilyTrainingAids):
     """What only shapes training (dropped by the final evaluation); off by default."""
 
     matched_starts: bool = checked(True, Check("bool"), "a reference start is a frame of the path's opening "
@@ -620,7 +635,7 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
     return config
 
 
-__all__ = ["EnvConfig", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
+__all__ = ["EnvConfig", "FamilyTrainingAids", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
            "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation",
            "PlaMoPaths", "PlaMoSceneConfig", "PlaMoScenePlanner", "PlaMoSceneTermination", "PlaMoSceneWorld",
            "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",

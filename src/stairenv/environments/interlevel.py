@@ -117,7 +117,7 @@ class InterLevelEnv(HumanoidEnv):
     about half a stair width. S_tar = 1 m/s is a relaxed climbing pace (the paper's
     climbs take 8-13 s).
 
-    Training aids (both off by default, the paper's protocol; outcomes leave them off):
+    Training aids (off by default, the paper's protocol; outcomes leave them off):
 
     - Staircase starts (``stairs_start_fraction``): in that share of the episodes the character
       starts in a frame of a climb synthesised for the episode's own staircase
@@ -138,6 +138,10 @@ class InterLevelEnv(HumanoidEnv):
       level) and down when it ended below ``curriculum_demote_below`` progress. The level carries
       over resets, seeded ones too: training state, like a normaliser's, that a trainer saves with
       its checkpoints (``baselines/train_ppo.py`` does).
+    - Pushes (``push_speed``, ``push_interval``; every family's, ``HumanoidEnv._setup_pushes``): a kick
+      of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
+      direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
+      evaluations' ``--push-speed`` tests it.
     """
 
     def __init__(self, *, config: InterLevelConfig | None = None, **keywords) -> None:
@@ -159,6 +163,7 @@ class InterLevelEnv(HumanoidEnv):
         self.curriculum_level: int | None = None
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
         self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self._setup_pushes(aids.push_speed, aids.push_interval)
 
         spec = load_humanoid_spec(physics.pd_gains)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)

@@ -118,6 +118,11 @@ class PlaMoEnv(HumanoidEnv):
     q_ref the start clip played on from the start frame (0 on a standing start): a character started
     in a crawl is paid for going on crawling while the path steers it.
 
+    **Pushes** (``push_speed``, ``push_interval``, a training aid of every family; None = off): a kick of a
+    speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random direction
+    every ``push_interval`` seconds (drawn), so that the policy learns to recover
+    (``HumanoidEnv._setup_pushes``).
+
     **Keywords** are checked at construction (``TypeError`` for a wrong type, ``ValueError`` for a
     value out of range, both naming the keyword). They are the fields of ``PlaMoConfig``
     (``stairenv.environments.config``: defaults and ranges live there); ``config=PlaMoConfig(...)`` may be
@@ -150,6 +155,7 @@ class PlaMoEnv(HumanoidEnv):
         self.min_head_height = config.termination.min_head_height
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
         self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self._setup_pushes(aids.push_speed, aids.push_interval)
         self.matched_starts = aids.matched_starts
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         self.speed_levels = aids.speed_levels

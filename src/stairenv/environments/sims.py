@@ -226,6 +226,10 @@ class SIMSEnv(HumanoidEnv):
       embedding of one text per style (the reference clips' texts) instead of the drawn caption's, while
       the observation keeps the caption's. A policy then trains on every caption of a style (the
       evaluation draws from them all) against a discriminator conditioned as its reference clips are.
+    - Pushes (``push_speed``, ``push_interval``; every family's, ``HumanoidEnv._setup_pushes``): a kick
+      of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
+      direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
+      evaluations' ``--push-speed`` tests it.
     """
 
     DEFAULT_REFERENCE_MOTION = "builtin:sims"
@@ -262,6 +266,7 @@ class SIMSEnv(HumanoidEnv):
         self.heightmap_size, self.heightmap_extent = observation.heightmap_size, observation.heightmap_extent
         self.fall_height, self.terminate_on_success = termination.fall_height, termination.terminate_on_success
         self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self._setup_pushes(aids.push_speed, aids.push_interval)
         self.interaction_start_fraction = aids.interaction_start_fraction
         self.start_distance_levels = aids.start_distance_levels
         self.start_from_front = aids.start_from_front

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from stairenv.environments.config import HumanoidConfig, PlaMoObservation, ReferenceStarts, UNIT, group
+from stairenv.environments.config import FamilyTrainingAids, HumanoidConfig, PlaMoObservation, UNIT, group
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.tasks import sims as task
 from stairenv.validation import Check, check_choice, check_fields, check_int, check_str, checked, checked_config
@@ -222,7 +222,7 @@ class SIMSTermination:
 
 
 @checked_config
-class SIMSTrainingAids(ReferenceStarts):
+class SIMSTrainingAids(FamilyTrainingAids):
     """What only shapes training (dropped by the final evaluation); off by default. ``reference_motion``
     None: builtin:sims (standing starts from its walk and idle clips)."""
 

@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from stairenv.humanoid.state import push_root
+
 #: the steps (policy steps, 30 per second) between which an episode's push comes: 1 to 6 s in
 PUSH_STEPS: tuple[int, int] = (30, 180)
 #: the stream of the episode's push draws (its step and direction), apart from the env's own rng:
@@ -63,17 +65,9 @@ def push_plan(seed: int, speed: float) -> tuple[int, float] | None:
     return int(rng.integers(*PUSH_STEPS)), float(rng.uniform(-math.pi, math.pi))
 
 
-def apply_push(model: Any, data: Any, speed: float, angle: float) -> None:
-    """A horizontal velocity kick: ``speed`` (m/s) added to the root's world-frame linear velocity in
-    direction ``angle`` (rad; the root's free joint: its first three DoFs are world-frame velocity)."""
-    import mujoco
-
-    from stairenv.humanoid import BODY_NAMES
-
-    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BODY_NAMES[0])
-    dof = model.jnt_dofadr[model.body_jntadr[body]]
-    data.qvel[dof] += speed * math.cos(angle)
-    data.qvel[dof + 1] += speed * math.sin(angle)
+#: a horizontal velocity kick of ``speed`` (m/s) in direction ``angle`` (rad) added to the root's velocity;
+#: its home is :func:`stairenv.humanoid.state.push_root`, which the envs' training pushes use too
+apply_push = push_root
 
 
 class EpisodePush:

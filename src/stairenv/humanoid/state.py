@@ -8,6 +8,7 @@ what must outlive it.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import mujoco
@@ -76,3 +77,14 @@ def stack_states(states) -> HumanoidState:
     """One batch of ``states`` (batches, e.g. each world's ``read_state`` where the worlds' models differ in
     structure, which ``read_states`` cannot read at once), in their order. Copies, not views."""
     return HumanoidState(*(np.concatenate(field) for field in zip(*states)))
+
+
+def push_root(model: mujoco.MjModel, data: mujoco.MjData, speed: float, angle: float) -> None:
+    """A horizontal kick: ``speed`` (m/s) added to the root's world-frame linear velocity in direction
+    ``angle`` (rad in the world's xy plane; the root's free joint: its first three DoFs are that velocity).
+    The evaluations' pushes (``stairenv.evaluation.pushes``) and the training pushes of every env
+    (``push_speed``) are this kick."""
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, BODY_NAMES[0])
+    dof = model.jnt_dofadr[model.body_jntadr[body]]
+    data.qvel[dof] += speed * math.cos(angle)
+    data.qvel[dof + 1] += speed * math.sin(angle)
