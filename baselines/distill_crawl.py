@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Distil the crawl clips, played back open-loop through the PD servos, into a PlaMo-v0 actor (DAgger).
 
-Session 23 of ``docs/plamo_training.md``: played back (each step's PD targets = the clip's joint angles
+``docs/plamo_training.md`` (2026-11-29): played back (each step's PD targets = the clip's joint angles
 one step ahead), the DeepMimic crawl crawls on flat ground for 10 s in most starts, yet the PlaMo
 policies started in a crawl frame leave that pose within 0.15 s and never find it again under PPO's
 noise. So the playback is the teacher: each world starts in a crawl frame (``init="reference"``,

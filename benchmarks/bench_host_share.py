@@ -22,7 +22,7 @@ array operations would be. Per round:
   reset: one at a time (``reset_world``) and in groups (``reset_worlds``, the autoreset's: the worlds
   whose episodes ended at one step, ``--worlds / --episode-steps`` of them by default), and what the
   grouped resets add per world-step at one episode end every ``--episode-steps`` world-steps (default
-  17: the random actions of ``bench_warp.py``, measured in session 31; early in training ~28). The
+  17: the random actions of ``bench_warp.py``, measured on 2026-11-29; early in training ~28). The
   grouped resets are timed twice: as with the C back-end (``mj_forward`` at the end of each) and as a
   device back-end's batched env makes them (``mj_kinematics``, ``HumanoidEnv._reset_forward``), the
   figure per world-step being the device's.

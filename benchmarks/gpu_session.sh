@@ -25,17 +25,17 @@ step() {    # step NAME SECONDS COMMAND...: run it, its output in $OUT/NAME.log,
 
 nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv > "$OUT/gpu.csv" 2>&1 || true
 # Warp's CUDA kernels, compiled once into its cache (~/.cache/warp) by a small run, so that no measurement
-# below pays it: on an H200 a cold compile took over 3 minutes (session 31), which ran a measurement out of time
+# below pays it: on an H200 a cold compile took over 3 minutes (2026-11-29), which ran a measurement out of time
 step compile 240 "$PY" benchmarks/bench_warp.py --sizes 64 --c-size 0 --train-size 0 --train-c-size 0 --budget 1 \
     --deadline 230 --state-on-device --out "$OUT/compile.json"
-# the env and the lean trainer at 4,096 worlds with the state on the device, after session 32's grouped resets
-# and session 33's bookkeeping as rows (session 31 on an H200: env 16-20k env steps/s, trainer 8.8k; sessions
-# 32-33 project 35-75k for the env)
+# the env and the lean trainer at 4,096 worlds with the state on the device, after the grouped resets and the
+# bookkeeping as rows of 2026-11-30 (on an H200 on 2026-11-29: env 16-20k env steps/s, trainer 8.8k; those two
+# project 35-75k for the env)
 step env_warp 100 "$PY" benchmarks/bench_warp.py --sizes 4096 --c-size 0 --train-size 4096 --train-c-size 0 \
     --train-iterations 3 --budget 5 --deadline 80 --state-on-device --out "$OUT/env_warp.json"
 # 8 ranks sharing the GPU over 4,096 worlds, the state on the device: the host's per-world task on 8 cores
-# (session 31 measured 8 ranks with the host's MjData the truth, 16k env steps/s end to end). One rank under
-# torchrun failed in session 31, its cause not kept (bench_ranks now keeps each rank's stderr): `--ranks 1`
+# (the H200 on 2026-11-29 measured 8 ranks with the host's MjData the truth, 16k env steps/s end to end). One rank under
+# torchrun failed there, its cause not kept (bench_ranks now keeps each rank's stderr): `--ranks 1`
 # is the next call's, with what time is left
 step ranks_warp 140 "$PY" benchmarks/bench_ranks.py --ranks 8 --state-on-device --timeout 125 \
     --out "$OUT/ranks_warp.json"
