@@ -3,6 +3,7 @@ success thresholds, scene heights, the five presets (check_env, determinism), se
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import gymnasium as gym
@@ -219,7 +220,7 @@ def _reference_step(env, state):
     obs = task.skill_observations(state, frames, [goal], targets, [env._heights], env.heightmap_size,
                                   env.heightmap_extent, [env._z])
     terms = task.skill_reward_values(state, frames, [goal], targets, np.array([env._prev_root_vel]),
-                                     [env._target_speed])[0]
+                                     [env._target_speed], env._near_squared_distance)[0]
     error = task.skill_errors([goal], targets, state.body_pos)[0]
     return obs[0], targets[0], (*terms, 0.0)[:3], error
 
@@ -257,19 +258,49 @@ def test_compiled_step_equals_the_batch_functions():
             np.testing.assert_allclose(out[1][0], targets, rtol=1e-12, atol=1e-12, err_msg=env_id)
             np.testing.assert_allclose(out[2][0, :4], [*terms, error], rtol=1e-12, atol=1e-12, err_msg=env_id)
         # many more roots and velocities about the target (the near and still branches)
-        base = env._read_state()
-        for _ in range(1000):
-            state = type(base)(*(np.array(field) for field in base))
-            state.body_pos[0, :, :2] += env.goal.root_target[:2] - state.body_pos[0, 0, :2] + rng.uniform(-2, 2, 2)
-            state.root_lin_vel[0] = rng.normal(0.0, 1.5, 3)
-            env._prev_root_vel = rng.normal(0.0, 1.5, 2)
-            obs, targets, terms, error = _reference_step(env, state)
-            values = np.empty((1, task.STEP_VALUES_SIZE))
-            task.skill_step(0, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
-                            env._step_parameters, goal._flat, goal._owner, env._heights.heights, env._z,
-                            env._prev_root_vel, np.empty((1, len(obs))), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
-                            values)
-            np.testing.assert_allclose(values[0, :4], [*terms, error], rtol=1e-12, atol=1e-12, err_msg=env_id)
+        _compare_about_target(env, rng, 1000, 2.0, env_id)
+
+
+def _compare_about_target(env, rng, roots: int, spread: float, env_id: str) -> None:
+    """The compiled step's reward terms and error against the batch functions' on ``roots`` roots within
+    ``spread`` (m) of the goal's root target on the ground, with random root velocities (1e-12)."""
+    goal, base = env.goal, env._read_state()
+    for _ in range(roots):
+        state = type(base)(*(np.array(field) for field in base))
+        state.body_pos[0, :, :2] += goal.root_target[:2] - state.body_pos[0, 0, :2] + rng.uniform(-spread, spread, 2)
+        state.root_lin_vel[0] = rng.normal(0.0, 1.5, 3)
+        env._prev_root_vel = rng.normal(0.0, 1.5, 2)
+        obs, targets, terms, error = _reference_step(env, state)
+        values = np.empty((1, task.STEP_VALUES_SIZE))
+        task.skill_step(0, state.body_pos, state.body_mat, state.root_lin_vel, state.root_ang_vel, state.dof_vel,
+                        env._step_parameters, goal._flat, goal._owner, env._heights.heights, env._z,
+                        env._prev_root_vel, np.empty((1, len(obs))), np.empty((1, task.NUM_CONTACT_JOINTS, 3)),
+                        values)
+        np.testing.assert_allclose(values[0, :4], [*terms, error], rtol=1e-12, atol=1e-12, err_msg=env_id)
+
+
+def test_near_distance_moves_the_near_zone_of_the_kernel_and_of_its_specification():
+    """``near_distance`` (a training aid): the far term is at its maximum (and the walk's still term acts) only
+    within d of x* on the ground. The compiled step and the batch functions agree on roots about the target,
+    and 0.4 m from it the walk's far term is the paper's Eq. 7 written out by hand with d = 0.2 m, 1 with the
+    paper's 0.71 m."""
+    rng = np.random.default_rng(5)
+    for env_id in ("SIMS-Walk-v0", "SIMS-Sit-v0"):
+        env = gym.make(env_id, fall_height=0.0, near_distance=0.2, **FAST).unwrapped
+        env.reset(seed=4)
+        assert env._near_squared_distance == pytest.approx(0.04)
+        _compare_about_target(env, rng, 300, 0.8, env_id)
+    # by hand: the walk reward 0.4 m due east of x*, facing it, moving towards it at 0.5 m/s, v* = 1
+    target, root, vel, facing = np.array([0.4, 0.0]), np.zeros(2), np.array([0.5, 0.0]), np.array([1.0, 0.0])
+    d2 = 0.16
+    far = 0.6 * math.exp(-0.5 * d2) + 0.2 * math.exp(-2.0 * (1.0 - 0.5) ** 2) + 0.2 * 1.0 ** 2
+    narrow = dataclasses.replace(task.WALK_WEIGHTS, near_squared_distance=0.04)
+    near, far_w, still = task.walk_reward_terms(target, root, vel, vel, facing, 1.0, narrow)
+    assert far_w == pytest.approx(0.5 * far) and still == 0.0 and near == pytest.approx(0.4 * math.exp(-10 * d2))
+    near, far_w, still = task.walk_reward_terms(target, root, vel, vel, facing, 1.0)
+    assert far_w == pytest.approx(0.5) and still == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="near_distance"):
+        gym.make("SIMS-Walk-v0", near_distance=0.0)
 
 
 def test_a_steps_outcome_and_info_are_world_outcome_and_full_info():

@@ -226,6 +226,11 @@ class SIMSEnv(HumanoidEnv):
       embedding of one text per style (the reference clips' texts) instead of the drawn caption's, while
       the observation keeps the caption's. A policy then trains on every caption of a style (the
       evaluation draws from them all) against a discriminator conditioned as its reference clips are.
+    - Near zone (``near_distance`` d): the reward counts as near (far term 1, the walk's still term on)
+      within d of x* on the ground instead of the paper's sqrt(0.5) = 0.71 m. Inside 0.71 m the paper's walk
+      reward grows only through 0.4 exp(-10 |x* - x|^2), which is nearly flat from 0.45 to 0.71 m (the
+      shipped walker stopped there); with d at the success radius the far term's speed and facing terms
+      keep paying the approach until the goal is reached.
     - Pushes (``push_speed``, ``push_interval``; every family's, ``HumanoidEnv._setup_pushes``): a kick
       of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
       direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
@@ -274,6 +279,10 @@ class SIMSEnv(HumanoidEnv):
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
         self.min_root_height = aids.min_root_height
+        self.near_distance = aids.near_distance
+        #: the reward's near-zone bound |x* - x|^2 (m^2): the paper's, or the ``near_distance`` aid's
+        self._near_squared_distance = (task.NEAR_SQUARED_DISTANCE if aids.near_distance is None
+                                       else aids.near_distance ** 2)
         self._interaction_start = False
         self._start_goal: task.ContactGoal | None = None
         self._root_distance = self._start_root_distance = 0.0
@@ -524,7 +533,7 @@ class SIMSEnv(HumanoidEnv):
         self._target_speed = speed
         #: the goal's, the scene's and the speed's constants of the compiled step (``task.skill_step``)
         self._step_parameters = task.step_parameters(goal, self._heights, speed, self.heightmap_size,
-                                                     self.heightmap_extent)
+                                                     self.heightmap_extent, self._near_squared_distance)
         self._root_target_xy = (float(goal.root_target[0]), float(goal.root_target[1]))
         self._amp_condition = self._amp_z.astype(np.float32)    # info["amp_condition"]: a copy each step
 

@@ -243,6 +243,10 @@ class SIMSTrainingAids(FamilyTrainingAids):
                                             "all skills but getup: end an episode when the pelvis is less than "
                                             "this above the floor (sitting or lying on the floor; seated on a "
                                             "piece it is higher); None = never")
+    near_distance: float | None = checked(
+        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
+        "the root's ground distance to x* (m) inside which the reward counts as near (the far term at its "
+        "maximum, the walk's still term on); None = the paper's sqrt(0.5) = 0.71 m")
     condition_captions: tuple[tuple[str, str], ...] | None = checked(
         None, Check("call", call=_condition_captions, optional=True),
         "text-conditioned: (style, text) pairs, one per style; info['amp_condition'] is then the embedding of "

@@ -33,6 +33,7 @@ world: a batch of one) with the same bits for a world alone or in any batch; the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -67,7 +68,8 @@ JOINT = {name: k for k, name in enumerate(CONTACT_JOINTS)}
 # Success: the primary contact within this distance (m). SIMS: 20 cm sit and reach, 30 cm lie;
 # walk and get up (not in the paper's Table 1) use 20 cm on the pelvis target too.
 SUCCESS_DISTANCE: dict[str, float] = {"walk": 0.2, "sit": 0.2, "lie": 0.3, "reach": 0.2, "getup": 0.2}
-# |x* - x|^2 (m^2) below which the far term is replaced by its maximum (supplement Eq. 7, 11).
+# |x* - x|^2 (m^2) below which the far term is replaced by its maximum (supplement Eq. 7, 11): the default
+# of ``SkillRewardWeights.near_squared_distance``.
 NEAR_SQUARED_DISTANCE = 0.5
 # How far above a surface each body's origin rests when it touches it (its collision radius, m):
 # pelvis capsule 0.09, chest 0.11 (the torso origin sits behind it), head sphere 0.095, hands 0.04.
@@ -100,6 +102,9 @@ class SkillRewardWeights:
     far_position: float
     far_velocity: float
     far_facing: float
+    #: |x* - x|^2 (m^2) below which the far term is at its maximum and the walk's still term acts (the
+    #: paper's 0.5; the ``near_distance`` training aid narrows it)
+    near_squared_distance: float = NEAR_SQUARED_DISTANCE
 
 
 WALK_WEIGHTS = SkillRewardWeights(near=0.4, far=0.5, still=0.1, far_position=0.6, far_velocity=0.2, far_facing=0.2)
@@ -123,14 +128,14 @@ def near_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
 
 def far_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
     """Approaching x*: position, speed towards it and facing it (Eq. 7, 11); its maximum 1 once near."""
-    if x.dist2 > NEAR_SQUARED_DISTANCE:
+    if x.dist2 > w.near_squared_distance:
         return w.far_position * math.exp(-0.5 * x.dist2) + w.far_velocity * x.velocity + w.far_facing * x.facing
     return 1.0
 
 
 def still_term(x: SkillRewardInputs, w: SkillRewardWeights) -> float:
     """Once near, keeping the root's velocity (exp(-2 |xdot_t - xdot_{t-1}|^2), Eq. 10); 0 while far."""
-    if x.dist2 > NEAR_SQUARED_DISTANCE:
+    if x.dist2 > w.near_squared_distance:
         return 0.0
     return math.exp(-2.0 * x.velocity_change2)
 
@@ -259,9 +264,14 @@ def skill_observations(state: HumanoidState, frames: RootFrames, goals: Sequence
 
 
 def skill_reward_values(state: HumanoidState, frames: RootFrames, goals: Sequence[ContactGoal], targets: np.ndarray,
-                        prev_root_vel: np.ndarray, target_speeds: Sequence[float]) -> list[tuple[float, ...]]:
+                        prev_root_vel: np.ndarray, target_speeds: Sequence[float],
+                        near_squared_distance: float = NEAR_SQUARED_DISTANCE) -> list[tuple[float, ...]]:
     """Each world's weighted reward terms: ``WALK_REWARD_TERMS`` for a walk goal, else
-    ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` (B, 2) the roots' ground velocities a step before."""
+    ``CONTACT_REWARD_TERMS``; ``prev_root_vel`` (B, 2) the roots' ground velocities a step before;
+    ``near_squared_distance``: the weights' bound of the near zone (m^2)."""
+    near = {"near_squared_distance": float(near_squared_distance)}
+    walk_weights = dataclasses.replace(WALK_WEIGHTS, **near)
+    contact_weights = dataclasses.replace(CONTACT_WEIGHTS, **near)
     target_xy = np.array([goal.root_target[:2] for goal in goals])
     vel, facing = state.root_lin_vel[:, :2], frames.headings[:, :2, 0]
     values: list = [None] * len(goals)
@@ -270,11 +280,11 @@ def skill_reward_values(state: HumanoidState, frames: RootFrames, goals: Sequenc
         speeds = [target_speeds[k] for k in worlds]
         if walk:
             group = walk_reward_values(target_xy[rows], frames.positions[rows], vel[rows], prev_root_vel[rows],
-                                       facing[rows], speeds)
+                                       facing[rows], speeds, walk_weights)
         else:
             masks = np.array([goals[k].mask for k in worlds])
             group = contact_reward_values(target_xy[rows], frames.positions[rows], vel[rows], facing[rows], speeds,
-                                          targets[rows], state.body_pos[rows], masks)
+                                          targets[rows], state.body_pos[rows], masks, contact_weights)
         for k, terms in zip(worlds, group):
             values[k] = terms
     return values
@@ -580,7 +590,8 @@ STEP_TARGET_SPEED = 5                  # v* (m/s)
 STEP_HEIGHTS = 6                       # the height grid's origin x, y and cell size (3)
 STEP_HEIGHTMAP = 9                     # heightmap_size, heightmap_extent (2)
 STEP_SQUARE = 11                       # 2.0: the exponent of the squares Python writes x ** 2
-STEP_MASK = 12                         # the goal's mask, 1.0 / 0.0 (15)
+STEP_NEAR = 12                         # the near zone's bound |x* - x|^2 (m^2; the weights' near_squared_distance)
+STEP_MASK = 13                         # the goal's mask, 1.0 / 0.0 (15)
 STEP_PARAMETERS_SIZE = STEP_MASK + NUM_CONTACT_JOINTS
 #: The columns of ``skill_step``'s ``values`` row: the weighted reward terms (near, far, still: 0 for a
 #: contact goal, which has none), the error (``skill_errors``), the root's ground velocity (the next step's
@@ -596,7 +607,7 @@ _CONTACT_W = (CONTACT_WEIGHTS.near, CONTACT_WEIGHTS.far, CONTACT_WEIGHTS.still, 
 
 
 def step_parameters(goal: ContactGoal, heights: SceneHeights, target_speed: float, heightmap_size: int,
-                    heightmap_extent: float) -> np.ndarray:
+                    heightmap_extent: float, near_squared_distance: float = NEAR_SQUARED_DISTANCE) -> np.ndarray:
     """(STEP_PARAMETERS_SIZE,) a world's constants of ``skill_step`` (the layout ``STEP_*``)."""
     params = np.empty(STEP_PARAMETERS_SIZE)
     params[STEP_ROOT_TARGET:STEP_ROOT_TARGET + 3] = goal.root_target
@@ -606,6 +617,7 @@ def step_parameters(goal: ContactGoal, heights: SceneHeights, target_speed: floa
     params[STEP_HEIGHTS:STEP_HEIGHTS + 3] = (heights.origin[0], heights.origin[1], heights.cell_size)
     params[STEP_HEIGHTMAP:STEP_HEIGHTMAP + 2] = (heightmap_size, heightmap_extent)
     params[STEP_SQUARE] = 2.0
+    params[STEP_NEAR] = near_squared_distance
     params[STEP_MASK:STEP_MASK + NUM_CONTACT_JOINTS] = goal.mask
     return params
 
@@ -697,7 +709,7 @@ def skill_step(k, body_pos, body_mat, root_lin_vel, root_ang_vel, dof_vel, param
     out[0] = w[0] * math.exp(-10.0 * near2)
     far = 1.0
     still = 0.0
-    if dist2 > NEAR_SQUARED_DISTANCE:
+    if dist2 > params[STEP_NEAR]:
         far = w[3] * math.exp(-0.5 * dist2) + w[4] * velocity + w[5] * facing
     elif walk:
         c0, c1 = vx - prev_root_vel[0], vy - prev_root_vel[1]
