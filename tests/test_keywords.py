@@ -354,6 +354,8 @@ COMMON_KINDS = {  # the humanoid keywords every env takes (environments/base.py)
     "height": Number(16, 4096, integer=True),
     "render_mode": Optional(Choice(("rgb_array",))),  # "human" would open a window: left out
     "init": Choice(INITS), "hybrid_fraction": UNIT, "reference_motion": Optional(Examples()),
+    # training pushes: every family with training aids (config.FamilyTrainingAids)
+    "push_speed": Optional(Pair(0.0, 10.0)), "push_interval": Pair(0.05, 3600.0),
 }
 KINDS = {
     InterLevelEnv: {
@@ -414,6 +416,7 @@ KINDS = {
         "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in CURRICULUM_SKILLS
                                                   and s["scene"] == "object" else 0, integer=True),
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
+        "near_distance": Optional(Number(0.0, 10.0, low_open=True)),
         # needs start_distance_levels, which no preset sets: only False
         "start_from_front": Examples((False,)),
         # getup starts low: only None (an empty number range) there
