@@ -144,6 +144,7 @@ def test_bad_discriminator_config():
         DiscriminatorConfig(grad_penalty=-1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("loss", ["lsgan", "bce"])
 def test_discriminator_separates_reference_from_random_actions(reference, loss):
     torch.manual_seed(0)

@@ -55,6 +55,7 @@ def test_clip_texts_and_text_conditions(two_clips):
         text_conditions(two_clips, lambda text: np.ones(len(text)))
 
 
+@pytest.mark.slow
 def test_conditioned_discriminator_rejects_motion_with_the_wrong_condition(two_clips):
     """Same walking windows, two conditions: only the walk's own condition is real. An
     unconditioned discriminator could not tell these apart; the conditioned one must."""

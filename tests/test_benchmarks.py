@@ -11,6 +11,8 @@ from pathlib import Path
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+#: the benchmark scripts run in subprocesses, minutes in all: out of the default run, CI runs them (-m slow)
+pytestmark = pytest.mark.slow
 
 CASES = {
     "bench_amp": ["--steps", "20", "--rounds", "1", "--n-envs", "2", "--variants", "small,paper-bg,paper-par-bg"],

@@ -191,6 +191,7 @@ def test_a_policy_file_is_refused_on_other_text_embeddings_than_it_trained_on(tm
     env.close()
 
 
+@pytest.mark.slow
 def test_frames_show_the_filmed_episodes_progress_and_the_camera_set_before_a_reset_holds(tmp_path, monkeypatch):
     """Each frame's label gives the progress of the episode filmed (a new episode used to start with the
     last one's best), and ``set_camera`` before a reset that rebuilds the scene (SIMS) still holds."""

@@ -27,8 +27,9 @@ ROOT = Path(__file__).resolve().parents[1]
 WORKER = ROOT / "tests" / "distributed_worker.py"
 SCRIPT = ROOT / "baselines" / "train_ppo.py"
 
-pytestmark = pytest.mark.skipif(not (dist.is_available() and dist.is_gloo_available()),
-                                reason="this torch has no torch.distributed with the gloo backend")
+pytestmark = [pytest.mark.skipif(not (dist.is_available() and dist.is_gloo_available()),
+                                 reason="this torch has no torch.distributed with the gloo backend"),
+              pytest.mark.slow]    # torchrun ranks in subprocesses: CI runs them (-m slow)
 
 #: weights after the first update, 2 ranks x 2 worlds against 1 x 4: float32 rounding of sums taken in
 #: another order (the normalisers' merged moments, the averaged gradients) through one Adam step

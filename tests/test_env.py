@@ -394,6 +394,7 @@ def test_physics_blow_up_truncates_with_flag():
     assert np.isfinite(obs).all()
 
 
+@pytest.mark.slow
 def test_random_action_soak_20k_steps():
     env = gym.make("InterLevel-v0")
     obs, _ = env.reset(seed=11)

@@ -263,6 +263,7 @@ def test_train_ppo_lean_trains_checkpoints_resumes_and_evaluates(tmp_path, train
     assert "--reset-std only applies to --init-from" in said
 
 
+@pytest.mark.slow
 def test_climb_cache_workers_synthesise_the_runs_staircases_first(tmp_path):
     """--climb-cache-workers: the climbs of every staircase the run's stair starts can draw (here 2 heights x
     1 depth x 1 count x 2 lead feet) are synthesised before training; the run then trains as usual."""
