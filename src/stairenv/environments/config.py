@@ -635,9 +635,9 @@ def resolve(cls: type, config, keywords: dict[str, Any]):
     return config
 
 
-__all__ = ["EnvConfig", "FamilyTrainingAids", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig", "InterLevelStart",
-           "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig", "PlaMoObservation",
-           "PlaMoPaths", "PlaMoSceneConfig", "PlaMoScenePlanner", "PlaMoSceneTermination", "PlaMoSceneWorld",
-           "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts", "RenderConfig",
-           "document_keywords", "from_keywords", "group_keywords", "keyword_paths", "keyword_signature",
-           "keyword_table", "resolve", "unchecked_keywords"]
+__all__ = ["EnvConfig", "FamilyTrainingAids", "HumanoidConfig", "InterLevelConfig", "InterLevelRewardConfig",
+           "InterLevelStart", "InterLevelTermination", "InterLevelTrainingAids", "PhysicsConfig", "PlaMoConfig",
+           "PlaMoObservation", "PlaMoPaths", "PlaMoSceneConfig", "PlaMoScenePlanner", "PlaMoSceneTermination",
+           "PlaMoSceneWorld", "PlaMoTerrain", "PlaMoTermination", "PlaMoTrainingAids", "ReferenceStarts",
+           "RenderConfig", "document_keywords", "from_keywords", "group_keywords", "keyword_paths",
+           "keyword_signature", "keyword_table", "resolve", "unchecked_keywords"]
