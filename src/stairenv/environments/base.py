@@ -432,6 +432,12 @@ class HumanoidEnv(gym.Env):
         self._library = None if self.init == "default" else self.start_clips(load_reference_library(
             self.DEFAULT_REFERENCE_MOTION if reference_motion is None else reference_motion))
 
+    def _setup_family_aids(self, aids) -> None:
+        """The training aids every family has (``config.FamilyTrainingAids``): reference-state starts
+        (``_setup_starts``) and pushes (``_setup_pushes``)."""
+        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
+        self._setup_pushes(aids.push_speed, aids.push_interval)
+
     #: training pushes (``_setup_pushes``): each kick's speed range (m/s), None = none
     _push_speed: tuple[float, float] | None = None
 

@@ -162,8 +162,7 @@ class InterLevelEnv(HumanoidEnv):
         #: this world's level of the step-height curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         # starts on the floor in front of the stairs: level-ground clips only (walks, not climbs)
-        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
-        self._setup_pushes(aids.push_speed, aids.push_interval)
+        self._setup_family_aids(aids)
 
         spec = load_humanoid_spec(physics.pd_gains)
         self._slots = StairsSlots(spec, self.stairs_config.max_steps)

@@ -154,8 +154,7 @@ class PlaMoEnv(HumanoidEnv):
         self.max_xy_error = config.termination.max_xy_error
         self.min_head_height = config.termination.min_head_height
         # starts on the ground: level-ground clips only (a climb's frame would start on no step)
-        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
-        self._setup_pushes(aids.push_speed, aids.push_interval)
+        self._setup_family_aids(aids)
         self.matched_starts = aids.matched_starts
         self._starts_by_locomotion = self._group_starts() if self.matched_starts else None
         self.speed_levels = aids.speed_levels
@@ -247,8 +246,7 @@ class PlaMoEnv(HumanoidEnv):
 
     def _before_physics(self) -> None:
         """The tiles the character can reach during this step in the model (a new one as it comes near)."""
-        if self._terrain_slots is not None:
-            self._terrain_slots.focus(self.model, self.data.qpos[:2])
+        self._focus_terrain(self.data.qpos[:2])
 
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         start = rng.uniform(-1.0, 1.0, 2)

@@ -270,8 +270,7 @@ class SIMSEnv(HumanoidEnv):
         observation, termination = config.observation, config.termination
         self.heightmap_size, self.heightmap_extent = observation.heightmap_size, observation.heightmap_extent
         self.fall_height, self.terminate_on_success = termination.fall_height, termination.terminate_on_success
-        self._setup_starts(aids.init, aids.hybrid_fraction, aids.reference_motion)
-        self._setup_pushes(aids.push_speed, aids.push_interval)
+        self._setup_family_aids(aids)
         self.interaction_start_fraction = aids.interaction_start_fraction
         self.start_distance_levels = aids.start_distance_levels
         self.start_from_front = aids.start_from_front
@@ -279,7 +278,6 @@ class SIMSEnv(HumanoidEnv):
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
         self.min_root_height = aids.min_root_height
-        self.near_distance = aids.near_distance
         #: the reward's near-zone bound |x* - x|^2 (m^2): the paper's, or the ``near_distance`` aid's
         self._near_squared_distance = (task.NEAR_SQUARED_DISTANCE if aids.near_distance is None
                                        else aids.near_distance ** 2)
