@@ -7,7 +7,7 @@ id, the run's settings and, if given, notes on the run and an evaluation file's 
 The model is either
 - a lean trainer's checkpoint ``.pt`` (``train_ppo.py``'s default trainer; read without running
   code from it): its actor, its observation statistics and its run's settings, or
-- an SB3 PPO checkpoint ``.zip`` (``--trainer sb3``), with the VecNormalize ``.pkl`` saved beside it.
+- an SB3 PPO checkpoint ``.zip`` (``train_sb3.py``), with the VecNormalize ``.pkl`` saved beside it.
 
 A lean checkpoint is checked entry by entry before anything is written (``check_checkpoint``); the policy
 goes to a temporary file beside ``--out``, renamed only once it reads back: on a failure (a usage error

@@ -1,11 +1,12 @@
-"""End-to-end training throughput of ``baselines/train_ppo.py``: the lean trainer against SB3, same settings.
+"""End-to-end training throughput of ``baselines/train_ppo.py`` (the lean trainer) against ``train_sb3.py`` (SB3),
+same settings.
 
     python benchmarks/bench_train.py [--env InterLevel-v0] [--steps 131072] [--rounds 3]
                                      [--settings lean sb3 paper] [--extra "--style none"]
 
-Settings (each ``train_ppo.py`` with its defaults, PPO + AMP, 128 worlds x 16-step rollouts):
-``lean`` (``--trainer lean``, the default), ``sb3`` (``--trainer sb3``: Stable-Baselines3 PPO on the
-same batched env, the defaults before the lean trainer), ``paper`` (``--trainer sb3 --preset paper``,
+Settings (each script with its defaults, PPO + AMP, 128 worlds x 16-step rollouts):
+``lean`` (``train_ppo.py``), ``sb3`` (``train_sb3.py``: Stable-Baselines3 PPO on the
+same batched env, the defaults before the lean trainer), ``paper`` (``train_sb3.py --preset paper``,
 run for an eighth of the steps); ``lean-bf16`` and ``lean-2threads``, the lean trainer with its update
 options ``--update-bf16`` and ``--update-threads 2``. Each round runs every setting once, the order rotating between
 rounds; no evaluation, no checkpoint in the timed part. The rate is the script's own ``trained N env
@@ -28,18 +29,18 @@ import tempfile
 from pathlib import Path
 
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
+SB3_SCRIPT = SCRIPT.with_name("train_sb3.py")
 RATE = re.compile(r"trained (\d+) env steps in ([\d.]+) s \((\d+) env steps/s\)")
 CPU = re.compile(r"cpu (\d+) us per env step, ([\d.]+) cores busy")
-SETTINGS = {"lean": (1, ["--trainer", "lean"]), "sb3": (1, ["--trainer", "sb3"]),
-            "paper": (8, ["--trainer", "sb3", "--preset", "paper"]),
+#: setting -> (fraction of the steps, script, flags)
+SETTINGS = {"lean": (1, SCRIPT, []), "sb3": (1, SB3_SCRIPT, []), "paper": (8, SB3_SCRIPT, ["--preset", "paper"]),
             # the lean trainer's update options (off by default): bfloat16 products, both cores in the update
-            "lean-bf16": (1, ["--trainer", "lean", "--update-bf16"]),
-            "lean-2threads": (1, ["--trainer", "lean", "--update-threads", "2"])}
+            "lean-bf16": (1, SCRIPT, ["--update-bf16"]), "lean-2threads": (1, SCRIPT, ["--update-threads", "2"])}
 
 
-def run(env: str, steps: int, extra: list[str], logdir: str) -> tuple[float, float, float]:
+def run(script: Path, env: str, steps: int, extra: list[str], logdir: str) -> tuple[float, float, float]:
     """(env steps/s, CPU us per env step, cores busy) of one training run."""
-    cmd = [sys.executable, str(SCRIPT), "--env", env, "--timesteps", str(steps), "--eval-episodes", "0",
+    cmd = [sys.executable, str(script), "--env", env, "--timesteps", str(steps), "--eval-episodes", "0",
            "--no-progress-bar", "--checkpoint-every", str(10 * steps), "--logdir", logdir, *extra]
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
     rate, cpu = RATE.search(done.stdout), CPU.search(done.stdout)
@@ -65,8 +66,8 @@ def main(argv: list[str] | None = None) -> dict[str, list[float]]:
         for r in range(args.rounds):
             order = names[r % len(names):] + names[:r % len(names)]
             for name in order:
-                divisor, flags = SETTINGS[name]
-                rate, cpu, cores = run(args.env, max(args.steps // divisor, 2048), [*flags, *extra], logdir)
+                divisor, script, flags = SETTINGS[name]
+                rate, cpu, cores = run(script, args.env, max(args.steps // divisor, 2048), [*flags, *extra], logdir)
                 rates[name].append(rate)
                 cpus[name].append(cpu)
                 print(f"round {r}: {name:6s} {rate:7.0f} env steps/s, {cpu:5.0f} us CPU per step, "

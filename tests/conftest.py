@@ -71,3 +71,9 @@ class InProcessScript:
 def train_ppo(baseline_script, monkeypatch, capsys) -> InProcessScript:
     """``baselines/train_ppo.py`` in this process (``InProcessScript``)."""
     return InProcessScript(baseline_script("train_ppo"), monkeypatch, capsys)
+
+
+@pytest.fixture
+def train_sb3(baseline_script, monkeypatch, capsys) -> InProcessScript:
+    """``baselines/train_sb3.py`` in this process (``InProcessScript``)."""
+    return InProcessScript(baseline_script("train_sb3"), monkeypatch, capsys)

@@ -24,6 +24,7 @@ from stairenv.motion import stair_starts
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
 from stairenv.style.wrappers import default_reference
 from stairenv.training import TrainConfig, Trainer, build_style, make_env, read_checkpoint
+from stairenv.training.cli import fill_climb_cache
 from stairenv.training.distributed import LOCAL, DataParallel
 
 #: one epoch, the whole rollout one minibatch, no discriminator round before the update: the update of
@@ -117,10 +118,10 @@ CLIMB_KWARGS = dict(stairs_start_fraction=1.0, step_height=(0.10, 0.11), step_de
 
 
 def climb_cache(parallel) -> dict:
-    """``train_ppo.fill_climb_cache`` in this rank: what it printed, and the climbs this rank then holds."""
+    """``cli.fill_climb_cache`` in this rank: what it printed, and the climbs this rank then holds."""
     printed = []
     config = TrainConfig(env_kwargs=CLIMB_KWARGS)
-    train_ppo_module().fill_climb_cache(config, 1, lambda *words: printed.append(" ".join(map(str, words))), parallel)
+    fill_climb_cache(config, 1, lambda *words: printed.append(" ".join(map(str, words))), parallel)
     return {"printed": printed, "climbs": stair_starts.cached(stair_starts.grid_keys((0.10, 0.11), (0.30, 0.30),
                                                                                      (3, 3)))}
 

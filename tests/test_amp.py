@@ -28,6 +28,7 @@ from stairenv.style.discriminator import (
 from stairenv.style.features import AMP_FEATURE_SIZE, AMP_FEATURE_STRUCTURE, state_features
 from stairenv.style.reference import ReferenceWindows
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper, AMPVectorWrapper
+from stairenv.training import cli
 
 
 def gait_clip(seconds: float = 3.0, fps: float = 30.0, speed: float = 1.0) -> MotionClip:
@@ -378,33 +379,32 @@ def test_instance_noise_is_training_only(reference):
 
 
 def test_train_ppo_discriminator_flags(baseline_script):
-    train_ppo = baseline_script("train_ppo")
-    paper = train_ppo.discriminator_config(train_ppo.parse_args(["--preset", "paper"]))
+    paper = cli.discriminator_config(cli.parse_args(["--preset", "paper"]))
     assert paper == DiscriminatorConfig()  # the paper's discriminator with --preset paper
-    default = train_ppo.discriminator_config(train_ppo.parse_args([]))
+    default = cli.discriminator_config(cli.parse_args([]))
     assert default == DiscriminatorConfig(grad_penalty=10.0, input_noise=1.0, replay_size=200_000)
-    args = train_ppo.parse_args(["--disc-hidden", "512,256", "--disc-grad-penalty", "10", "--disc-lr", "1e-5",
+    args = cli.parse_args(["--disc-hidden", "512,256", "--disc-grad-penalty", "10", "--disc-lr", "1e-5",
                                  "--disc-replay-size", "200000", "--disc-grad-penalty-batch", "64",
                                  "--disc-updates", "1", "--disc-update-interval", "4096",
                                  "--disc-weight-decay", "1e-3", "--disc-logit-reg", "0.05",
                                  "--disc-input-noise", "0.5", "--disc-background", "--disc-scoring", "bf16"])
-    config = train_ppo.discriminator_config(args)
+    config = cli.discriminator_config(args)
     assert config.hidden == (512, 256) and config.grad_penalty == 10.0 and config.learning_rate == 1e-5
     assert config.weight_decay == 1e-3 and config.logit_reg == 0.05 and config.input_noise == 0.5
     assert config.replay_size == 200_000 and config.grad_penalty_batch == 64
     assert args.disc_updates == 1 and args.disc_update_interval == 4096
     assert args.disc_background and args.disc_scoring == "bf16"
-    defaults = train_ppo.parse_args([])
+    defaults = cli.parse_args([])
     assert defaults.disc_background and defaults.vec_env == "batched"
-    assert not train_ppo.parse_args(["--no-disc-background"]).disc_background
+    assert not cli.parse_args(["--no-disc-background"]).disc_background
     with pytest.raises(SystemExit):
-        train_ppo.parse_args(["--disc-hidden", "512,x"])
-    preset = train_ppo.parse_args(["--preset", "style-short", "--w-style", "0.7"])
+        cli.parse_args(["--disc-hidden", "512,x"])
+    preset = cli.parse_args(["--preset", "style-short", "--w-style", "0.7"])
     assert preset.disc_input_noise == 1.0 and preset.learning_rate == 1e-5 and preset.log_std_init == -2.0
     assert preset.w_style == 0.7  # explicit flags win over the preset
-    no_noise = train_ppo.parse_args(["--preset", "style-short", "--disc-input-noise", "0"])
+    no_noise = cli.parse_args(["--preset", "style-short", "--disc-input-noise", "0"])
     assert no_noise.disc_input_noise == 0.0  # even when the flag repeats the default
-    assert train_ppo.parse_args(["--preset", "paper"]).disc_input_noise == 0.0  # the paper's settings
+    assert cli.parse_args(["--preset", "paper"]).disc_input_noise == 0.0  # the paper's settings
 
 
 # --- wrappers --------------------------------------------------------------------

@@ -17,6 +17,7 @@ from stairenv.motion.synthesis import climb_stairs, walk
 from stairenv.style.discriminator import AMPDiscriminator, DiscriminatorConfig
 from stairenv.style.reference import ReferenceWindows, clip_text, text_conditions
 from stairenv.style.wrappers import AMPStyleReward, AMPVecEnvWrapper
+from stairenv.training import cli
 
 FAST_SIMS = {"text_encoder": "hashing", "text_dim": 8}
 
@@ -206,12 +207,11 @@ def test_condition_captions_give_the_discriminator_the_styles_text():
 def test_style_conditions_fall_back_to_the_neutral_clips_text(baseline_script):
     """train_ppo --amp-text-captions all: a style of the env's captions that no reference clip has (sit's clips
     are unstyled) is conditioned on the neutral clip's text; a style with its own clip keeps its text."""
-    train_ppo = baseline_script("train_ppo")
     library = load_reference_library("builtin:sims")
     sit_captions = gym.make("SIMS-Sit-v0", **FAST_SIMS).unwrapped.captions
-    sit = train_ppo.style_conditions(reference_captions(library, "sit"), sit_captions)
+    sit = cli.style_conditions(reference_captions(library, "sit"), sit_captions)
     assert dict(sit) == {style: "sit down" for style in {s for s, _ in sit}} and len(sit) > 1
     walk_reference = reference_captions(library, "walk")
-    walk = dict(train_ppo.style_conditions(walk_reference, (("happy", "skips"), ("sad", "shuffles"))))
+    walk = dict(cli.style_conditions(walk_reference, (("happy", "skips"), ("sad", "shuffles"))))
     assert walk == dict(walk_reference)
     gym.make("SIMS-Sit-v0", condition_captions=sit, **FAST_SIMS).reset(seed=0)  # covers every caption's style

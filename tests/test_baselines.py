@@ -1,5 +1,6 @@
-"""The PPO + AMP training script runs end to end, checkpoints, resumes and evaluates (in the test's process,
-``conftest.InProcessScript``; ``test_bad_flags_are_rejected`` runs it as a script)."""
+"""The SB3 training script (``train_sb3.py``) runs end to end, checkpoints, resumes and evaluates (in the test's
+process, ``conftest.InProcessScript``; ``test_bad_flags_are_rejected`` runs both scripts as scripts); the flags
+both scripts read (``stairenv.training.cli``)."""
 
 from __future__ import annotations
 
@@ -11,15 +12,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stairenv.training import cli
+
 SCRIPT = Path(__file__).resolve().parents[1] / "baselines" / "train_ppo.py"
-# the SB3 trainer (--trainer sb3); the lean trainer's runs are in test_training.py
-TINY = ["--trainer", "sb3", "--n-envs", "2", "--vec-env", "dummy", "--n-steps", "256", "--batch-size", "128",
+SB3_SCRIPT = SCRIPT.with_name("train_sb3.py")
+# the SB3 trainer's runs; the lean trainer's are in test_training.py
+TINY = ["--n-envs", "2", "--vec-env", "dummy", "--n-steps", "256", "--batch-size", "128",
         "--no-progress-bar", "--checkpoint-every", "512"]
 
 
 @pytest.mark.slow
-def test_train_checkpoint_resume_evaluate(tmp_path, train_ppo):
-    out = train_ppo.run(["--timesteps", "1024", "--logdir", str(tmp_path), "--eval-episodes", "2",
+def test_train_checkpoint_resume_evaluate(tmp_path, train_sb3):
+    out = train_sb3.run(["--timesteps", "1024", "--logdir", str(tmp_path), "--eval-episodes", "2",
                          "--eval-max-episode-steps", "20", *TINY], tmp_path)
     run_dir = tmp_path / "InterLevel-v0" / "seed0"
     for name in ("final_model.zip", "vecnormalize.pkl", "amp.pt", "evaluation.csv", "evaluation.json",
@@ -29,7 +33,7 @@ def test_train_checkpoint_resume_evaluate(tmp_path, train_ppo):
     assert "Progress (%)" in out
     assert any((run_dir / "tb").rglob("events.out.tfevents*"))
 
-    out = train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0",
+    out = train_sb3.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0",
                          "--resume", str(run_dir / "checkpoints" / "ppo_512_steps.zip"), *TINY], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
 
@@ -38,18 +42,18 @@ def test_train_checkpoint_resume_evaluate(tmp_path, train_ppo):
     (run_dir / "checkpoints" / "amp_512_steps.pt").unlink()
     resume = ["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume", str(checkpoint),
               *TINY]
-    said = train_ppo.fails(resume, tmp_path)
+    said = train_sb3.fails(resume, tmp_path)
     assert "amp_512_steps.pt" in said and "--fresh-discriminator" in said
-    assert "a fresh discriminator" in train_ppo.run([*resume, "--fresh-discriminator"], tmp_path)
+    assert "a fresh discriminator" in train_sb3.run([*resume, "--fresh-discriminator"], tmp_path)
 
 
-def test_train_sims_with_a_text_conditioned_discriminator(tmp_path, train_ppo):
+def test_train_sims_with_a_text_conditioned_discriminator(tmp_path, train_sb3):
     """SIMS: the discriminator judges [window, caption embedding]; the final evaluation is Table 1's."""
     import json
 
     import torch
 
-    train_ppo.run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
+    train_sb3.run(["--env", "SIMS-Sit-v0", "--amp-text-condition", "--env-kwarg", "text_encoder=hashing",
                    "--env-kwarg", "text_dim=8", "--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes",
                    "2", "--eval-max-episode-steps", "20", *TINY], tmp_path)
     run_dir = tmp_path / "SIMS-Sit-v0" / "seed0"
@@ -58,33 +62,72 @@ def test_train_sims_with_a_text_conditioned_discriminator(tmp_path, train_ppo):
     report = json.loads((run_dir / "evaluation.json").read_text())[0]
     assert report["table"] == "skills" and report["rows"][0]["group"] == "sit" and report["rows"][0]["n"] == 2
     assert report["settings"]["env_kwargs"]["captions"] == [["neutral", "sit down"]]
-    assert "needs a SIMS env" in train_ppo.fails(["--amp-text-condition", "--timesteps", "10"], tmp_path)
+    assert "needs a SIMS env" in train_sb3.fails(["--amp-text-condition", "--timesteps", "10"], tmp_path)
 
 
-def test_defaults_are_the_cpu_settings_and_the_paper_preset_restores_the_paper(baseline_script):
-    train_ppo = baseline_script("train_ppo")
-    cpu = train_ppo.parse_args([])
-    assert (cpu.vec_env, cpu.n_envs, cpu.policy_hidden, cpu.batch_size, cpu.n_steps) == ("batched", 128, (256, 256),
+def test_defaults_are_the_cpu_settings_and_the_paper_preset_restores_the_paper():
+    cpu = cli.parse_args([])
+    assert (cpu.vec_env, cpu.n_envs, cpu.policy_hidden, cpu.minibatch_size, cpu.n_steps) == ("batched", 128, (256, 256),
                                                                                          1024, 16)
     assert cpu.learning_rate == 1e-4 and cpu.log_std_init == -2.0 and cpu.torch_threads == 1
-    paper = train_ppo.parse_args(["--preset", "paper"])
-    assert (paper.vec_env, paper.n_envs, paper.policy_hidden, paper.batch_size, paper.n_steps) == (
+    paper = cli.parse_args(["--preset", "paper"])
+    assert (paper.vec_env, paper.n_envs, paper.policy_hidden, paper.minibatch_size, paper.n_steps) == (
         "dummy", 4, (1024, 512), 64, 256)
     assert paper.learning_rate == 2e-5 and paper.log_std_init == 0.0 and paper.torch_threads is None
     assert paper.w_task == paper.w_style == 0.5 and paper.disc_grad_penalty == 5.0
-    mixed = train_ppo.parse_args(["--preset", "paper", "--n-envs", "8", "--timesteps", "1e5"])
-    assert mixed.n_envs == 8 and mixed.timesteps == 1e5 and mixed.batch_size == 64  # flags win
+    mixed = cli.parse_args(["--preset", "paper", "--n-envs", "8", "--timesteps", "1e5"])
+    assert mixed.n_envs == 8 and mixed.timesteps == 1e5 and mixed.minibatch_size == 64  # flags win
     with pytest.raises(SystemExit):
-        train_ppo.parse_args(["--resume", "a.zip", "--init-from", "b.zip"])
+        cli.parse_args(["--resume", "a.zip", "--init-from", "b.zip"])
 
 
-def test_adaptive_learning_rate_follows_the_kl(baseline_script):
+def test_every_default_is_the_train_configs_and_its_doc_says_it():
+    """One source of defaults: each flag that sets a ``TrainConfig`` field defaults to the field's default, the
+    run the defaults build is ``TrainConfig()`` but for its keywords, and the docstring table (the flags' help)
+    names each field with its true default."""
+    import ast
+    import re
+
+    from stairenv.training.config import TrainConfig, field_default, field_docs
+
+    parser = cli.build_parser()
+    defaults = {action.dest: action.default for action in parser._actions}
+    for flag, field in cli.RUN_FLAGS.items():
+        if flag != "checkpoint_every":    # None: each trainer's own interval
+            value = defaults[flag]
+            assert (tuple(value) if isinstance(value, list) else value) == field_default(field), flag
+    args = cli.parse_args([])
+    built = cli.lean_config(args, {})
+    assert built == TrainConfig(), {name: (getattr(built, name), getattr(TrainConfig(), name))
+                                    for name in TrainConfig.__dataclass_fields__
+                                    if getattr(built, name) != getattr(TrainConfig(), name)}
+    docs = field_docs()
+    assert set(docs) == set(TrainConfig.__dataclass_fields__)
+    for line in TrainConfig.__doc__.splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if line.strip().startswith("|") and len(cells) == 3 and cells[0] in docs:
+            written = re.sub(r"(?<=\d),(?=\d{3})", "", cells[1])    # 2,000,000
+            assert ast.literal_eval(written) == field_default(cells[0]), cells[0]
+    help_text = parser.format_help()
+    assert docs["minibatch_size"] in " ".join(help_text.split())
+
+
+def test_earlier_recipe_keys_are_read_as_the_flags_they_became(tmp_path):
+    recipe = tmp_path / "old.toml"
+    recipe.write_text("batch_size = 64\n")
+    args = cli.parse_args(["--config", str(recipe)])
+    assert args.minibatch_size == 64 and "minibatch_size" in args.given
+    assert cli.parse_args(["--batch-size", "32"]).minibatch_size == 32    # the flag's earlier name
+
+
+def test_adaptive_learning_rate_follows_the_kl():
     from types import SimpleNamespace
 
     from stable_baselines3.common.utils import ConstantSchedule
 
-    train_ppo = baseline_script("train_ppo")
-    callback = train_ppo.AdaptiveLearningRate(target=0.01)
+    from stairenv.training.sb3 import AdaptiveLearningRate
+
+    callback = AdaptiveLearningRate(target=0.01)
     logged = {}
     model = SimpleNamespace(lr_schedule=ConstantSchedule(1e-4), learning_rate=1e-4,
                             logger=SimpleNamespace(name_to_value=logged, record=lambda *a: None))
@@ -114,25 +157,25 @@ def test_bad_flags_are_rejected(tmp_path):
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and "bogus_key" in done.stderr
     # the state on the device is Warp's: refused with the C physics, by both trainers
-    for trainer in ("lean", "sb3"):
-        done = subprocess.run([sys.executable, str(SCRIPT), "--trainer", trainer, "--state-on-device", "--timesteps",
-                               "10"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    for script in (SCRIPT, SB3_SCRIPT):
+        done = subprocess.run([sys.executable, str(script), "--state-on-device", "--timesteps", "10"],
+                              cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
         assert done.returncode != 0 and "warp" in done.stderr and "Traceback" not in done.stderr, done.stderr
 
 
 @pytest.mark.slow
-def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path, train_ppo):
+def test_train_with_the_batched_env_checkpoints_and_resumes(tmp_path, train_sb3):
     batched = [arg if arg != "dummy" else "batched" for arg in TINY]
-    train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "1", "--eval-max-episode-steps",
+    train_sb3.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "1", "--eval-max-episode-steps",
                    "10", *batched], tmp_path)
     checkpoint = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints" / "ppo_512_steps.zip"
     assert checkpoint.exists() and checkpoint.with_name("amp_512_steps.pt").exists()
-    out = train_ppo.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
+    out = train_sb3.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
                          str(checkpoint), *batched], tmp_path)
     assert "resumed from" in out and "(512 steps)" in out
 
     # A new run from the checkpoint: its weights, statistics and discriminator, this run's settings.
-    out = train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
+    out = train_sb3.run(["--timesteps", "512", "--logdir", str(tmp_path / "warm"), "--eval-episodes", "0",
                          "--init-from", str(checkpoint), "--learning-rate", "3e-4", "--target-kl", "0.01",
                          "--env-kwarg", "stairs_start_fraction=0.5", "--disc-input-noise", "0.3", *batched], tmp_path)
     assert "initialised from" in out and "discriminator" in out
@@ -163,11 +206,11 @@ def test_plot_training_averages_step_windows(baseline_script, tmp_path):
 
 
 @pytest.mark.slow
-def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_path, train_ppo):
+def test_train_sb3_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_path, train_sb3):
     """The curriculum's levels are saved beside each checkpoint and given back world by world on
     --resume; a file that does not fit the run stops it, naming the file; the final evaluation draws
     the env's own step heights, without the curriculum."""
-    train_ppo.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0", "--env-kwarg",
+    train_sb3.run(["--timesteps", "512", "--logdir", str(tmp_path), "--eval-episodes", "0", "--env-kwarg",
                    "step_height_levels=9", "--env-kwarg", "step_height=(0.02, 0.2)", *TINY], tmp_path)
     folder = tmp_path / "InterLevel-v0" / "seed0" / "checkpoints"
     saved = folder / "curriculum_512_steps.json"
@@ -176,16 +219,16 @@ def test_train_ppo_curriculum_levels_resume_and_stay_out_of_the_evaluation(tmp_p
     levels = json.loads(saved.read_text())["curriculum_level"]
     assert len(levels) == 2 and all(0 <= level < 9 for level in levels)
     saved.write_text(json.dumps({"curriculum_level": [7, 1]}))
-    out = train_ppo.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
+    out = train_sb3.run(["--timesteps", "256", "--logdir", str(tmp_path), "--eval-episodes", "0", "--resume",
                          str(folder / "ppo_512_steps.zip"), "--env-kwarg", "step_height_levels=9", "--env-kwarg",
                          "step_height=(0.02, 0.2)", *TINY], tmp_path)
     assert f"curriculum levels from {saved} (mean 4.00)" in out
 
 
-def test_train_ppo_restores_levels_and_refuses_bad_files(baseline_script, tmp_path):
+def test_train_sb3_restores_levels_and_refuses_bad_files(tmp_path):
     import json
 
-    train = baseline_script("train_ppo")
+    from stairenv.training import sb3 as train
 
     class Worlds:
         num_envs = 2
@@ -209,21 +252,20 @@ def test_train_ppo_restores_levels_and_refuses_bad_files(baseline_script, tmp_pa
     assert train.curriculum_state_beside(tmp_path / "final_model.zip") is None
     kwargs = {"init": "hybrid", "stairs_start_fraction": 0.5, "stall_seconds": 4.0, "step_height_levels": 9,
               "step_height": (0.02, 0.2), "target_speed": 0.8}
-    assert train.evaluation_kwargs(kwargs) == {"target_speed": 0.8}
-    assert train.evaluation_kwargs({"step_height": (0.1, 0.2)}) == {"step_height": (0.1, 0.2)}
+    assert cli.evaluation_kwargs(kwargs) == {"target_speed": 0.8}
+    assert cli.evaluation_kwargs({"step_height": (0.1, 0.2)}) == {"step_height": (0.1, 0.2)}
 
 
 @pytest.mark.parametrize("recipe", sorted((SCRIPT.parent / "recipes").glob("*.toml")), ids=lambda p: p.stem)
-def test_recipes_parse_and_build_their_env(recipe, baseline_script):
+def test_recipes_parse_and_build_their_env(recipe):
     """Every shipped recipe is a valid --config: known keys, and env keywords the env accepts."""
     import gymnasium as gym
 
-    train_ppo = baseline_script("train_ppo")
-    args = train_ppo.parse_args(["--config", str(recipe)])
+    args = cli.parse_args(["--config", str(recipe)])
     env_kwargs = dict(args.env_kwarg)
     assert args.env in gym.registry and env_kwargs
     env = gym.make(args.env, **env_kwargs)
     env.reset(seed=0)
     env.close()
     # what the final evaluation keeps: no training aid
-    assert not set(train_ppo.evaluation_kwargs(env_kwargs)) & set(train_ppo.TRAINING_AIDS)
+    assert not set(cli.evaluation_kwargs(env_kwargs)) & set(cli.TRAINING_AIDS)

@@ -15,7 +15,7 @@ import pytest
 import torch
 
 import stairenv  # noqa: F401
-from stairenv.training import CheckpointError, TrainConfig, Trainer, build_style, make_env, read_checkpoint
+from stairenv.training import CheckpointError, TrainConfig, Trainer, build_style, cli, make_env, read_checkpoint
 
 #: PPO + AMP on serial physics, a checkpoint at 16 steps with its replay buffer; the env keywords train_ppo.py adds
 SMALL = TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=1, total_steps=16,
@@ -194,14 +194,13 @@ def test_export_policy_writes_a_policy_only_once_it_reads_back(tmp_path, baselin
                                    "no_config"])
 def test_resume_and_init_from_refuse_a_bad_checkpoint_naming_it(run, tmp_path, flag, fault, baseline_script):
     """The values the probe found starting a run that died in torch's distribution check with a tensor dump."""
-    train_ppo = baseline_script("train_ppo")
     change, entry = FAULTS[fault]
     state = torch.load(run, weights_only=True)
     change(state)
     path = saved(state, tmp_path)
-    args = train_ppo.parse_args([flag, str(path), "--logdir", str(tmp_path)])
+    args = cli.parse_args([flag, str(path), "--logdir", str(tmp_path)])
     with pytest.raises(SystemExit, match="^" + re.escape(f"{flag}: {path}: entry {entry} ")):
-        train_ppo._lean_start(args)
+        cli.lean_start(args)
 
 
 @pytest.mark.parametrize("flag", ["--resume", "--init-from"])
@@ -210,40 +209,37 @@ def test_a_checkpoint_without_its_discriminator_needs_fresh_discriminator(run, t
                                                                           baseline_script):
     """A run with AMP used to go on from a checkpoint without its ``style`` entry with a new discriminator, without
     a word (SB3's resume refuses that without ``--fresh-discriminator``)."""
-    train_ppo = baseline_script("train_ppo")
     state = torch.load(run, weights_only=True)
     if how == "missing":
         del state["style"]
     else:
         state["style"] = None
     path = saved(state, tmp_path)
-    args = train_ppo.parse_args([flag, str(path), "--logdir", str(tmp_path)])
+    args = cli.parse_args([flag, str(path), "--logdir", str(tmp_path)])
     with pytest.raises(SystemExit) as stopped:
-        train_ppo._lean_start(args)
+        cli.lean_start(args)
     message = str(stopped.value)
     assert message.startswith(f"{flag} {path}: entry 'style' (the discriminator's state) is {how}: its run trained "
                               "with AMP") and "--fresh-discriminator" in message
-    args = train_ppo.parse_args([flag, str(path), "--logdir", str(tmp_path), "--fresh-discriminator"])
-    resume, init = train_ppo._lean_start(args)
+    args = cli.parse_args([flag, str(path), "--logdir", str(tmp_path), "--fresh-discriminator"])
+    resume, init = cli.lean_start(args)
     assert (resume or init)["style"] is None
 
 
 def test_a_resume_whose_env_keywords_no_longer_build_its_env_names_them(run, tmp_path, baseline_script):
-    train_ppo = baseline_script("train_ppo")
     state = torch.load(run, weights_only=True)
     state["config"]["env_kwargs"]["no_such_keyword"] = 1
     path = saved(state, tmp_path)
-    args = train_ppo.parse_args(["--resume", str(path), "--logdir", str(tmp_path)])
+    args = cli.parse_args(["--resume", str(path), "--logdir", str(tmp_path)])
     with pytest.raises(SystemExit, match="^" + re.escape(f"--resume {path}: its run's env cannot be built here from "
                                                          "entries config['env_id'], config['env_kwargs']")):
-        train_ppo._lean_setup(args, print)
+        cli.lean_setup(args, print)
 
 
 # --- replay buffers --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("value", [math.nan, math.inf, 1e30])
 def test_a_replay_buffer_of_non_finite_or_absurd_windows_is_refused(run, tmp_path, value, baseline_script):
     """A replay buffer with a NaN, inf or 1e30 feature used to be taken into the discriminator's training."""
-    train_ppo = baseline_script("train_ppo")
     state = read_checkpoint(run)
     path = saved(state, tmp_path)
     windows = np.load(run.with_name("replay_16.npy"))
@@ -253,9 +249,9 @@ def test_a_replay_buffer_of_non_finite_or_absurd_windows_is_refused(run, tmp_pat
     try:
         with pytest.raises(CheckpointError, match="^" + re.escape(f"{tmp_path / 'replay_16.npy'}: replay window 5 ")):
             trainer.load_replay(path, state)
-        args = train_ppo.parse_args(["--resume", str(path), "--logdir", str(tmp_path)])
+        args = cli.parse_args(["--resume", str(path), "--logdir", str(tmp_path)])
         with pytest.raises(SystemExit) as stopped:
-            train_ppo._take_resume(trainer, args, state)
+            cli.take_resume(trainer, args, state)
         message = str(stopped.value)
         assert message.startswith(f"--resume: {tmp_path / 'replay_16.npy'}: replay window 5 holds ")
         assert "amp-text-condition" not in message
@@ -267,20 +263,19 @@ def test_a_replay_buffer_of_non_finite_or_absurd_windows_is_refused(run, tmp_pat
 
 def test_a_resume_into_other_networks_names_both_without_unrelated_advice(run, tmp_path, baseline_script):
     """Every resume failure used to end with advice about --amp-text-condition; now each says what fits it."""
-    train_ppo = baseline_script("train_ppo")
     state = read_checkpoint(run)
     other = Trainer(TrainConfig(num_envs=2, physics="serial", rollout_steps=8, minibatch_size=8, epochs=1,
                                 style="none", total_steps=16, hidden=(8, 8)))
     try:
-        args = train_ppo.parse_args(["--resume", str(run), "--logdir", str(tmp_path)])
+        args = cli.parse_args(["--resume", str(run), "--logdir", str(tmp_path)])
         with pytest.raises(SystemExit) as stopped:
-            train_ppo._take_resume(other, args, state)
+            cli.take_resume(other, args, state)
         message = str(stopped.value)
         assert "the checkpoint's policy maps 118 observations through hidden layers [16, 16] to 28 actions" in message
         assert "amp-text-condition" not in message
-        args = train_ppo.parse_args(["--init-from", str(run), "--logdir", str(tmp_path)])
+        args = cli.parse_args(["--init-from", str(run), "--logdir", str(tmp_path)])
         with pytest.raises(SystemExit, match=r"pass --policy-hidden 16,16, the layers it was trained with"):
-            train_ppo._take_init(other, args, {**state, "style": None})
+            cli.take_init(other, args, {**state, "style": None})
     finally:
         other.close()
 
@@ -296,7 +291,7 @@ CHANGES = {    # flags given with a resume -> what the refusal says
     "--env-kwarg init=default": "--env-kwarg init='default' (the run's: 'hybrid')",
     "--init reference": "--init reference (the run's: hybrid)",
     "--n-steps 4": "--n-steps 4 (the run's: 8)",
-    "--batch-size 16": "--batch-size 16 (the run's: 8)",
+    "--batch-size 16": "--minibatch-size 16 (the run's: 8)",    # the flag's earlier name: its name now
     "--n-epochs 3": "--n-epochs 3 (the run's: 1)",
     "--gamma 0.9": "--gamma 0.9 (the run's: 0.99)",
     "--target-kl 0.01": "--target-kl 0.01 (the run's: not set)",
@@ -316,10 +311,9 @@ CHANGES = {    # flags given with a resume -> what the refusal says
 @pytest.mark.parametrize("given", sorted(CHANGES))
 def test_resume_refuses_a_flag_that_would_change_the_run_naming_it(run, tmp_path, given, baseline_script):
     """``--resume`` used to drop these silently (the checkpoint's settings went on)."""
-    train_ppo = baseline_script("train_ppo")
-    args = train_ppo.parse_args(["--resume", str(run), "--logdir", str(tmp_path), *given.split()])
+    args = cli.parse_args(["--resume", str(run), "--logdir", str(tmp_path), *given.split()])
     with pytest.raises(SystemExit) as stopped:
-        train_ppo._lean_setup(args, print)
+        cli.lean_setup(args, print)
     message = str(stopped.value)
     assert message.startswith(f"--resume {run}: a resume goes on with its run's own settings, and these given would "
                               "change the run: ")
@@ -327,12 +321,11 @@ def test_resume_refuses_a_flag_that_would_change_the_run_naming_it(run, tmp_path
 
 
 def test_resume_names_a_config_key_that_would_change_the_run(run, tmp_path, baseline_script):
-    train_ppo = baseline_script("train_ppo")
     toml = tmp_path / "recipe.toml"
     toml.write_text('n_envs = 8\n[env_kwargs]\ntarget_speed = 0.8\n')
-    args = train_ppo.parse_args(["--resume", str(run), "--config", str(toml), "--logdir", str(tmp_path)])
+    args = cli.parse_args(["--resume", str(run), "--config", str(toml), "--logdir", str(tmp_path)])
     with pytest.raises(SystemExit) as stopped:
-        train_ppo._lean_setup(args, print)
+        cli.lean_setup(args, print)
     assert f"--n-envs 8 (from --config {toml}; the run's: 2); --env-kwarg target_speed=0.8 (the run's: not set)" \
         in str(stopped.value)
 
@@ -341,13 +334,12 @@ def test_resume_takes_the_runs_own_values_and_this_machines_settings_and_says_so
                                                                                   capsys):
     """The run's own values given again go on (the same command restarting a run); this machine's settings
     are taken instead of the checkpoint's and said; with --fresh-discriminator the --disc-* flags are taken."""
-    train_ppo = baseline_script("train_ppo")
     same = ["--n-envs", "2", "--seed", "0", "--learning-rate", "1e-4", "--policy-hidden", "16,16", "--init", "hybrid",
             "--n-steps", "8", "--checkpoint-every", "16", "--env", "InterLevel-v0", "--env-kwarg", "amp_history=2"]
-    args = train_ppo.parse_args(["--resume", str(run), "--logdir", str(tmp_path), "--timesteps", "32",
+    args = cli.parse_args(["--resume", str(run), "--logdir", str(tmp_path), "--timesteps", "32",
                                  "--torch-threads", "2", "--physics", "mujoco", "--fresh-discriminator",
                                  "--disc-hidden", "8", *same])
-    resume, _, config, _, _ = train_ppo._lean_setup(args, print)
+    resume, _, config, _, _ = cli.lean_setup(args, print)
     assert (config.torch_threads, config.physics, config.disc_hidden, config.total_steps) == (2, "mujoco", (8,), 48)
     assert config.replace(torch_threads=1, physics="serial", disc_hidden=(16,), total_steps=16) == \
         TrainConfig.from_dict(resume["config"])
@@ -359,15 +351,14 @@ def test_resume_takes_the_runs_own_values_and_this_machines_settings_and_says_so
 def test_every_flag_has_a_defined_outcome_with_resume(baseline_script):
     """A flag added later must be sorted: compared with the checkpoint's setting, taken as this machine's, or
     one that does not change how the run trains."""
-    train_ppo = baseline_script("train_ppo")
-    sorted_flags = (set(train_ppo.RUN_FLAGS) | set(train_ppo.MACHINE_FLAGS) | set(train_ppo.KEYWORD_FLAGS)
-                    | set(train_ppo.OTHER_FLAGS))
-    assert {action.dest for action in train_ppo.build_parser()._actions} - sorted_flags == set()
-    assert set(train_ppo.RUN_FLAGS.values()) <= {f for f in TrainConfig.__dataclass_fields__}
+    sorted_flags = (set(cli.RUN_FLAGS) | set(cli.MACHINE_FLAGS) | set(cli.KEYWORD_FLAGS)
+                    | set(cli.OTHER_FLAGS))
+    assert {action.dest for action in cli.build_parser()._actions} - sorted_flags == set()
+    assert set(cli.RUN_FLAGS.values()) <= {f for f in TrainConfig.__dataclass_fields__}
 
 
 def test_sb3_resume_refuses_a_flag_its_checkpoint_would_drop(tmp_path, baseline_script):
-    """``--trainer sb3 --resume``: SB3 keeps the checkpoint's PPO settings and networks; a flag given with another
+    """``train_sb3.py --resume``: SB3 keeps the checkpoint's PPO settings and networks; a flag given with another
     value is named (the env's flags build this run's envs, as before)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -378,11 +369,11 @@ def test_sb3_resume_refuses_a_flag_its_checkpoint_would_drop(tmp_path, baseline_
         ).save(tmp_path / "final_model.zip")
     venv.save(tmp_path / "vecnormalize.pkl")
     venv.close()
-    common = ["--trainer", "sb3", "--resume", str(tmp_path / "final_model.zip"), "--style", "none", "--n-envs", "1",
+    common = ["--resume", str(tmp_path / "final_model.zip"), "--style", "none", "--n-envs", "1",
               "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar",
               "--logdir", str(tmp_path / "out")]
     with pytest.raises(SystemExit) as stopped:
-        baseline_script("train_ppo").main([*common, "--learning-rate", "1e-3", "--policy-hidden", "32,32",
+        baseline_script("train_sb3").main([*common, "--learning-rate", "1e-3", "--policy-hidden", "32,32",
                                            "--n-steps", "64"])
     message = str(stopped.value)
     assert message.startswith(f"--resume {tmp_path / 'final_model.zip'}: SB3 goes on with the checkpoint's own "

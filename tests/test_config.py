@@ -34,6 +34,7 @@ from stairenv.environments.sims import SIMSEnv
 from stairenv.environments.sims_config import SIMSConfig, SIMSScene, SIMSTask, SIMSTrainingAids
 from stairenv.planning.errors import InstructionError
 from stairenv.planning.locomotion import LOCOMOTIONS
+from stairenv.training import cli
 from stairenv.validation import field_check
 from stairenv.world.scenes import SceneConfig
 from stairenv.world.stairs import StairsConfig
@@ -178,11 +179,10 @@ def test_a_config_built_directly_is_checked_too():
      {"text_encoder": "hashing", "fall_height": 0.3}),
 ])
 def test_the_evaluation_drops_the_configs_training_aids(baseline_script, config_cls, aids_cls, kwargs, evaluated):
-    train_ppo = baseline_script("train_ppo")
     aids = group_keywords(config_cls, "training_aids")
     assert aids == tuple(f.name for f in dataclasses.fields(aids_cls))
-    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
-    assert train_ppo.evaluation_kwargs(kwargs) == evaluated
+    assert set(aids) <= set(cli.TRAINING_AIDS)
+    assert cli.evaluation_kwargs(kwargs) == evaluated
     # the evaluated env: the training config with its aids at their defaults (the paper's protocol)
     trained = config_cls.from_keywords(**kwargs)
     assert config_cls.from_keywords(**evaluated) == dataclasses.replace(trained, training_aids=aids_cls())
@@ -205,11 +205,10 @@ def test_plamo_config_holds_the_keywords_resolved():
 
 
 def test_the_evaluation_drops_plamos_training_aids(baseline_script):
-    train_ppo = baseline_script("train_ppo")
     aids = group_keywords(PlaMoConfig, "training_aids")
-    assert set(aids) <= set(train_ppo.TRAINING_AIDS)
+    assert set(aids) <= set(cli.TRAINING_AIDS)
     kwargs = {"init": "hybrid", "matched_starts": False, "speed_levels": 3, "terrain": "rough"}
-    evaluated = train_ppo.evaluation_kwargs(kwargs)
+    evaluated = cli.evaluation_kwargs(kwargs)
     assert evaluated == {"terrain": "rough"}
     assert PlaMoConfig.from_keywords(**evaluated) == dataclasses.replace(
         PlaMoConfig.from_keywords(**kwargs), training_aids=PlaMoTrainingAids())

@@ -100,8 +100,8 @@ def test_evaluate_style_refuses_a_crafted_discriminator(crafted, tmp_path, basel
     assert "refused" in capsys.readouterr().err and not marker.exists()
 
 
-# --- train_ppo.py --resume -------------------------------------------------------
-FAST = ["--trainer", "sb3", "--n-envs", "1", "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar"]
+# --- train_sb3.py --resume -------------------------------------------------------
+FAST = ["--n-envs", "1", "--vec-env", "dummy", "--timesteps", "0", "--eval-episodes", "0", "--no-progress-bar"]
 
 
 def statistics_for(env_id: str, path) -> None:
@@ -126,61 +126,61 @@ def checkpoint(tmp_path):
     return make_checkpoint(tmp_path, "InterLevel-v0")
 
 
-def resume(train_ppo, checkpoint, tmp_path, *extra) -> str:
-    """train_ppo.main's message when it stops."""
+def resume(train_sb3, checkpoint, tmp_path, *extra) -> str:
+    """train_sb3.main's message when it stops."""
     with pytest.raises(SystemExit) as stopped:
-        train_ppo.main(["--resume", str(checkpoint), "--logdir", str(tmp_path / "out"), *FAST, *extra])
+        train_sb3.main(["--resume", str(checkpoint), "--logdir", str(tmp_path / "out"), *FAST, *extra])
     return str(stopped.value)
 
 
 def test_resume_without_the_amp_state_stops(checkpoint, tmp_path, baseline_script):
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path)
+    message = resume(baseline_script("train_sb3"), checkpoint, tmp_path)
     assert str(checkpoint.with_name("amp_512_steps.pt")) in message and "--fresh-discriminator" in message
 
 
 def test_resume_from_a_missing_checkpoint_names_it(tmp_path, baseline_script):
     missing = tmp_path / "runs" / "ppo_100_steps.zip"
-    message = resume(baseline_script("train_ppo"), missing, tmp_path)
+    message = resume(baseline_script("train_sb3"), missing, tmp_path)
     assert f"--resume {missing}: no such checkpoint file" in message
 
 
 def test_resume_without_statistics_names_them(checkpoint, tmp_path, baseline_script):
     checkpoint.with_name("ppo_vecnormalize_512_steps.pkl").unlink()
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    message = resume(baseline_script("train_sb3"), checkpoint, tmp_path, "--style", "none")
     assert str(checkpoint) in message and "no VecNormalize statistics" in message
 
 
 def test_resume_with_truncated_statistics_names_them(checkpoint, tmp_path, baseline_script):
     stats = checkpoint.with_name("ppo_vecnormalize_512_steps.pkl")
     stats.write_bytes(stats.read_bytes()[:100])
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    message = resume(baseline_script("train_sb3"), checkpoint, tmp_path, "--style", "none")
     assert f"cannot read the VecNormalize statistics {str(stats)!r}" in message and "truncated" in message
 
 
 def test_resume_on_another_env_names_both(tmp_path, baseline_script):
     plamo = make_checkpoint(tmp_path, "PlaMo-v0")
-    message = resume(baseline_script("train_ppo"), plamo, tmp_path, "--style", "none")  # --env InterLevel-v0
+    message = resume(baseline_script("train_sb3"), plamo, tmp_path, "--style", "none")  # --env InterLevel-v0
     assert f"--resume {plamo}: trained on observations of shape (399,)" in message
     assert "(its run folder is PlaMo-v0's), but --env InterLevel-v0 gives (118,)" in message
     assert "pass the --env and --env-kwarg it was trained with" in message
 
 
 def test_resume_from_a_broken_model_names_it(checkpoint, tmp_path, baseline_script):
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path, "--style", "none")
+    message = resume(baseline_script("train_sb3"), checkpoint, tmp_path, "--style", "none")
     assert f"--resume {checkpoint}: cannot load it as a PPO checkpoint" in message
 
 
 def test_resume_refuses_a_crafted_amp_state(checkpoint, crafted, tmp_path, baseline_script):
     path, marker = crafted
     path.rename(checkpoint.with_name("amp_512_steps.pt"))
-    message = resume(baseline_script("train_ppo"), checkpoint, tmp_path)
+    message = resume(baseline_script("train_sb3"), checkpoint, tmp_path)
     assert "amp_512_steps.pt: refused" in message and "--fresh-discriminator" in message
     assert not marker.exists()
 
 
 def test_fresh_discriminator_needs_resume(baseline_script):
     with pytest.raises(SystemExit, match="--fresh-discriminator only applies to --resume"):
-        baseline_script("train_ppo").parse_args(["--fresh-discriminator"])
+        baseline_script("train_sb3").main(["--fresh-discriminator"])
 
 
 class Calls:

@@ -13,6 +13,7 @@ from stairenv.environments.sims import START_PENETRATION, SIMSEnv
 from stairenv.motion import interaction_starts
 from stairenv.rotations import heading_angle, wrap_angle
 from stairenv.tasks import curriculum
+from stairenv.training import cli
 
 FAST = {"text_encoder": "hashing", "scene_resample_every": 1}
 
@@ -215,9 +216,8 @@ def test_both_keywords_work_in_the_batched_env():
 
 
 def test_the_evaluation_drops_both_aids(baseline_script):
-    train_ppo = baseline_script("train_ppo")
     kwargs = {"interaction_start_fraction": 0.5, "start_distance_levels": 3, "start_distance": (1.0, 4.0)}
-    assert train_ppo.evaluation_kwargs(kwargs) == {"start_distance": (1.0, 4.0)}
+    assert cli.evaluation_kwargs(kwargs) == {"start_distance": (1.0, 4.0)}
     assert "start_distance_levels" in curriculum.LEVEL_KEYWORDS
     assert math.isclose(START_PENETRATION, 0.01)
 

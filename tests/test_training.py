@@ -19,7 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 import stairenv  # noqa: F401
 from stairenv.environments.sims import reference_captions
 from stairenv.motion.rsi import load_reference_library
-from stairenv.training import CheckpointError, TrainConfig, Trainer, read_checkpoint
+from stairenv.training import CheckpointError, TrainConfig, Trainer, cli, read_checkpoint
 from stairenv.training.ppo import ActorCritic, Normalizer, Rollout
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -479,17 +479,16 @@ def test_config_paths_are_paths_and_a_fresh_discriminator_takes_the_disc_flags(t
     """``--config`` keys are converted as their flags would be (``logdir = "runs"`` is a path, as
     ``--logdir runs``); ``--resume --fresh-discriminator`` builds the new discriminator with the ``--disc-*``
     flags given (they used to be ignored for the checkpoint's), the others staying the run's."""
-    train_ppo = baseline_script("train_ppo")
     toml = tmp_path / "run.toml"
     toml.write_text(f'logdir = "{tmp_path / "runs"}"\ninit_from = "{tmp_path / "x.pt"}"\n')
-    args = train_ppo.parse_args(["--config", str(toml)])
+    args = cli.parse_args(["--config", str(toml)])
     assert args.logdir == tmp_path / "runs" and isinstance(args.init_from, Path)
     saved = amp_trainer(SMALL_AMP.replace(total_steps=16, disc_loss="bce"))
     saved.save(tmp_path / "checkpoint_16.pt")
     saved.close()
-    args = train_ppo.parse_args(["--resume", str(tmp_path / "checkpoint_16.pt"), "--fresh-discriminator",
+    args = cli.parse_args(["--resume", str(tmp_path / "checkpoint_16.pt"), "--fresh-discriminator",
                                  "--disc-hidden", "8", "--disc-lr", "1e-3", "--logdir", str(tmp_path)])
-    resume, _, config, _, _ = train_ppo._lean_setup(args, print)
+    resume, _, config, _, _ = cli.lean_setup(args, print)
     assert resume["style"] is None
     assert (config.disc_hidden, config.disc_lr, config.disc_loss) == ((8,), 1e-3, "bce")
 

@@ -39,16 +39,36 @@ class TrainConfig:
     | minibatch_size | 1024 | samples per gradient step (per rank) |
     | learning_rate | 1e-4 | Adam (eps 1e-5) |
     | target_kl | None | adapt the rate to keep approx-KL near this (x1.5 / /1.5, bounds 1e-6..1e-3) |
-    | gamma, gae_lambda | 0.99, 0.95 | discount, GAE |
+    | gamma | 0.99 | discount |
+    | gae_lambda | 0.95 | GAE's lambda |
     | clip_range | 0.2 | PPO ratio clip |
-    | ent_coef, vf_coef | 0.0, 0.5 | entropy and value-loss weights |
+    | ent_coef | 0.0 | entropy bonus weight |
+    | vf_coef | 0.5 | value-loss weight |
     | max_grad_norm | 1.0 | gradient-norm clip |
     | hidden | (256, 256) | policy and value MLPs (ReLU, separate) |
     | log_std_init | -2.0 | initial log std of the Gaussian (std 0.135) |
-    | clip_obs, clip_reward | 10.0, 10.0 | observation / reward normaliser clips |
+    | clip_obs | 10.0 | observation normaliser clip |
+    | clip_reward | 10.0 | reward normaliser clip |
     | style | "amp" | "amp": reward ``w_task r_task + w_style r_style``; "none": task only |
-    | w_task, w_style | 0.5, 0.5 | reward weights |
-    | disc_* | see ``DiscriminatorConfig`` | the discriminator and its training schedule |
+    | w_task | 0.5 | the task reward's weight |
+    | w_style | 0.5 | the style reward's weight |
+    | reference | None | folder or .npz of reference clips, or builtin:stairs / builtin:sims (None: the env's) |
+    | amp_history | 2 | frames per discriminator sample |
+    | amp_text_condition | False | SIMS: the discriminator also judges the caption's text embedding |
+    | disc_hidden | (1024, 512) | discriminator hidden layers (the paper's) |
+    | disc_loss | "lsgan" | discriminator loss |
+    | disc_lr | 1e-4 | discriminator learning rate |
+    | disc_grad_penalty | 10.0 | gradient penalty weight (the paper: 5) |
+    | disc_grad_penalty_batch | None | reference windows the gradient penalty is estimated on (None: the whole batch) |
+    | disc_weight_decay | 1e-4 | L2 penalty on every discriminator weight |
+    | disc_logit_reg | 0.01 | L2 penalty on the output layer's weights |
+    | disc_input_noise | 1.0 | std of instance noise on the discriminator's normalised training inputs (0: none, the paper) |
+    | disc_batch_size | 256 | reference and agent windows per minibatch |
+    | disc_replay_size | 200,000 | agent windows kept for training (the paper: 100,000) |
+    | disc_update_interval | 2048 | transitions between the discriminator's training rounds |
+    | disc_updates | 2 | discriminator minibatches per training round |
+    | disc_background | True | train the discriminator in a worker thread while the envs step (rewards lag one round) |
+    | disc_scoring | "auto" | how the discriminator scores each step (numba-parallel: over all cores; bf16: bfloat16) |
     | torch_threads | 1 | torch intra-op threads during the rollout (the physics pool uses the cores) |
     | update_threads | None | torch threads during the update, when the physics pool is idle (None: torch_threads) |
     | update_bf16 | False | the update's matrix products in bfloat16 (autocast; weights and optimiser stay float32) |
@@ -212,3 +232,20 @@ def _plain(value: Any) -> Any:
     if isinstance(value, list):
         return [_plain(v) for v in value]
     return value
+
+
+def field_docs() -> dict[str, str]:
+    """Each ``TrainConfig`` field's meaning, as its docstring's table says it (the command line's help)."""
+    docs = {}
+    for line in (TrainConfig.__doc__ or "").splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if line.strip().startswith("|") and len(cells) == 3 and cells[0] != "field" and not set(cells[0]) <= {"-"}:
+            for name in cells[0].split(","):
+                docs[name.strip()] = cells[2]
+    return docs
+
+
+def field_default(name: str) -> Any:
+    """``TrainConfig``'s default of field ``name`` (the one source of every run setting's default)."""
+    field_ = TrainConfig.__dataclass_fields__[name]
+    return field_.default_factory() if field_.default_factory is not dataclasses.MISSING else field_.default

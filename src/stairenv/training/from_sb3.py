@@ -1,4 +1,4 @@
-"""A Stable-Baselines3 PPO checkpoint (``train_ppo.py --trainer sb3``) as a lean-trainer state, so that a
+"""A Stable-Baselines3 PPO checkpoint (``baselines/train_sb3.py``) as a lean-trainer state, so that a
 run started with SB3 goes on with ``stairenv.training`` (``train_ppo.py --init-from ppo_<n>_steps.zip``).
 
 The networks are the same (``ActorCritic`` mirrors SB3's ``MlpPolicy`` with separate ReLU networks, in

@@ -11,7 +11,7 @@ One loop (``Trainer.learn``), in the shape of CleanRL's and rsl_rl's PPO::
 
 Everything is an array: observations, rewards, flags, style windows and the episode statistics the
 log shows; the per-world ``info`` dicts are read only for the worlds whose episode ended. The
-algorithm is Stable-Baselines3's PPO with VecNormalize as ``train_ppo.py --trainer sb3`` runs it
+algorithm is Stable-Baselines3's PPO with VecNormalize as ``baselines/train_sb3.py`` runs it
 (same initialisation, normalisers, bootstrapping, losses and defaults), so recipes carry over;
 ``docs/training.md`` gives the measurements against it and against skrl and rsl-rl-lib.
 

@@ -1,4 +1,4 @@
-"""Stable-Baselines3 PPO with the AMP wrapper (``train_ppo.py --trainer sb3``): its callbacks (AMP
+"""Stable-Baselines3 PPO with the AMP wrapper (``baselines/train_sb3.py``): its callbacks (AMP
 statistics and state, episode results, a KL-adaptive learning rate, the step-height curriculum) and the
 files a run saves beside each ``ppo_<n>_steps.zip`` (VecNormalize statistics, AMP state, curriculum
 levels), found and checked before a resume. The model .zip and statistics .pkl are SB3's pickles:
