@@ -377,7 +377,8 @@ KINDS = {
         "stairs_distance": Pair(1.5, STAIRS_RANGES["stairs_distance"][1]),
         "stairs_yaw": Pair(*STAIRS_RANGES["stairs_yaw"]), "reset_noise_scale": UNIT,
         "stairs_start_fraction": UNIT, "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)),
-        "stall_distance": Number(0.0, 100.0), "step_height_levels": Number(0, 100, integer=True),
+        "stall_distance": Number(0.0, 100.0), "hold_target_reward": Optional(Number(0.0, 1000.0)),
+        "step_height_levels": Number(0, 100, integer=True),
         "curriculum_promote_at": Optional(Number(DEMOTE_BELOW, 1.0)),  # at least curriculum_demote_below
         "curriculum_demote_below": UNIT,
     },

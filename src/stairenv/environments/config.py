@@ -181,6 +181,10 @@ class InterLevelTrainingAids(FamilyTrainingAids):
                                           "to M_T for this long; None = never")
     stall_distance: float = checked(0.2, Check("float", 0.0, 100.0),
                                     "least approach to M_T (m) that counts as progress for stall_seconds")
+    hold_target_reward: float | None = checked(
+        None, Check("float", 0.0, 1000.0, optional=True),
+        "episodes go on after success, each step with the root at M_T paid this instead of one success_reward "
+        "and the end; None = the paper's end")
     step_height_levels: int = checked(0, Check("int", 0, 100),
                                       "split step_height into this many levels of a success-driven curriculum; "
                                       "0 = off")

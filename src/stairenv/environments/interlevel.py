@@ -130,6 +130,12 @@ class InterLevelEnv(HumanoidEnv):
       ``stall_seconds`` is terminated (``info["stalled"] = True``, no reward of its own). Standing
       still then ends the stream of style reward as a fall does, so it no longer pays more than
       trying to climb.
+    - Holding the target (``hold_target_reward``): success no longer ends the episode; every step with
+      the root within ``success_radius`` of M_T is paid this reward instead of the one ``success_reward``.
+      With the paper's end, standing just outside the radius keeps earning task and style reward, which
+      is worth more than the bonus that ends the episode; the climber learns to stop short
+      (``docs/interlevel_training.md``, "Arriving at M_T"). As InterScene's interaction early termination,
+      holding the goal becomes the best thing to do.
     - Step-height curriculum (``step_height_levels``, ``stairenv.tasks.curriculum``): the
       ``step_height`` range is split into that many equal bands; the env holds a level
       (``curriculum_level``, first drawn from the easier half at the first reset) and draws its
@@ -187,7 +193,7 @@ class InterLevelEnv(HumanoidEnv):
         "w_location", "w_facing", "w_velocity", "sigma_before", "sigma_after", "sigma_across", "w_scale",
         "target_speed", "progress_scaling", "success_reward", "failure_reward", "success_radius",
         "terminate_on_success", "termination_height", "start_radius", "random_start_heading", "reset_noise_scale",
-        "stall_seconds", "stall_distance", "curriculum_demote_below", "curriculum_promote_at"))
+        "stall_seconds", "stall_distance", "hold_target_reward", "curriculum_demote_below", "curriculum_promote_at"))
 
     def _apply_config(self, config: InterLevelConfig) -> None:
         super()._apply_config(config)    # an attribute per live keyword, as the config has it
@@ -287,9 +293,10 @@ class InterLevelEnv(HumanoidEnv):
             stall = env._stall    # the env's settings as they are now, the clock from zero
             stall.seconds, stall.distance, stall.dt = env.stall_seconds, env.stall_distance, env.dt
             stall.restart()
+            hold = env.hold_target_reward    # a training aid: success pays each step and does not end
             env._end_parameters = task.end_parameters(env.stall_distance, env.stall_seconds, env.dt,
-                                                      env.success_reward, env.failure_reward,
-                                                      env.terminate_on_success)
+                                                      env.success_reward if hold is None else hold,
+                                                      env.failure_reward, env.terminate_on_success and hold is None)
 
     BATCH_OUTCOMES = True
     ROW_ARRAYS = ("_prev_root", "_packed_goal", "_stall.approach", "_stall.approach_at")
