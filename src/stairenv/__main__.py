@@ -41,6 +41,11 @@ from stairenv.evaluation.cli import env_kwarg_argument
 from stairenv.policy_loading import PRETRAINED  # ``--policy`` for the policy shipped with the package
 
 DEFAULT_ENV = "InterLevel-v0"
+#: the first episode's seed where ``--seed`` is not given: for InterLevel-v0 a staircase the shipped climber
+#: climbs to M_T (measured 2026-12-07: the episode succeeds, and again in 23 of 24 reruns with its actions
+#: perturbed by 1e-6 to 1e-4, as another machine's low bits would; the shipped policy succeeds in 57.6% of the
+#: paper's 1,000 staircases, the README says), 0 for every other env
+DEFAULT_SEEDS = {"InterLevel-v0": 35}
 #: what ``--policy`` falls back to when the package ships no trained policy for the env
 FALLBACK_POLICY = "zero"
 def default_out(env_id: str) -> str:
@@ -73,7 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
                              f"policy, else {FALLBACK_POLICY!r})")
     parser.add_argument("--seconds", type=float, default=None,
                         help="video length in seconds (default: one episode, filmed to its end)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="seed of the first episode (default: 35 for InterLevel-v0, a staircase its shipped "
+                             "policy climbs to the end; 0 for the other envs)")
     parser.add_argument("--out", default=None,
                         help="output .mp4 path (default: videos/<env name>.mp4, e.g. videos/interlevel.mp4)")
     parser.add_argument("--width", type=int, default=640, help="frame width in pixels (default: %(default)s)")
@@ -408,7 +415,7 @@ def main(argv: list[str] | None = None) -> int:
             env_id=args.env,
             policy=policy,
             seconds=args.seconds,
-            seed=args.seed,
+            seed=DEFAULT_SEEDS.get(args.env, 0) if args.seed is None else args.seed,
             out=args.out,
             width=args.width,
             height=args.height,
