@@ -209,10 +209,27 @@ def plamo_weights(clips: Sequence[MotionClip]) -> np.ndarray:
 
 def load_plamo_clips(folder: str | Path = DATA_DIR) -> list[MotionClip]:
     """The shipped clips (sorted by file name)."""
+    return load_folder(folder, "PlaMo reference clips")
+
+
+def load_folder(folder: str | Path, what: str) -> list[MotionClip]:
+    """Every ``.npz`` clip of ``folder``, sorted by file name; ``FileNotFoundError`` naming ``what`` if none."""
     files = sorted(Path(folder).glob("*.npz"))
     if not files:
-        raise FileNotFoundError(f"no PlaMo reference clips in {folder}")
+        raise FileNotFoundError(f"no {what} in {folder}")
     return [MotionClip.load(f) for f in files]
+
+
+def save_and_describe(clips: Sequence[MotionClip], out: Path) -> None:
+    """Write ``clips`` to ``out/<name>.npz`` and print a line of each one's labels."""
+    out.mkdir(parents=True, exist_ok=True)
+    for clip in clips:
+        path = clip.save(out / f"{clip.name}.npz")
+        m = clip.meta
+        print(f"{clip.name}: {m['locomotion']}, {clip.num_frames} frames at {clip.fps:g} fps ({clip.duration:.2f} s), "
+              f"head {m['head_height']:.2f} m [{m['head_height_range'][0]:.2f}, {m['head_height_range'][1]:.2f}], "
+              f"speed {m['speed']:.2f} m/s, flight {m['flight_fraction']:.2f}, penetration {m['penetration']:.3f} m, "
+              f"median lowest {m['median_lowest_point']:.3f} m -> {path}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -222,15 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="folder holding DeepMimic/ and IsaacGymEnvs/ (default: %(default)s)")
     parser.add_argument("--out", type=Path, default=DATA_DIR, help="folder for the .npz clips (default: the package's)")
     args = parser.parse_args(argv)
-    clips = build_clips(args.motions)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for clip in clips:
-        path = clip.save(args.out / f"{clip.name}.npz")
-        m = clip.meta
-        print(f"{clip.name}: {m['locomotion']}, {clip.num_frames} frames at {clip.fps:g} fps ({clip.duration:.2f} s), "
-              f"head {m['head_height']:.2f} m [{m['head_height_range'][0]:.2f}, {m['head_height_range'][1]:.2f}], "
-              f"speed {m['speed']:.2f} m/s, flight {m['flight_fraction']:.2f}, penetration {m['penetration']:.3f} m, "
-              f"median lowest {m['median_lowest_point']:.3f} m -> {path}")
+    save_and_describe(build_clips(args.motions), args.out)
     return 0
 
 
