@@ -317,3 +317,17 @@ def test_a_film_that_stops_leaves_nothing_half_written(tmp_path, monkeypatch):
                          progress_bar=False)
     assert iio.imread(out).shape[0] == summary["frames"] and len(list(stills.glob("*.png"))) == 1
     assert sorted(p.name for p in out.parent.iterdir()) == ["stills", "v.mp4"]
+
+
+def test_the_first_episodes_seed_is_the_envs_default_unless_given(monkeypatch):
+    """InterLevel-v0's film starts on seed 35 (a climb its shipped policy ends at M_T); other envs on 0; --seed wins."""
+    import stairenv.__main__ as main_module
+
+    seeds = []
+    summary = {"path": "film.mp4", "frames": 1, "fps": 30, "pngs": [], "best_progress": None, "steps": 1,
+               "episodes": 1, "successes": 0, "falls": 0, "unstable": 0, "outcome": "time limit"}
+    monkeypatch.setattr(main_module, "record", lambda **kwargs: seeds.append(kwargs["seed"]) or summary)
+    monkeypatch.setattr(main_module, "resolve_policy", lambda policy, env_id: ("zero", None))
+    for argv in ([], ["--env", "PlaMo-v0"], ["--seed", "7"]):
+        main_module.main(argv)
+    assert seeds == [main_module.DEFAULT_SEEDS["InterLevel-v0"], 0, 7] and seeds[0] == 35
