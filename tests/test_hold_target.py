@@ -16,15 +16,11 @@ AT_TARGET = dict(success_radius=10.0, step_height=(0.05, 0.05), num_steps=(3, 3)
 
 def rollout(steps: int = 4, num_envs: int | None = None, **keywords):
     """(reward, terminated, success, reward_success) of each step of zero actions."""
-    if num_envs is None:
-        env = gym.make("InterLevel-v0", **AT_TARGET, **keywords)
-        env.reset(seed=3)
-        zero = np.zeros(env.action_space.shape)
-    else:
-        env = gym.make_vec("InterLevel-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                           **AT_TARGET, **keywords)
-        env.reset(seed=3)
-        zero = np.zeros(env.action_space.shape)
+    env = (gym.make("InterLevel-v0", **AT_TARGET, **keywords) if num_envs is None else
+           gym.make_vec("InterLevel-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
+                        **AT_TARGET, **keywords))
+    env.reset(seed=3)
+    zero = np.zeros(env.action_space.shape)
     rows = []
     for _ in range(steps):
         _, reward, terminated, _, info = env.step(zero)

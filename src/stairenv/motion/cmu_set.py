@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from stairenv.motion.clip import MotionClip
-from stairenv.motion.plamo_set import label_clip, load_folder, save_and_describe, support_offset
+from stairenv.motion.plamo_set import label_clip, load_folder, on_support, save_and_describe
 
 __all__ = ["CLIPS", "DATA_DIR", "Captured", "build_clip", "build_clips", "load_cmu_clips"]
 
@@ -77,21 +77,12 @@ def build_clip(captured: Captured, raw_dir: str | Path) -> MotionClip:
     if captured.seconds is not None:
         first, last = (int(round(s * clip.fps)) for s in captured.seconds)
         qpos = qpos[first:last]
-    cut = MotionClip(qpos, clip.fps, captured.name, False, clip.source, dict(clip.meta))
-    offset = support_offset(cut)
-    qpos = qpos.copy()
-    qpos[:, 2] += offset
-    meta = {key: value for key, value in clip.meta.items()
-            if key not in ("ground", "root_height_offset", "lowest_sole_height")}
-    meta.update(ground="support", root_height_offset=[round(float(offset[0]), 6), round(float(offset[-1]), 6)],
-                source_file=f"CMU {captured.trial}.bvh", origin=captured.origin, licence=LICENCE,
-                description=captured.description,
-                seconds=None if captured.seconds is None else list(captured.seconds))
-    if captured.note:
-        meta["note"] = captured.note
-    if captured.transition:
-        meta["transition"] = True
-    return label_clip(MotionClip(qpos, clip.fps, captured.name, False, f"CMU {captured.trial}", meta),
+    cut = MotionClip(qpos, clip.fps, captured.name, False, f"CMU {captured.trial}", dict(clip.meta))
+    extra = {**({"note": captured.note} if captured.note else {}),
+             **({"transition": True} if captured.transition else {})}
+    return label_clip(on_support(cut, source_file=f"CMU {captured.trial}.bvh", origin=captured.origin, licence=LICENCE,
+                                 description=captured.description,
+                                 seconds=None if captured.seconds is None else list(captured.seconds), **extra),
                       captured.locomotion)
 
 

@@ -43,7 +43,7 @@ import numpy as np
 from stairenv.motion.clip import MotionClip
 
 __all__ = ["CONVERTED", "DATA_DIR", "LOCOMOTION_TYPES", "SYNTHESISED", "build_clips", "head_heights",
-           "label_clip", "load_plamo_clips", "measure", "plamo_weights", "support_offset"]
+           "label_clip", "load_plamo_clips", "measure", "on_support", "plamo_weights", "support_offset"]
 
 DATA_DIR = Path(__file__).resolve().parent / "data" / "plamo"
 #: the locomotion types the set covers (the planner's names; "sprint" has no clip)
@@ -173,19 +173,25 @@ def convert(recipe: Converted, motions_dir: str | Path) -> MotionClip:
     from stairenv.motion.importers import import_motion
 
     clip = import_motion(Path(motions_dir) / recipe.source, ground="none", name=recipe.name)
-    fps = clip.fps * recipe.time_scale
+    grounded = on_support(clip, source_file=recipe.source, licence=recipe.licence, time_scale=recipe.time_scale)
+    meta = dict(grounded.meta)
+    if recipe.note:
+        meta["note"] = recipe.note
+    out = MotionClip(grounded.qpos, clip.fps * recipe.time_scale, recipe.name, clip.loop, recipe.source, meta)
+    return label_clip(out, recipe.locomotion)
+
+
+def on_support(clip: MotionClip, **meta: Any) -> MotionClip:
+    """``clip`` shifted so that its support is on z = 0 (:func:`support_offset`), its importer's grounding
+    in ``meta`` replaced by ``ground="support"`` and the shift at its first and last frame, then ``meta``."""
     offset = support_offset(clip)
     qpos = clip.qpos.copy()
     qpos[:, 2] += offset
-    meta = {key: value for key, value in clip.meta.items()
+    kept = {key: value for key, value in clip.meta.items()
             if key not in ("ground", "root_height_offset", "lowest_sole_height")}
-    meta.update(ground="support", root_height_offset=[round(float(offset[0]), 6), round(float(offset[-1]), 6)],
-                source_file=recipe.source,
-                licence=recipe.licence, time_scale=recipe.time_scale)
-    if recipe.note:
-        meta["note"] = recipe.note
-    out = MotionClip(qpos, fps, recipe.name, clip.loop, recipe.source, meta)
-    return label_clip(out, recipe.locomotion)
+    kept.update(ground="support", root_height_offset=[round(float(offset[0]), 6), round(float(offset[-1]), 6)],
+                **meta)
+    return MotionClip(qpos, clip.fps, clip.name, clip.loop, clip.source, kept)
 
 
 def synthesise(name: str, locomotion: str, function: str, kwargs: dict[str, Any]) -> MotionClip:

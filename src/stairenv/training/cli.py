@@ -364,22 +364,16 @@ OTHER_FLAGS = ("config", "preset", "timesteps", "logdir", "resume", "auto_resume
 
 
 def lean_config(args: argparse.Namespace, env_kwargs: dict) -> TrainConfig:
-    """The flags as the lean trainer's ``TrainConfig``."""
-    disc = {name: getattr(args, name) for name in DISC_FLAGS}
+    """The flags as the lean trainer's ``TrainConfig``: every ``RUN_FLAGS`` flag into its field, and the
+    machine's, the steps and the keywords."""
+    fields = {field: getattr(args, flag) for flag, field in RUN_FLAGS.items()}
+    fields.update(hidden=tuple(args.policy_hidden), reference=None if args.reference is None else str(args.reference),
+                  checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every)
     try:
-        return TrainConfig(
-            env_id=args.env, env_kwargs=env_kwargs, num_envs=args.n_envs, seed=args.seed,
-            physics=args.physics or TrainConfig.physics, physics_threads=args.physics_threads,
-            state_on_device=args.state_on_device, total_steps=int(args.timesteps), rollout_steps=args.n_steps,
-            epochs=args.n_epochs, minibatch_size=args.minibatch_size, learning_rate=args.learning_rate,
-            target_kl=args.adaptive_kl,
-            gamma=args.gamma, gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
-            max_grad_norm=args.max_grad_norm, hidden=tuple(args.policy_hidden), log_std_init=args.log_std_init,
-            style=args.style, reference=None if args.reference is None else str(args.reference),
-            amp_history=args.amp_history, amp_text_condition=args.amp_text_condition,
-            w_task=args.w_task, w_style=args.w_style,
-            torch_threads=args.torch_threads, update_threads=args.update_threads, update_bf16=args.update_bf16,
-            device=args.device, checkpoint_every=args.checkpoint_every or TrainConfig.checkpoint_every, **disc)
+        return TrainConfig(**fields, env_kwargs=env_kwargs, physics=args.physics or TrainConfig.physics,
+                           physics_threads=args.physics_threads, state_on_device=args.state_on_device,
+                           total_steps=int(args.timesteps), amp_text_condition=args.amp_text_condition,
+                           torch_threads=args.torch_threads, update_threads=args.update_threads, device=args.device)
     except (TypeError, ValueError) as err:
         raise SystemExit(f"train_ppo: {err}") from None
 

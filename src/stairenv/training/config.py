@@ -240,8 +240,7 @@ def field_docs() -> dict[str, str]:
     for line in (TrainConfig.__doc__ or "").splitlines():
         cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
         if line.strip().startswith("|") and len(cells) == 3 and cells[0] != "field" and not set(cells[0]) <= {"-"}:
-            for name in cells[0].split(","):
-                docs[name.strip()] = cells[2]
+            docs[cells[0]] = cells[2]
     return docs
 
 
