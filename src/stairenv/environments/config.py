@@ -330,6 +330,17 @@ class PlaMoTrainingAids(FamilyTrainingAids):
     pose_sharpness: float = checked(2.0, Check("float", 0.0, 100.0, low_open=True),
                                     "k of reward_pose = pose_reward exp(-k sum_j (q_ref_j - q_j)^2) (rad^-2; "
                                     "DeepMimic's 2)")
+    track_reward: float = checked(0.0, Check("float", 0.0, 10.0),
+                                  "weight of the clip-tracking terms on reference starts (reward_track_root, "
+                                  "_velocity, _bodies: the start clip played on, placed where the character "
+                                  "started; tasks.plamo.tracking_terms); 0 = off")
+    max_track_error: float | None = checked(
+        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
+        "mean distance (m) of the bodies from the played-on start clip's that ends a reference start's "
+        "episode (info track_lost): a pose-distance termination; None = off")
+    clip_paths: bool = checked(False, Check("bool"), "on a reference start the path is the start clip's own "
+                               "head, played on from the start frame (a looping clip cycle after cycle), so "
+                               "the path asks for the clip's travel")
 
 
 @checked_config

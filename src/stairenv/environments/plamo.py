@@ -15,8 +15,10 @@ from stairenv.environments.config import PlaMoConfig, document_keywords, keyword
 # named here too, as before (the height field's bound is PlaMoTerrain's)
 from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TERRAIN_BYTES_PER_CELL  # noqa: F401
 from stairenv.humanoid import load_humanoid_spec
+from stairenv.humanoid.model import HEAD_CENTRE_OFFSET
 from stairenv.humanoid.state import HEAD, PELVIS
 from stairenv.motion.library import MotionLibrary
+from stairenv.motion.tracking import ReferenceTrack, reference_track, track_speed
 from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
 from stairenv.tasks import curriculum
 from stairenv.tasks import plamo as task
@@ -25,8 +27,6 @@ from stairenv.validation import check_number
 from stairenv.world.terrain import MAX_STAIRS_LEVELS, MAX_TERRAIN_HEIGHT, bilinear_height, terrain_tiles
 from stairenv.world.tiles import FOCUS_RADIUS, TILE_KINDS, TerrainSlots, TerrainView, slot_contents
 
-# The tracked head point: the centre of the head sphere, 0.175 m along the head body's z axis.
-HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 NUM_WAYPOINTS, WAYPOINT_SPACING = 10, 0.5  # the next 5 s of path, every 0.5 s
 # Where ``_floor_under`` looks around a start: 9 points 0.5 m away (the first and last the same).
 FLOOR_RING = 0.5 * np.array([[math.cos(a), math.sin(a)] for a in np.linspace(0, 2 * math.pi, 9)])
@@ -118,6 +118,17 @@ class PlaMoEnv(HumanoidEnv):
     q_ref the start clip played on from the start frame (0 on a standing start): a character started
     in a crawl is paid for going on crawling while the path steers it.
 
+    **Clip tracking** (``track_reward`` w, ``max_track_error``, ``clip_paths``; training aids, off by
+    default; DeepMimic's imitation for per-locomotion specialists): on a reference start the start clip
+    is played on from the start frame (a looping clip cycle after cycle, each moved on by the cycle's
+    travel) and placed where the character started (``stairenv.motion.tracking.reference_track``). The
+    reward gains ``reward_track_root`` = 0.4 w exp(-5 |p_root - p^_root|^2), ``reward_track_velocity`` =
+    0.3 w exp(-2 |v_root - v^_root|^2) and ``reward_track_bodies`` = 0.3 w exp(-10 mean_b |(p_b - p_root) -
+    (p^_b - p^_root)|^2) (``stairenv.tasks.plamo.tracking_terms``: the clip's travel, not only its pose);
+    the episode ends (``info["track_lost"]``) when the bodies are on average more than ``max_track_error``
+    from the clip's; with ``clip_paths`` the path is the clip's own head, so that following the path is
+    following the clip. On a standing start the terms are 0 and the path is drawn.
+
     **Pushes** (``push_speed``, ``push_interval``, a training aid of every family; None = off): a kick of a
     speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random direction
     every ``push_interval`` seconds (drawn), so that the policy learns to recover
@@ -167,6 +178,11 @@ class PlaMoEnv(HumanoidEnv):
         self.aid_grace = aids.aid_grace
         self.max_z_above, self.z_above_grace = aids.max_z_above, aids.z_above_grace
         self.pose_reward, self.pose_sharpness = aids.pose_reward, aids.pose_sharpness
+        self.track_reward, self.max_track_error, self.clip_paths = (aids.track_reward, aids.max_track_error,
+                                                                    aids.clip_paths)
+        #: the reference a reference start tracks (``motion.tracking.reference_track``; None: no clip aid
+        #: is on, or a standing start)
+        self._track: ReferenceTrack | None = None
         #: this world's level of the speed curriculum (None until the first reset draws it)
         self.curriculum_level = None
         if self.locomotion is not None:
@@ -261,11 +277,21 @@ class PlaMoEnv(HumanoidEnv):
             reference = self._reference_pose(rng, self._starts_by_locomotion[kind])
         self._focus_terrain(start)
         self._place_at(start, heading, reference, self._floor_under(start))
+        self._track = None
+        if reference is not None and (self.track_reward or self.max_track_error is not None or self.clip_paths):
+            clip, start_time = self._reference_clip
+            steps = math.ceil((self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0) / self.dt)
+            self._track = reference_track(clip, start_time, steps, self.dt, self.data.qpos[self._idx.qpos_root])
         return reference is not None
 
     def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
         if self._starts_by_locomotion is None:  # (matched starts drew it before placing the character)
             self._draw_path(rng)
+        if self.clip_paths and self._track is not None:  # the training aid: the clip's own head as the path
+            track = self._track
+            self.path = task.PathSamples(points=track.head, head=track.head[:, 2] - self.ground_height(track.head[:, :2]),
+                                         speed=track_speed(track), yaw=track.head_yaw, pitch=track.head_pitch,
+                                         dt=track.dt)
 
     @property
     def curriculum_level(self) -> int | tuple[int, ...] | None:
@@ -440,6 +466,14 @@ class PlaMoEnv(HumanoidEnv):
                 pose = env._pose_term(state.dof_pos[k])
                 named_terms["reward_pose"] = pose
                 reward += pose
+            if env.track_reward or env.max_track_error is not None:  # the training aid: track the start clip
+                tracked, lost = env._tracking(state.body_pos[k], state.root_lin_vel[k])
+                if env.track_reward:
+                    named_terms.update(zip(task.TRACKING_TERMS, tracked))
+                    reward += tracked[0] + tracked[1] + tracked[2]
+                if env.max_track_error is not None:
+                    results["track_lost"] = lost
+                    ended = ended or lost
             outcomes.append(StepOutcome(obs[k], reward, named_terms, ended, results))
         return outcomes
 
@@ -451,6 +485,17 @@ class PlaMoEnv(HumanoidEnv):
         clip, start_time = self._reference_clip
         reference = clip.sample(start_time + self._steps * self.dt)[0, 7:]  # a clip row: root (7), joints
         return self.pose_reward * task.pose_imitation_term(reference, joints, self.pose_sharpness)
+
+    def _tracking(self, body_pos: np.ndarray, root_vel: np.ndarray) -> tuple[tuple[float, float, float], bool]:
+        """``task.tracking_terms`` against this episode's reference track at this step (zeros on a standing
+        start, which has no clip to track), and whether the bodies are more than ``max_track_error`` from it."""
+        track = self._track
+        if track is None:
+            return (0.0, 0.0, 0.0), False
+        i = track.frame(self._steps)
+        root, velocity, bodies, error = task.tracking_terms(body_pos, track.body_pos[i], root_vel, track.root_vel[i],
+                                                            self.track_reward, PELVIS)
+        return (root, velocity, bodies), self.max_track_error is not None and error > self.max_track_error
 
     def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
                          head: np.ndarray) -> tuple[float, float]:

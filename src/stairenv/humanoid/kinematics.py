@@ -88,6 +88,13 @@ def body_positions(qpos: np.ndarray) -> np.ndarray:
     return _kinematics_arrays(qpos, ("xpos",))[0][:, ids]
 
 
+def body_poses(qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T, nbody, 3) world positions and (T, nbody, 9) orientation matrices (row-major) of every body of
+    the bare humanoid model (its body ids, the world's included) for each frame of qpos."""
+    xpos, xmat = _kinematics_arrays(qpos, ("xpos", "xmat"))
+    return xpos, xmat
+
+
 def body_rotations(qpos: np.ndarray, names: list[str]) -> dict[str, np.ndarray]:
     """(T, 3, 3) world orientation matrices of the bodies ``names`` (and of their ancestors, also in
     the result) in each frame of qpos, computed as ``mj_kinematics`` composes them (the root's

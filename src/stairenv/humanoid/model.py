@@ -52,6 +52,9 @@ FOOT_BODIES: tuple[str, ...] = ("right_foot", "left_foot")
 
 # Height of the pelvis when standing on flat ground in the default pose (m).
 STANDING_ROOT_HEIGHT = 0.885
+#: the tracked head point (PlaMo's head paths): the centre of the head sphere, 0.175 m along the head body's z axis
+HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
+HEAD_CENTRE_OFFSET.flags.writeable = False
 
 # PD gains (stiffness kp [N m/rad], damping kv [N m s/rad]) per joint, from the two
 # public AMP-humanoid configurations: "soft" (config A) and "stiff" (config B).

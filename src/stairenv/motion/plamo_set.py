@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from stairenv.humanoid.model import HEAD_CENTRE_OFFSET
 from stairenv.motion.clip import MotionClip
 
 __all__ = ["CONVERTED", "DATA_DIR", "LOCOMOTION_TYPES", "SYNTHESISED", "build_clips", "head_heights",
@@ -48,8 +49,6 @@ __all__ = ["CONVERTED", "DATA_DIR", "LOCOMOTION_TYPES", "SYNTHESISED", "build_cl
 DATA_DIR = Path(__file__).resolve().parent / "data" / "plamo"
 #: the locomotion types the set covers (the planner's names; "sprint" has no clip)
 LOCOMOTION_TYPES = ("crawl", "crouch-walk", "walk", "run")
-#: the tracked head point of ``PlaMoEnv``: the centre of the head sphere, on the head body's z axis
-HEAD_CENTRE_OFFSET = np.array([0.0, 0.0, 0.175])
 _STILL_SPEED = 0.25   # m/s: a lowest point moving slower than this is planted (support)
 _FLIGHT_GAP = 0.02    # m: frames whose lowest point is higher than this are airborne
 

@@ -1,0 +1,124 @@
+"""A clip as a reference to track: played on from a start frame, placed where the character started.
+
+DeepMimic-style imitation compares the character, step by step, with its reference clip played on
+from the frame the episode started in (reference-state initialisation). ``reference_track`` gives
+that reference for one episode as arrays at the env's step rate, in the world:
+
+- the clip is played on from ``start_time``; a looping clip (``clip.loop``) carries on cycle after
+  cycle, each cycle's root moved and turned by the travel of the one before (DeepMimic's cycle
+  offset), so a crawl keeps crawling forwards; a clip that does not loop holds its last frame;
+- the frames are moved rigidly (a turn about z and a shift) so that the start frame's root lies on
+  the root the character was placed with (``placement.place_reference_state`` turns the start frame
+  to the start heading and rests it on the floor): the track starts where the character is;
+- forward kinematics gives every body's position and the head's centre, yaw and pitch.
+
+The env's tracking terms (``stairenv.tasks.plamo.tracking_terms``) and its path made from the clip's
+head (``clip_path``) read these arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from stairenv.humanoid.kinematics import body_poses
+from stairenv.humanoid.model import BODY_NAMES, HEAD_CENTRE_OFFSET, humanoid_model
+from stairenv.motion.clip import MotionClip
+
+
+@dataclass(frozen=True)
+class ReferenceTrack:
+    """One episode's reference, frame k at time k * dt after the start (world frame)."""
+
+    qpos: np.ndarray      # (T, 35) placed frames
+    body_pos: np.ndarray  # (T, 15, 3) body positions, BODY_NAMES order
+    root_vel: np.ndarray  # (T, 3) the root's linear velocity (central differences)
+    head: np.ndarray      # (T, 3) the head sphere's centre
+    head_yaw: np.ndarray  # (T,) the head's forward axis: yaw
+    head_pitch: np.ndarray  # (T,) ... and pitch
+    dt: float
+
+    def frame(self, step: int) -> int:
+        """The row of step ``step`` (the last row after the track's end)."""
+        return min(max(int(step), 0), len(self.qpos) - 1)
+
+
+def _yaw_of(quat_wxyz: np.ndarray) -> np.ndarray:
+    """The yaw of the body x axis of (..., 4) w, x, y, z quaternions."""
+    forward = Rotation.from_quat(np.asarray(quat_wxyz, dtype=np.float64), scalar_first=True).apply([1.0, 0.0, 0.0])
+    return np.arctan2(forward[..., 1], forward[..., 0])
+
+
+def _turn(qpos: np.ndarray, angle: float | np.ndarray, pivot: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """Frames ``qpos`` (T, 35) turned about z by ``angle`` (a scalar or (T,)) around ``pivot`` (x, y), the
+    pivot moved to ``to`` (x, y); joints and heights unchanged."""
+    out = qpos.copy()
+    angle = np.broadcast_to(np.asarray(angle, dtype=np.float64), (len(qpos),))
+    c, s = np.cos(angle), np.sin(angle)
+    dx, dy = qpos[:, 0] - pivot[0], qpos[:, 1] - pivot[1]
+    out[:, 0] = to[0] + c * dx - s * dy
+    out[:, 1] = to[1] + s * dx + c * dy
+    turn = Rotation.from_euler("z", angle[:, None])
+    out[:, 3:7] = (turn * Rotation.from_quat(qpos[:, 3:7], scalar_first=True)).as_quat(scalar_first=True)
+    return out
+
+
+def clip_frames(clip: MotionClip, start_time: float, steps: int, dt: float) -> np.ndarray:
+    """``steps`` + 1 frames (qpos) of ``clip`` played on from ``start_time`` every ``dt`` seconds, in the
+    clip's own frame: a looping clip carried on cycle after cycle (each cycle's root moved and turned by
+    the one before's travel), other clips held at their last frame."""
+    times = start_time + dt * np.arange(steps + 1)
+    if not clip.loop or clip.num_frames < 2:
+        return clip.sample(times)
+    duration = clip.duration
+    cycles = np.floor(times / duration).astype(int)
+    frames = clip.sample(times - cycles * duration)
+    first, last = clip.qpos[0], clip.qpos[-1]
+    # one cycle's travel: the map taking the first frame's root (position, yaw) onto the last frame's
+    delta = float(_yaw_of(last[3:7]) - _yaw_of(first[3:7]))
+    for k in np.unique(cycles):
+        if k == 0:
+            continue
+        rows = cycles == k
+        part = frames[rows]
+        for _ in range(abs(int(k))):  # k cycles on (or back, for a negative start time)
+            if k > 0:
+                part = _turn(part, delta, first[:2], last[:2])
+            else:
+                part = _turn(part, -delta, last[:2], first[:2])
+        frames[rows] = part
+    return frames
+
+
+def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
+                    placed_root: np.ndarray) -> ReferenceTrack:
+    """The reference of an episode started from ``clip`` at ``start_time`` with the root placed at
+    ``placed_root`` (the free joint's 7 qpos: x, y, z, w, qx, qy, qz), ``steps`` + 1 frames ``dt`` apart."""
+    frames = clip_frames(clip, start_time, steps, dt)
+    placed_root = np.asarray(placed_root, dtype=np.float64)
+    angle = float(_yaw_of(placed_root[3:7]) - _yaw_of(frames[0, 3:7]))
+    qpos = _turn(frames, angle, frames[0, :2], placed_root[:2])
+    qpos[:, 2] += placed_root[2] - frames[0, 2]
+    model = humanoid_model()
+    ids = [model.body(name).id for name in BODY_NAMES]
+    head_id = model.body("head").id
+    xpos, xmat = body_poses(qpos)
+    head_mat = xmat[:, head_id].reshape(-1, 3, 3)
+    head = xpos[:, head_id] + head_mat @ HEAD_CENTRE_OFFSET
+    forward = head_mat[:, :, 0]
+    root_vel = np.gradient(qpos[:, :3], dt, axis=0) if len(qpos) > 1 else np.zeros((1, 3))
+    return ReferenceTrack(qpos=qpos, body_pos=xpos[:, ids], root_vel=root_vel, head=head,
+                          head_yaw=np.arctan2(forward[:, 1], forward[:, 0]),
+                          head_pitch=np.arctan2(forward[:, 2], np.hypot(forward[:, 0], forward[:, 1])), dt=dt)
+
+
+def track_speed(track: ReferenceTrack) -> np.ndarray:
+    """(T,) the head's horizontal speed along the track (m/s)."""
+    if len(track.head) < 2:
+        return np.zeros(len(track.head))
+    return np.hypot(*np.gradient(track.head[:, :2], track.dt, axis=0).T)
+
+
+__all__ = ["ReferenceTrack", "clip_frames", "reference_track", "track_speed"]

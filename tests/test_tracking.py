@@ -1,0 +1,139 @@
+"""Clip tracking (``stairenv.motion.tracking``, PlaMo's ``track_reward`` / ``max_track_error`` /
+``clip_paths`` training aids): the reference played on and placed, the terms by hand, the path from the clip."""
+
+from __future__ import annotations
+
+import math
+from importlib.resources import files
+
+import numpy as np
+import pytest
+
+from stairenv.environments.plamo import PlaMoEnv
+from stairenv.humanoid.kinematics import body_positions
+from stairenv.humanoid.state import PELVIS
+from stairenv.motion.clip import MotionClip
+from stairenv.motion.tracking import _yaw_of, clip_frames, reference_track
+from stairenv.tasks.plamo import TRACKING_TERMS, tracking_terms
+
+CRAWL = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
+CMU_CRAWL = str(files("stairenv.motion.data.cmu") / "cmu_crawl_133_01.npz")
+
+
+def test_a_looping_clip_carries_on_cycle_after_cycle_and_others_hold_their_last_frame():
+    crawl = MotionClip.load(CRAWL)
+    assert crawl.loop
+    dt = 1 / 30
+    steps = int(3 * crawl.duration / dt)
+    frames = clip_frames(crawl, 0.0, steps, dt)
+    # no jump at the seams: each step moves the root about as far as the clip's own steps do
+    hops = np.linalg.norm(np.diff(frames[:, :2], axis=0), axis=1)
+    own = np.linalg.norm(np.diff(crawl.sample(np.arange(0, crawl.duration, dt))[:, :2], axis=0), axis=1)
+    assert hops.max() < 2 * own.max() + 1e-9
+    # three cycles travel about three times one cycle's distance, forwards
+    one = np.linalg.norm(crawl.qpos[-1, :2] - crawl.qpos[0, :2])
+    three = np.linalg.norm(frames[-1, :2] - frames[0, :2])
+    assert 2.5 * one < three < 3.1 * one
+    # joints repeat each cycle
+    k = round(crawl.duration / dt)
+    np.testing.assert_allclose(frames[k, 7:], crawl.sample(k * dt - crawl.duration)[0, 7:], atol=1e-9)
+    cmu = MotionClip.load(CMU_CRAWL)
+    assert not cmu.loop
+    held = clip_frames(cmu, cmu.duration - 0.1, 30, dt)
+    np.testing.assert_allclose(held[-1], cmu.qpos[-1], atol=1e-9)
+    np.testing.assert_allclose(held[-1], held[-5], atol=1e-9)
+
+
+def test_the_track_starts_where_the_character_was_placed_and_moves_rigidly_with_it():
+    crawl = MotionClip.load(CRAWL)
+    placed = np.array([1.0, -2.0, 0.5, *np.array([math.cos(0.6), 0.0, 0.0, math.sin(0.6)])])  # yaw 1.2
+    track = reference_track(crawl, 0.7, 60, 1 / 30, placed)
+    np.testing.assert_allclose(track.qpos[0, :3], placed[:3], atol=1e-12)
+    assert _yaw_of(track.qpos[0, 3:7]) == pytest.approx(_yaw_of(placed[3:7]), abs=1e-9)
+    own = clip_frames(crawl, 0.7, 60, 1 / 30)
+    np.testing.assert_allclose(track.qpos[:, 7:], own[:, 7:], atol=1e-12)   # joints untouched
+    # distances between frames are those of the clip (a rigid move), heights shifted by one offset
+    np.testing.assert_allclose(np.linalg.norm(track.qpos[:, :2] - track.qpos[0, :2], axis=1),
+                               np.linalg.norm(own[:, :2] - own[0, :2], axis=1), atol=1e-9)
+    np.testing.assert_allclose(track.qpos[:, 2] - own[:, 2], placed[2] - own[0, 2], atol=1e-12)
+    np.testing.assert_allclose(track.body_pos, body_positions(track.qpos), atol=1e-12)
+    np.testing.assert_allclose(track.root_vel[5], (track.qpos[6, :3] - track.qpos[4, :3]) * 15, atol=1e-9)
+
+
+def test_the_tracking_terms_are_the_documented_equations():
+    rng = np.random.default_rng(1)
+    ref = rng.normal(0.0, 0.5, (15, 3))
+    body = ref + rng.normal(0.0, 0.1, (15, 3))
+    v, v_ref = np.array([0.3, -0.1, 0.0]), np.array([0.5, 0.2, 0.1])
+    root, velocity, bodies, error = tracking_terms(body, ref, v, v_ref, 2.0, root=PELVIS)
+    d = body[PELVIS] - ref[PELVIS]
+    assert root == pytest.approx(2.0 * 0.4 * math.exp(-5.0 * sum(x * x for x in d)), rel=1e-12)
+    assert velocity == pytest.approx(2.0 * 0.3 * math.exp(-2.0 * (0.2 ** 2 + 0.3 ** 2 + 0.1 ** 2)), rel=1e-12)
+    relative = [sum(((body[b][i] - body[PELVIS][i]) - (ref[b][i] - ref[PELVIS][i])) ** 2 for i in range(3))
+                for b in range(15)]
+    assert bodies == pytest.approx(2.0 * 0.3 * math.exp(-10.0 * sum(relative) / 15), rel=1e-12)
+    distances = [math.dist(body[b], ref[b]) for b in range(15)]
+    assert error == pytest.approx(sum(distances) / 15, rel=1e-12)
+    assert tracking_terms(ref, ref, v, v, 1.0, root=PELVIS) == pytest.approx((0.4, 0.3, 0.3, 0.0))
+
+
+def _crawl_env(**keywords):
+    return PlaMoEnv(reference_motion=CRAWL, matched_starts=False, terrain="flat", locomotion="crawl",
+                    max_xy_error=100.0, **keywords)
+
+
+def test_the_env_pays_the_tracking_terms_against_its_track_and_ends_a_lost_track():
+    env = _crawl_env(init="reference", track_reward=1.5, max_track_error=0.3)
+    env.reset(seed=3)
+    track = env._track
+    np.testing.assert_allclose(track.qpos[0, :3], env.data.qpos[:3], atol=1e-12)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        _, reward, terminated, _, info = env.step(rng.normal(0.0, 0.1, 28))
+        body = np.array([env.data.xpos[i] for i in env._idx.body_ids])
+        expected = tracking_terms(body, track.body_pos[env._steps], env.data.qvel[:3], track.root_vel[env._steps],
+                                  1.5, PELVIS)
+        assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
+        path = sum(info[name] for name in ("reward_position", "reward_height", "reward_direction", "reward_body"))
+        assert reward == pytest.approx(path + sum(expected[:3]), rel=1e-12)
+        assert info["track_lost"] == (expected[3] > 0.3) == terminated
+    # held still, the character falls behind the crawl: the track is lost within the episode
+    env.reset(seed=3)
+    for step in range(300):
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated or truncated:
+            break
+    assert terminated and info["track_lost"] and step < 299
+    # a standing start has no clip: no track, zero terms, never lost; without the aids no entries
+    standing = _crawl_env(init="default", track_reward=1.5, max_track_error=0.3)
+    standing.reset(seed=3)
+    info = standing.step(np.zeros(28))[4]
+    assert standing._track is None and info["reward_track_root"] == 0.0 and not info["track_lost"]
+    plain = _crawl_env(init="reference")
+    plain.reset(seed=3)
+    info = plain.step(np.zeros(28))[4]
+    assert plain._track is None and "reward_track_root" not in info and "track_lost" not in info
+
+
+def test_clip_paths_ask_for_the_clips_own_head():
+    env = _crawl_env(init="reference", clip_paths=True)
+    env.reset(seed=5)
+    head = env._head()[0]
+    np.testing.assert_allclose(env.path.points[0], head, atol=1e-9)   # the path starts at the head
+    np.testing.assert_allclose(env.path.points, env._track.head, atol=0)
+    assert env.path.dt == env.dt
+    travelled = np.linalg.norm(env.path.points[int(4 / env.dt), :2] - env.path.points[0, :2])
+    assert 0.5 < travelled < 3.0     # the crawl's 0.26-0.44 m/s over 4 s
+    assert np.all(np.abs(env.path.head - env._track.head[:, 2]) < 1e-12)   # flat ground: heights are z
+    drawn = _crawl_env(init="reference")
+    drawn.reset(seed=5)
+    assert drawn._track is None and not np.array_equal(drawn.path.points[:5], env.path.points[:5])
+
+
+def test_tracking_keywords_are_checked():
+    with pytest.raises(ValueError, match="track_reward"):
+        PlaMoEnv(track_reward=-1.0)
+    with pytest.raises(ValueError, match="max_track_error"):
+        PlaMoEnv(max_track_error=0.0)
+    with pytest.raises(TypeError, match="clip_paths"):
+        PlaMoEnv(clip_paths="yes")
