@@ -1,13 +1,13 @@
-"""MuJoCo Warp physics (``physics="warp"``) against the MuJoCo C back-end: env steps/s of the batched
-InterLevel env, and of the lean trainer end to end.
+"""MuJoCo Warp physics (``physics="warp"``) against the MuJoCo C back-end: env steps/s of a batched env
+(``--env``: InterLevel-v0 by default; PlaMo-v0 and PlaMoNaivePaths-v0 too), and of the lean trainer end to end.
 
     PYTHONPATH=src python benchmarks/bench_warp.py [--sizes 1024,4096,8192] [--c-size 256]
                                                    [--budget 25] [--out bench_warp.json] [--quick]
-                                                   [--state-on-device]
+                                                   [--state-on-device] [--env PlaMo-v0]
 
 Measured, each size in its own try (a failure is recorded and the next size runs):
 
-- ``warp env``: ``gym.make_vec("InterLevel-v0", num_envs=N, vectorization_mode="vector_entry_point",
+- ``warp env``: ``gym.make_vec(ENV, num_envs=N, vectorization_mode="vector_entry_point",
   physics="warp")`` stepped with random actions (uniform in [-0.3, 0.3]): physics on the device, the
   task (observation, reward, termination, style features, info) on the host, resets included; env
   steps/s = worlds x steps / s, after warm-up steps (kernel compilation, CUDA graph capture);
@@ -67,12 +67,16 @@ def gpu_name() -> str:
 WARP_DEVICE_STATE = "warp-device-state"
 
 
+#: the env id measured (``--env``)
+ENV_ID = ["InterLevel-v0"]
+
+
 def train_config(n: int, physics: str, **kwargs):
-    """The lean trainer's config for ``physics`` ("mujoco", "warp" or ``WARP_DEVICE_STATE``)."""
+    """The lean trainer's config for ``physics`` ("mujoco", "warp" or ``WARP_DEVICE_STATE``) on ``--env``."""
     from stairenv.training import TrainConfig
     if physics == WARP_DEVICE_STATE:
-        return TrainConfig(num_envs=n, physics="warp", state_on_device=True, **kwargs)
-    return TrainConfig(num_envs=n, physics=physics, **kwargs)
+        return TrainConfig(env_id=ENV_ID[0], num_envs=n, physics="warp", state_on_device=True, **kwargs)
+    return TrainConfig(env_id=ENV_ID[0], num_envs=n, physics=physics, **kwargs)
 
 
 def make(n: int, physics: str):
@@ -213,15 +217,20 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--quick", action="store_true", help="tiny sizes and budgets: checks that it runs")
     p.add_argument("--state-on-device", action="store_true",
                    help="Warp with the state kept on the device between resets (state_on_device=True)")
+    p.add_argument("--env", default="InterLevel-v0",
+                   help="the id measured: InterLevel-v0 (default), its ablations, PlaMo-v0 or PlaMoNaivePaths-v0 "
+                   "(PlaMo keeps the state on the host: no --state-on-device)")
     p.add_argument("--out", help="write the figures as JSON here")
     args = p.parse_args(argv)
+    ENV_ID[0] = args.env
     if args.quick:
         args.c_size, args.train_size, args.train_c_size = 8, 8, 8
         args.sizes = "8,16"
         args.budget, args.max_steps, args.warmup, args.train_iterations = 3.0, 10, 1, 1
     sizes = [int(s) for s in args.sizes.split(",") if s]
     sizes = sorted(n for n in sizes if n <= args.train_size) + sorted(n for n in sizes if n > args.train_size)
-    result = {"card": gpu_name(), "cpu_count": os.cpu_count(), "versions": versions(), "args": vars(args),
+    result = {"card": gpu_name(), "cpu_count": os.cpu_count(), "versions": versions(), "env_id": args.env,
+              "args": vars(args),
               "env": [], "train": [], "failures": []}
     say(f"device {result['card']}; {result['cpu_count']} CPU cores; {result['versions']}")
 

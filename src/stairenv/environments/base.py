@@ -180,6 +180,9 @@ class HumanoidEnv(gym.Env):
     #: by ``_apply_config``. Every other keyword is fixed once the env is built (it shapes the model, the
     #: spaces or what was loaded for it): changing one is refused, naming it.
     LIVE_KEYWORDS: frozenset[str] = frozenset()
+    #: set when a step's ``_before_physics`` wrote this world's model (PlaMo's terrain tiles): a batched env
+    #: on a device back-end copies the world's model up (``world_changed``) and clears it
+    _model_written = False
     #: attributes named as a keyword that hold the env's state instead (PlaMoScene's ``scene``, the episode's
     #: scene; SIMS's ``room``): set freely, never through ``configure``
     STATE_ATTRIBUTES: frozenset[str] = frozenset()

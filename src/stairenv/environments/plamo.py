@@ -257,8 +257,8 @@ class PlaMoEnv(HumanoidEnv):
 
     def _focus_terrain(self, xy) -> None:
         """The terrain's tiles within reach of ``xy`` (the root) in the model's slots (where it has them)."""
-        if self._terrain_slots is not None:
-            self._terrain_slots.focus(self.model, xy)
+        if self._terrain_slots is not None and self._terrain_slots.focus(self.model, xy):
+            self._model_written = True    # (a device back-end copies the world's terrain up: the batched env)
 
     def _before_physics(self) -> None:
         """The tiles the character can reach during this step in the model (a new one as it comes near)."""

@@ -280,6 +280,12 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
             ctrl = type(envs[0])._action_targets(stepping_envs, actions[stepping], rows) if stepping else None
         else:
             type(envs[0])._prepare_worlds(stepping_envs, actions[stepping], rows)
+            if self._world_reset is not None:    # a device back-end: the worlds whose model a step wrote
+                written = [i for i, env in zip(stepping, stepping_envs) if env._model_written]
+                if written:
+                    for i in written:
+                        envs[i]._model_written = False
+                    self.physics.world_changed(written)
 
         def reset_ended_before() -> None:    # NEXT_STEP: this step resets the world, its action is ignored
             if len(resetting):

@@ -46,15 +46,21 @@ or constraints overflowed the device's buffers (``nconmax``, ``njmax``: contacts
 ``mjWARN_CONTACTFULL`` counted in ``overflows``; the env truncates a diverged world alone, as with the C
 back-end (``info["physics_unstable"]``), while its speed check catches the rest.
 
-Which ids: InterLevel-v0 and its ablations (InterLevel2D-v0, InterSceneStairs-v0): one model structure
-for every world, only box sizes and poses per world. Not supported, refused with a ``ValueError``:
+Which ids: InterLevel-v0 and its ablations (InterLevel2D-v0, InterSceneStairs-v0), PlaMo-v0 and
+PlaMoNaivePaths-v0: one model structure for every world, only values per world. A PlaMo world's terrain
+is held in tile slots (``stairenv.world.tiles.TerrainSlots``: boxes for stairs, a height field per slope or
+rough tile, written at a reset and whenever the character comes near a new tile, ``_focus_terrain``). The
+boxes are per-world poses and sizes, as the treads are. MuJoCo Warp shares ``hfield_data`` and
+``hfield_size`` among worlds, so the device model holds every world's height fields as assets of their own
+(world k's field h is asset k * nhfield + h: ``hfield_adr``, ``hfield_nrow``, ``hfield_ncol``, ``hfield_size``
+and ``hfield_data`` made ``nworld`` times as long) and routes each world's height-field geoms to its own
+through the per-world ``geom_dataid``, the routing MuJoCo Warp's maintainers point to; a world whose
+terrain was written (``world_changed``: the batched env announces every world whose ``_model_written`` a
+focus set) has its fields and height fields copied up before the next step. Not supported, refused with a
+``ValueError``:
 
-- PlaMo (PlaMo-v0, PlaMoNaivePaths-v0, PlaMoScene-v0): each world's terrain is held in tile slots
-  (``stairenv.world.tiles.TerrainSlots``: boxes for stairs, whose poses and sizes could be per-world fields
-  as the treads' are, and a height field per slope or rough tile, rewritten per world), and MuJoCo Warp has
-  no per-world height-field data (``hfield_data`` is shared by all worlds). It would take routing each
-  world's slot height fields to height-field assets of its own (a per-world ``geom_dataid``,
-  ``docs/terrain_layout.md``).
+- PlaMoScene-v0: a scene's landmarks and obstacles are bodies built per scene and the model is recompiled
+  when the scene changes (``add_scene_to_spec``), so worlds differ in their bodies and geoms.
 - SIMS (the five SIMS-* skills): each reset builds a room of furniture bodies and recompiles the model,
   so the worlds differ in their number of bodies and geoms, which one Warp model cannot hold. It would
   take a fixed set of furniture slots (parked bodies with convex parts resized per world, as
@@ -71,8 +77,12 @@ import numpy as np
 # a world as ``batch_physics.World`` (not imported from there: ``make_physics`` imports this module)
 World = tuple[mujoco.MjModel, mujoco.MjData]
 
-#: model fields that a world's staircase writes (``StairsSlots.place``): given a world dimension on the device
-PER_WORLD_MODEL_FIELDS = ("body_pos", "body_quat", "geom_size", "geom_rbound", "geom_aabb")
+#: model fields that a world's staircase (``StairsSlots.place``) or terrain tiles (``TerrainSlots``, whose
+#: geoms also move within their slot's body) write: given a world dimension on the device
+PER_WORLD_MODEL_FIELDS = ("body_pos", "body_quat", "geom_pos", "geom_quat", "geom_size", "geom_rbound", "geom_aabb")
+#: height-field data a world's terrain tiles may hold at most on the device (float32 values, all worlds):
+#: 2^28 (1 GiB); ``TerrainSlots`` needs 4 x 41 x 41 a world (27 KB), 27.5M at 4,096 worlds
+MAX_HFIELD_VALUES = 2 ** 28
 #: geom poses copied up from a changed world's host data: the device never computes them for static
 #: bodies' geoms (the treads); for moving bodies' geoms its kinematics overwrites them at the next substep
 GEOM_POSE_FIELDS = ("geom_xpos", "geom_xmat")
@@ -85,24 +95,28 @@ _CONTACTFULL = int(mujoco.mjtWarning.mjWARN_CONTACTFULL)
 
 #: why each unsupported env class is refused (see the module docstring)
 UNSUPPORTED = {
-    "PlaMoEnv": "PlaMo rewrites per-world height fields (its slope and rough tiles) at every reset and MuJoCo "
-                "Warp has no per-world height-field data",
-    "PlaMoSceneEnv": "PlaMo scenes rewrite per-world height fields (their slope and rough tiles) at every reset "
-                     "and MuJoCo Warp has no per-world height-field data",
+    "PlaMoSceneEnv": "PlaMo scenes build their landmarks and obstacles as bodies and recompile the model when "
+                     "the scene changes, so worlds differ in their bodies and geoms, which one MuJoCo Warp "
+                     "model cannot hold",
     "SIMSEnv": "SIMS builds each world's furniture as bodies and recompiles the model at every reset, so "
                "worlds differ in their bodies and geoms, which one MuJoCo Warp model cannot hold",
 }
 
 
 def check_supported(env_class: type) -> None:
-    """``ValueError`` naming ``physics`` unless ``env_class`` can run on the Warp back-end (InterLevel)."""
+    """``ValueError`` naming ``physics`` unless ``env_class`` can run on the Warp back-end (InterLevel, PlaMo's
+    path following)."""
     from stairenv.environments.interlevel import InterLevelEnv
-    if issubclass(env_class, InterLevelEnv):
+    from stairenv.environments.plamo import PlaMoEnv
+    from stairenv.environments.plamo_scene import PlaMoSceneEnv
+    if issubclass(env_class, InterLevelEnv) or (issubclass(env_class, PlaMoEnv)
+                                                and not issubclass(env_class, PlaMoSceneEnv)):
         return
     reason = next((UNSUPPORTED[c.__name__] for c in env_class.__mro__ if c.__name__ in UNSUPPORTED),
-                  "only InterLevel's staircase worlds (the same structure in every world) are supported")
+                  "only worlds of one structure (InterLevel's staircases, PlaMo's terrain tiles) are supported")
     raise ValueError(f"physics='warp' does not support {env_class.__name__}: {reason}. Supported: "
-                     "InterLevel-v0, InterLevel2D-v0, InterSceneStairs-v0; use physics='mujoco' for this env")
+                     "InterLevel-v0, InterLevel2D-v0, InterSceneStairs-v0, PlaMo-v0, PlaMoNaivePaths-v0; use "
+                     "physics='mujoco' for this env")
 
 
 def _import_warp():
@@ -154,6 +168,7 @@ class WarpPhysics:
         self._slot: dict[int, int] = {}
         self._bound: Sequence[World] | None = None
         self._graphs: dict[int, object] = {}
+        self._fields = False    # whether the worlds hold height fields (routed per world at ``bind``)
         #: world-steps whose device buffers overflowed (contacts or constraint rows dropped; a full contact
         #: pool flags every world of that step), since construction
         self.overflows = 0
@@ -178,6 +193,7 @@ class WarpPhysics:
             self.model = mjw.put_model(model0, batch_sizes=dict.fromkeys(PER_WORLD_MODEL_FIELDS, n))
             self.model.opt.warn_overflow = 0    # counted per world instead of printed
             self.data = mjw.put_data(model0, data0, nworld=n, nconmax=self.nconmax, njmax=self.njmax)
+            self._route_height_fields(worlds)
         self._timestep = float(model0.opt.timestep)
         self._model_host = {name: np.stack([getattr(m, name) for m, _ in worlds]).astype(np.float32)
                             for name in PER_WORLD_MODEL_FIELDS}
@@ -197,6 +213,51 @@ class WarpPhysics:
         self._state_changed = np.ones(n, dtype=bool)    # state_on_device: rows to send up
         self._stale = np.zeros(n, dtype=bool)    # state_on_device: worlds whose MjData lags the device
         self._graphs = {}
+
+    def _route_height_fields(self, worlds: Sequence[World]) -> None:
+        """Every world's height fields as assets of their own on the device (world k's field h: asset
+        k * nhfield + h), each world's height-field geoms routed to its own through ``geom_dataid``."""
+        wp = self._wp
+        model0 = worlds[0][0]
+        n, nfield, size = len(worlds), model0.nhfield, model0.nhfielddata
+        self._fields = nfield > 0
+        if not nfield:
+            return
+        if n * size > MAX_HFIELD_VALUES:
+            raise ValueError(f"physics='warp': {n} worlds x {size} height-field values each exceed the "
+                             f"{MAX_HFIELD_VALUES} the device holds (a render mode's terrain view is one large "
+                             "height field: build the batched env without render_mode)")
+        for k, (model, _) in enumerate(worlds):
+            if model.nhfielddata != size or not np.array_equal(model.hfield_nrow, model0.hfield_nrow):
+                raise ValueError(f"physics='warp' needs one model structure in every world; world {k}'s height "
+                                 "fields differ")
+        device = self.model
+        device.hfield_adr = wp.array((np.arange(n)[:, None] * size + model0.hfield_adr).ravel().astype(np.int32),
+                                     dtype=int)
+        device.hfield_nrow = wp.array(np.tile(model0.hfield_nrow, n).astype(np.int32), dtype=int)
+        device.hfield_ncol = wp.array(np.tile(model0.hfield_ncol, n).astype(np.int32), dtype=int)
+        self._field_size_views = [m.hfield_size for m, _ in worlds]
+        self._field_data_views = [m.hfield_data for m, _ in worlds]
+        device.hfield_size = wp.array(np.concatenate(self._field_size_views).astype(np.float32), dtype=wp.vec4)
+        device.hfield_data = wp.array(np.concatenate(self._field_data_views).astype(np.float32), dtype=float)
+        dataid = np.tile(model0.geom_dataid.astype(np.int32), (n, 1))
+        fields = model0.geom_type == int(mujoco.mjtGeom.mjGEOM_HFIELD)
+        dataid[:, fields] += (np.arange(n, dtype=np.int32) * nfield)[:, None]
+        device.geom_dataid = wp.array(dataid, dtype=int)
+        device.nhfield, device.nhfielddata = n * nfield, n * size
+
+    def _upload_height_fields(self, ks: list[int]) -> None:
+        """The height fields of changed worlds ``ks``: one copy of the whole arrays when many changed, else a
+        copy of each world's rows."""
+        device, size, nfield = self.model, self.worlds[0][0].nhfielddata, self.worlds[0][0].nhfield
+        if 4 * len(ks) > len(self.worlds):
+            self._assign(device.hfield_size, np.concatenate(self._field_size_views))
+            self._assign(device.hfield_data, np.concatenate(self._field_data_views))
+            return
+        for k in ks:
+            device.hfield_size[k * nfield:(k + 1) * nfield].assign(
+                self._field_size_views[k].astype(np.float32))
+            device.hfield_data[k * size:(k + 1) * size].assign(self._field_data_views[k].astype(np.float32))
 
     def world_reset(self, k: int | Sequence[int]) -> None:
         """World ``k`` (or worlds ``k``) was reset on the host, its ``MjData`` and staircase written whole (the
@@ -350,10 +411,15 @@ class WarpPhysics:
                                | mjw.OverflowType.NARROWPHASE)) != 0
 
     def _upload_model_rows(self) -> None:
-        """A changed world's staircase: its rows of the per-world model fields and its treads' poses."""
+        """A changed world's staircase or terrain: its rows of the per-world model fields, its height fields
+        and its static geoms' poses (brought up to its model by ``mj_kinematics`` first)."""
         changed = np.flatnonzero(self._changed)
         if changed.size:
             ks = changed.tolist()
+            for k in ks:    # the static bodies' geom poses (terrain slots moved by a focus) on the host
+                mujoco.mj_kinematics(*self.worlds[k])
+            if self._fields:
+                self._upload_height_fields(ks)
             for name, host in self._model_host.items():    # each field's changed rows gathered in one copy
                 views = self._model_views[name]
                 host[changed] = np.array([views[k] for k in ks])
