@@ -97,10 +97,15 @@ def test_gpu_session_script_runs_each_step_and_records_its_status(tmp_path):
     done = subprocess.run(["bash", str(BENCHMARKS / "gpu_session.sh")], env=env, capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 0, done.stderr
-    assert (out / "status.txt").read_text().split() == ["compile", "0", "env_warp", "0", "ranks_warp", "0",
-                                                        "tests_cuda", "0"]
+    assert (out / "status.txt").read_text().split() == ["compile", "0", "env_warp", "0", "plamo_warp", "0",
+                                                        "ranks_warp", "0", "tests_cuda", "0"]
     assert "--state-on-device" in (out / "compile.log").read_text()
     assert "--sizes 4096" in (out / "env_warp.log").read_text()
+    assert "--env PlaMo-v0 --sizes 4096" in (out / "plamo_warp.log").read_text()
+    # every step's limit (and its 20 s kill grace) within the device tool's 10-minute call
+    limits = [int(line.split()[2]) for line in (BENCHMARKS / "gpu_session.sh").read_text().splitlines()
+              if line.startswith("step ")]
+    assert sum(limits) + 20 <= 600, limits
     assert "--ranks 8 --state-on-device" in (out / "ranks_warp.log").read_text()
     assert (out / "gpu.csv").exists()
 
