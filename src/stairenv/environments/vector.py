@@ -231,7 +231,9 @@ class HumanoidVectorEnv(gym.vector.VectorEnv):
         obs = np.array([result[0] for result in results], dtype=self.single_observation_space.dtype)
         obs = obs.reshape(len(worlds), *self.single_observation_space.shape)
         if self._world_reset is not None:
-            self._world_reset(worlds)
+            self._world_reset(worlds)    # (the reset's own terrain writes included: nothing left to announce)
+            for i in worlds:
+                self.envs[i]._model_written = False
         self._elapsed[worlds] = 0
         self._autoreset[worlds] = False
         self._last_obs[worlds] = obs

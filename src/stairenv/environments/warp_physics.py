@@ -281,6 +281,8 @@ class WarpPhysics:
                     f"world(s) {lagging}: the MjData lags the device's state (state_on_device=True), so a write "
                     f"into it went into an old state, which would rewind the world: call "
                     f"physics.sync_worlds({lagging}) before writing into it, then world_changed")
+        for j in np.atleast_1d(np.asarray(k, dtype=np.int64)).tolist():    # the static geoms' poses after a
+            mujoco.mj_kinematics(*self.worlds[j])                            # model write (a focus's tiles)
         self.world_reset(k)
 
     def sync_worlds(self, ks: Sequence[int] | None = None) -> None:
@@ -412,12 +414,10 @@ class WarpPhysics:
 
     def _upload_model_rows(self) -> None:
         """A changed world's staircase or terrain: its rows of the per-world model fields, its height fields
-        and its static geoms' poses (brought up to its model by ``mj_kinematics`` first)."""
+        and its static geoms' poses."""
         changed = np.flatnonzero(self._changed)
         if changed.size:
             ks = changed.tolist()
-            for k in ks:    # the static bodies' geom poses (terrain slots moved by a focus) on the host
-                mujoco.mj_kinematics(*self.worlds[k])
             if self._fields:
                 self._upload_height_fields(ks)
             for name, host in self._model_host.items():    # each field's changed rows gathered in one copy
