@@ -120,19 +120,7 @@ class MotionClip:
         times = np.mod(times, self.duration) if self.loop else np.clip(times, 0.0, self.duration)
         frame = times * self.fps
         i0 = np.minimum(np.floor(frame).astype(int), self.num_frames - 2)
-        alpha = (frame - i0)[:, None]
-        ends = self.qpos[np.stack((i0, i0 + 1))]  # (2, N, 35): the frames before and after
-        out = (1.0 - alpha) * ends[0] + alpha * ends[1]
-        # The root and every 3-axis joint at once, as (2, N, 1 + J) quaternion components.
-        x, y, z, w = _root_and_ball_quats(ends)
-        rx, ry, rz, rw = _slerp_xyzw(x, y, z, w, alpha)
-        root = np.stack((rw[:, 0], rx[:, 0], ry[:, 0], rz[:, 0]), axis=1)
-        # Keep the hemisphere of the first frame so sequences stay continuous.
-        root *= np.where(np.sum(root * ends[0, :, 3:7], axis=1) < 0, -1.0, 1.0)[:, None]
-        out[:, 3:7] = root
-        first = _quat_to_euler_xyz(rx[:, 1:], ry[:, 1:], rz[:, 1:], rw[:, 1:])
-        out[:, _BALL_INDEX] = _euler_near_angles(first, out[:, _BALL_INDEX])
-        return out
+        return blend_poses(self.qpos[i0], self.qpos[i0 + 1], frame - i0)
 
     def resample(self, fps: float) -> "MotionClip":
         """The same motion at another frame rate."""
@@ -181,6 +169,26 @@ class MotionClip:
         meta.pop("format_version", None)
         return cls(qpos, fps, name, loop, source, meta)
 
+
+
+def blend_poses(a: np.ndarray, b: np.ndarray, alpha: np.ndarray | float) -> np.ndarray:
+    """Poses (N, 35) between ``a`` and ``b`` (N, 35) at ``alpha`` (0: ``a``, 1: ``b``; (N,) or a scalar):
+    slerp for the root and every 3-axis joint rotation (its Euler angles kept near the linear blend's),
+    linear for positions and hinges."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    alpha = np.broadcast_to(np.asarray(alpha, dtype=np.float64), (len(a),))[:, None]
+    ends = np.stack((a, b))  # (2, N, 35): the poses before and after
+    out = (1.0 - alpha) * ends[0] + alpha * ends[1]
+    # The root and every 3-axis joint at once, as (2, N, 1 + J) quaternion components.
+    x, y, z, w = _root_and_ball_quats(ends)
+    rx, ry, rz, rw = _slerp_xyzw(x, y, z, w, alpha)
+    root = np.stack((rw[:, 0], rx[:, 0], ry[:, 0], rz[:, 0]), axis=1)
+    # Keep the hemisphere of the first pose so sequences stay continuous.
+    root *= np.where(np.sum(root * ends[0, :, 3:7], axis=1) < 0, -1.0, 1.0)[:, None]
+    out[:, 3:7] = root
+    first = _quat_to_euler_xyz(rx[:, 1:], ry[:, 1:], rz[:, 1:], rw[:, 1:])
+    out[:, _BALL_INDEX] = _euler_near_angles(first, out[:, _BALL_INDEX])
+    return out
 
 def _check_qpos(qpos: np.ndarray, fps: float) -> str | None:
     if qpos.ndim != 2 or qpos.shape[1] != QPOS_SIZE or qpos.shape[0] < 1:

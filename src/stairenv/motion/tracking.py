@@ -51,6 +51,16 @@ def _yaw_of(quat_wxyz: np.ndarray) -> np.ndarray:
     return np.arctan2(forward[..., 1], forward[..., 0])
 
 
+def yaw_between(quat_from: np.ndarray, quat_to: np.ndarray) -> float:
+    """The turn about z (rad) taking the w, x, y, z rotation ``quat_from`` onto ``quat_to``: the yaw of
+    their relative rotation, well defined even where the body's own x axis points up or down (a crawl's
+    pelvis), unlike the difference of the two bodies' x-axis yaws."""
+    relative = (Rotation.from_quat(np.asarray(quat_to, dtype=np.float64), scalar_first=True)
+                * Rotation.from_quat(np.asarray(quat_from, dtype=np.float64), scalar_first=True).inv())
+    x_axis = relative.apply([1.0, 0.0, 0.0])
+    return float(np.arctan2(x_axis[1], x_axis[0]))
+
+
 def _turn(qpos: np.ndarray, angle: float | np.ndarray, pivot: np.ndarray, to: np.ndarray) -> np.ndarray:
     """Frames ``qpos`` (T, 35) turned about z by ``angle`` (a scalar or (T,)) around ``pivot`` (x, y), the
     pivot moved to ``to`` (x, y); joints and heights unchanged."""
@@ -77,7 +87,7 @@ def clip_frames(clip: MotionClip, start_time: float, steps: int, dt: float) -> n
     frames = clip.sample(times - cycles * duration)
     first, last = clip.qpos[0], clip.qpos[-1]
     # one cycle's travel: the map taking the first frame's root (position, yaw) onto the last frame's
-    delta = float(_yaw_of(last[3:7]) - _yaw_of(first[3:7]))
+    delta = yaw_between(first[3:7], last[3:7])
     for k in np.unique(cycles):
         if k == 0:
             continue
@@ -98,7 +108,7 @@ def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
     ``placed_root`` (the free joint's 7 qpos: x, y, z, w, qx, qy, qz), ``steps`` + 1 frames ``dt`` apart."""
     frames = clip_frames(clip, start_time, steps, dt)
     placed_root = np.asarray(placed_root, dtype=np.float64)
-    angle = float(_yaw_of(placed_root[3:7]) - _yaw_of(frames[0, 3:7]))
+    angle = yaw_between(frames[0, 3:7], placed_root[3:7])
     qpos = _turn(frames, angle, frames[0, :2], placed_root[:2])
     qpos[:, 2] += placed_root[2] - frames[0, 2]
     model = humanoid_model()
