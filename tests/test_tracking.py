@@ -8,12 +8,13 @@ from importlib.resources import files
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.humanoid.kinematics import body_positions
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion.clip import MotionClip
-from stairenv.motion.tracking import _yaw_of, clip_frames, reference_track
+from stairenv.motion.tracking import _turn, clip_frames, reference_track, yaw_between
 from stairenv.tasks.plamo import TRACKING_TERMS, tracking_terms
 
 CRAWL = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
@@ -44,12 +45,40 @@ def test_a_looping_clip_carries_on_cycle_after_cycle_and_others_hold_their_last_
     np.testing.assert_allclose(held[-1], held[-5], atol=1e-9)
 
 
+def test_yaw_between_is_the_turn_about_z_even_for_a_pelvis_facing_the_floor():
+    crawl = MotionClip.load(CRAWL)
+    for frame in crawl.qpos[::20]:
+        for angle in (-2.5, -0.3, 0.0, 0.9, 3.0):
+            turned = _turn(frame[None], angle, frame[:2], frame[:2])[0]
+            assert yaw_between(frame[3:7], turned[3:7]) == pytest.approx(angle, abs=1e-9)
+
+
+def test_a_looping_clips_next_cycle_starts_where_the_last_ended_turned_as_its_root_turned():
+    crawl = MotionClip.load(CRAWL)
+    k = crawl.num_frames - 1   # one cycle at the clip's own rate
+    frames = clip_frames(crawl, 0.0, 2 * k, 1 / crawl.fps)
+    first, last = crawl.qpos[0], crawl.qpos[-1]
+    delta = yaw_between(first[3:7], last[3:7])
+    assert abs(delta) < 0.5
+    # the seam: the first frame turned by the cycle's turn about z, its root on the last frame's
+    np.testing.assert_allclose(frames[k], _turn(first[None], delta, first[:2], last[:2])[0], atol=1e-9)
+    np.testing.assert_allclose(frames[k, :2], last[:2], atol=1e-9)
+    # the turned first frame faces as the last one does (DeepMimic's crawl does not close its loop
+    # exactly: its pelvis tilts ~0.2 rad otherwise at the seam), closer than the unturned one
+    seam = Rotation.from_quat(frames[k, 3:7], scalar_first=True)
+    end = Rotation.from_quat(last[3:7], scalar_first=True)
+    start = Rotation.from_quat(first[3:7], scalar_first=True)
+    assert (seam * end.inv()).magnitude() < (start * end.inv()).magnitude()
+
+
 def test_the_track_starts_where_the_character_was_placed_and_moves_rigidly_with_it():
     crawl = MotionClip.load(CRAWL)
-    placed = np.array([1.0, -2.0, 0.5, *np.array([math.cos(0.6), 0.0, 0.0, math.sin(0.6)])])  # yaw 1.2
+    start = crawl.sample(0.7)[0]
+    placed = _turn(start[None], 1.2, start[:2], np.array([1.0, -2.0]))[0, :7]   # turned 1.2 rad, moved
+    placed[2] = 0.5
     track = reference_track(crawl, 0.7, 60, 1 / 30, placed)
     np.testing.assert_allclose(track.qpos[0, :3], placed[:3], atol=1e-12)
-    assert _yaw_of(track.qpos[0, 3:7]) == pytest.approx(_yaw_of(placed[3:7]), abs=1e-9)
+    np.testing.assert_allclose(track.qpos[0, 3:7], placed[3:7], atol=1e-9)      # the start frame is the placed root
     own = clip_frames(crawl, 0.7, 60, 1 / 30)
     np.testing.assert_allclose(track.qpos[:, 7:], own[:, 7:], atol=1e-12)   # joints untouched
     # distances between frames are those of the clip (a rigid move), heights shifted by one offset
@@ -137,3 +166,76 @@ def test_tracking_keywords_are_checked():
         PlaMoEnv(max_track_error=0.0)
     with pytest.raises(TypeError, match="clip_paths"):
         PlaMoEnv(clip_paths="yes")
+
+
+GET_DOWN = str(files("stairenv.motion.data.stitched") / "get_down_forearm_crawl.npz")
+WALK_CRAWL = str(files("stairenv.motion.data.cmu") / "cmu_walk_crawl_walk_133_01.npz")
+
+
+def test_stitch_plays_the_lead_then_blends_into_the_follow_clip_placed_on_the_leads_root():
+    from stairenv.motion.stitch import stitch
+
+    lead, crawl = MotionClip.load(WALK_CRAWL), MotionClip.load(CRAWL)
+    clip = stitch(lead, (1.87, 3.4), crawl, 0.67, 0.8, 8.0, on_floor=False)
+    assert clip.fps == 30.0 and clip.num_frames == 241 and not clip.loop
+    assert clip.meta["stitched"]["window_s"] == [1.87, 3.4]
+    # before the blend: the lead's frames (moved to start at the origin), joints untouched
+    own = lead.sample(1.87 + np.arange(40) / 30)
+    np.testing.assert_allclose(clip.qpos[:40, 7:], own[:, 7:], atol=1e-9)
+    np.testing.assert_allclose(clip.qpos[:40, :2] - clip.qpos[0, :2], own[:, :2] - own[0, :2], atol=1e-9)
+    # after it: the crawl's joints, cycle after cycle, its travel as long as the crawl's own
+    after = clip_frames(crawl, 0.67, 240, 1 / 30)
+    np.testing.assert_allclose(clip.qpos[72:, 7:], after[26:26 + 169, 7:], atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(clip.qpos[-1, :2] - clip.qpos[72, :2]),
+                               np.linalg.norm(after[26 + 168, :2] - after[26, :2]), atol=1e-9)
+    # no jump anywhere: each step moves the root no further than the faster part's steps do
+    hops = np.linalg.norm(np.diff(clip.qpos[:, :3], axis=0), axis=1)
+    own_hops = max(np.linalg.norm(np.diff(own[:, :3], axis=0), axis=1).max(),
+                   np.linalg.norm(np.diff(after[:, :3], axis=0), axis=1).max())
+    assert hops.max() < 1.5 * own_hops
+    # heading: the crawl goes on the way the kneeling person was moving
+    lead_way = lead.sample(3.4)[0, :2] - lead.sample(2.9)[0, :2]
+    crawl_way = clip.qpos[-1, :2] - clip.qpos[72, :2]
+    cosine = lead_way @ crawl_way / np.linalg.norm(lead_way) / np.linalg.norm(crawl_way)
+    assert cosine > 0.8
+    with pytest.raises(ValueError, match="window"):
+        stitch(lead, (3.0, 2.0), crawl, 0.0, 0.5, 8.0)
+    with pytest.raises(ValueError, match="duration"):
+        stitch(lead, (1.0, 3.0), crawl, 0.0, 0.5, 2.0)
+    with pytest.raises(ValueError, match="follow_start"):
+        stitch(lead, (1.0, 3.0), crawl, 9.0, 0.5, 8.0)
+
+
+def test_the_shipped_get_down_stands_then_crawls_low():
+    from stairenv.motion.plamo_set import head_heights
+
+    clip = MotionClip.load(GET_DOWN)
+    heads = head_heights(clip.qpos)
+    assert heads[0] > 1.3                                   # standing
+    assert 0.28 < np.median(heads[int(3 * clip.fps):]) < 0.5   # the planner's crawl heads: 0.30-0.50 m
+    assert clip.meta["locomotion"] == "crawl" and clip.duration >= 14.0
+
+
+def test_a_standing_start_tracks_the_standing_clip_from_its_first_frame():
+    env = _crawl_env(init="default", track_reward=1.0, max_track_error=0.6, clip_paths=True, pose_reward=1.0,
+                     standing_clip=GET_DOWN)
+    env.reset(seed=4)
+    clip = MotionClip.load(GET_DOWN)
+    assert env._reference_clip[1] == 0.0 and env._track is not None
+    # the track is the clip from its first frame, placed on the standing character's root
+    np.testing.assert_allclose(env._track.qpos[:, 7:], clip_frames(clip, 0.0, len(env._track.qpos) - 1,
+                                                                   env.dt)[:, 7:], atol=1e-12)
+    np.testing.assert_allclose(env._track.qpos[0, :2], env.data.qpos[:2], atol=1e-12)
+    np.testing.assert_allclose(env.path.points, env._track.head, atol=0)      # its path: the clip's head
+    info = env.step(np.zeros(28))[4]
+    assert info["reward_track_root"] > 0.0 and info["reward_pose"] > 0.0 and not info["reference_start"]
+    # held standing, the character is left behind as the clip gets down: the track is lost
+    for _ in range(120):
+        _, _, terminated, _, info = env.step(np.zeros(28))
+        if terminated:
+            break
+    assert terminated and info["track_lost"]
+    with pytest.raises(ValueError, match="standing_clip"):
+        PlaMoEnv(standing_clip="/no/such/clip.npz")
+    with pytest.raises(TypeError, match="standing_clip"):
+        PlaMoEnv(standing_clip=3)
