@@ -394,7 +394,7 @@ KINDS = {
         "max_z_above": Optional(Number(0.0, 10.0, low_open=True)), "z_above_grace": Number(0.0, 10.0),
         "pose_reward": Number(0.0, 10.0), "pose_sharpness": Number(0.0, 100.0, low_open=True),
         "track_reward": Number(0.0, 10.0), "max_track_error": Optional(Number(0.0, 10.0, low_open=True)),
-        "clip_paths": Bool(),
+        "clip_paths": Bool(), "standing_clip": Optional(Examples()),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

@@ -20,7 +20,9 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import os
 import tomllib
+import zipfile
 from dataclasses import fields
 from pathlib import Path
 from typing import Any, Self
@@ -28,6 +30,7 @@ from typing import Any, Self
 from stairenv.environments.base import INITS, check_reference_motion
 from stairenv.humanoid import PD_GAINS
 from stairenv.motion import stair_starts
+from stairenv.motion.clip import MotionClip
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
@@ -67,6 +70,19 @@ def _group_of(field: dataclasses.Field) -> type | None:
 
 def _reference_motion(value):
     check_reference_motion(value)
+    return value
+
+
+def _standing_clip(value):
+    """``standing_clip``: None or one readable ``.npz`` clip (loaded at construction, never run)."""
+    if value is None:
+        return None
+    if not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"standing_clip must be None or the path of a .npz clip, got {type(value).__name__}")
+    try:
+        MotionClip.load(value)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
+        raise ValueError(f"standing_clip {str(value)!r} could not be loaded as a clip: {error}") from error
     return value
 
 
@@ -341,6 +357,10 @@ class PlaMoTrainingAids(FamilyTrainingAids):
     clip_paths: bool = checked(False, Check("bool"), "on a reference start the path is the start clip's own "
                                "head, played on from the start frame (a looping clip cycle after cycle), so "
                                "the path asks for the clip's travel")
+    standing_clip: str | None = checked(
+        None, Check("call", call=_standing_clip, optional=True),
+        "a clip (.npz) that a standing start tracks from its first frame (a get-down into a crawl): the "
+        "pose and tracking aids and clip_paths act on it as on a reference start's clip; None = off")
 
 
 @checked_config

@@ -17,6 +17,7 @@ from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TER
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.model import HEAD_CENTRE_OFFSET
 from stairenv.humanoid.state import HEAD, PELVIS
+from stairenv.motion.clip import MotionClip
 from stairenv.motion.library import MotionLibrary
 from stairenv.motion.tracking import ReferenceTrack, reference_track, track_speed
 from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
@@ -127,7 +128,9 @@ class PlaMoEnv(HumanoidEnv):
     (p^_b - p^_root)|^2) (``stairenv.tasks.plamo.tracking_terms``: the clip's travel, not only its pose);
     the episode ends (``info["track_lost"]``) when the bodies are on average more than ``max_track_error``
     from the clip's; with ``clip_paths`` the path is the clip's own head, so that following the path is
-    following the clip. On a standing start the terms are 0 and the path is drawn.
+    following the clip. On a standing start the terms are 0 and the path is drawn, unless
+    ``standing_clip`` names a clip: a standing start then tracks that clip from its first frame (a
+    get-down into a crawl, ``stairenv.motion.stitch``), and every aid above acts on it as on a start clip.
 
     **Pushes** (``push_speed``, ``push_interval``, a training aid of every family; None = off): a kick of a
     speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random direction
@@ -180,6 +183,8 @@ class PlaMoEnv(HumanoidEnv):
         self.pose_reward, self.pose_sharpness = aids.pose_reward, aids.pose_sharpness
         self.track_reward, self.max_track_error, self.clip_paths = (aids.track_reward, aids.max_track_error,
                                                                     aids.clip_paths)
+        self.standing_clip = aids.standing_clip
+        self._standing_clip = None if aids.standing_clip is None else MotionClip.load(aids.standing_clip)
         #: the reference a reference start tracks (``motion.tracking.reference_track``; None: no clip aid
         #: is on, or a standing start)
         self._track: ReferenceTrack | None = None
@@ -277,8 +282,11 @@ class PlaMoEnv(HumanoidEnv):
             reference = self._reference_pose(rng, self._starts_by_locomotion[kind])
         self._focus_terrain(start)
         self._place_at(start, heading, reference, self._floor_under(start))
+        if reference is None and self._standing_clip is not None:  # the training aid: a get-down to track
+            self._reference_clip = (self._standing_clip, 0.0)
         self._track = None
-        if reference is not None and (self.track_reward or self.max_track_error is not None or self.clip_paths):
+        if self._reference_clip is not None and (self.track_reward or self.max_track_error is not None
+                                                 or self.clip_paths):
             clip, start_time = self._reference_clip
             steps = math.ceil((self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0) / self.dt)
             self._track = reference_track(clip, start_time, steps, self.dt, self.data.qpos[self._idx.qpos_root])
