@@ -395,6 +395,7 @@ KINDS = {
         "pose_reward": Number(0.0, 10.0), "pose_sharpness": Number(0.0, 100.0, low_open=True),
         "track_reward": Number(0.0, 10.0), "max_track_error": Optional(Number(0.0, 10.0, low_open=True)),
         "clip_paths": Bool(), "standing_clip": Optional(Examples()),
+        "track_rate": Pair(0.25, 5.0), "track_turn_rate": Number(0.0, 3.0),
     },
     PlaMoSceneEnv: {
         "instructions": Optional(Examples()), "scene": Optional(Examples(({},))),

@@ -239,3 +239,56 @@ def test_a_standing_start_tracks_the_standing_clip_from_its_first_frame():
         PlaMoEnv(standing_clip="/no/such/clip.npz")
     with pytest.raises(TypeError, match="standing_clip"):
         PlaMoEnv(standing_clip=3)
+
+
+def test_bend_curves_a_straight_course_into_an_arc_keeping_its_pace():
+    from stairenv.motion.tracking import bend
+
+    n, dt, v, omega = 91, 1 / 30, 0.5, 0.6
+    straight = np.zeros((n, 35))
+    straight[:, 0] = v * dt * np.arange(n)                  # along x at 0.5 m/s, facing x
+    straight[:, 2], straight[:, 3] = 0.9, 1.0
+    straight[:, 7:] = np.linspace(0, 1, n)[:, None]
+    bent = bend(straight, omega, dt)
+    np.testing.assert_array_equal(bend(straight, 0.0, dt), straight)
+    np.testing.assert_array_equal(bent[:, 7:], straight[:, 7:])            # joints and heights untouched
+    np.testing.assert_array_equal(bent[:, 2], straight[:, 2])
+    steps = np.linalg.norm(np.diff(bent[:, :2], axis=0), axis=1)
+    np.testing.assert_allclose(steps, v * dt, atol=1e-12)                  # the same pace
+    # the course is (to the step's discretisation) the arc of radius v / omega, turning left
+    radius = v / omega
+    centre = np.array([0.0, radius])
+    np.testing.assert_allclose(np.linalg.norm(bent[:, :2] - centre, axis=1), radius, atol=0.01)
+    # each frame faces turned by omega * t
+    for k in (0, 30, 90):
+        assert yaw_between(straight[k, 3:7], bent[k, 3:7]) == pytest.approx(omega * k * dt, abs=1e-9)
+
+
+def test_a_track_played_faster_shows_the_clips_frames_sooner_and_travels_faster():
+    crawl = MotionClip.load(CRAWL)
+    placed = crawl.sample(0.2)[0, :7]
+    slow = reference_track(crawl, 0.2, 90, 1 / 30, placed)
+    fast = reference_track(crawl, 0.2, 90, 1 / 30, placed, rate=2.0)
+    np.testing.assert_allclose(fast.qpos[:46, 7:], slow.qpos[::2, 7:], atol=1e-9)
+    speed = lambda track: np.linalg.norm(track.head[-1, :2] - track.head[0, :2])  # noqa: E731
+    assert speed(fast) > 1.7 * speed(reference_track(crawl, 0.2, 90, 1 / 30, placed))
+
+
+def test_the_env_draws_each_episodes_cadence_and_bend_only_when_asked():
+    env = _crawl_env(init="reference", clip_paths=True, track_reward=1.0, track_rate=(0.5, 3.0),
+                     track_turn_rate=0.8)
+    speeds, turns = [], []
+    for seed in range(12):
+        env.reset(seed=seed)
+        head = env._track.head
+        speeds.append(np.linalg.norm(head[150, :2] - head[0, :2]) / 5.0)
+        heading = np.unwrap(np.arctan2(*np.diff(head[::30, :2], axis=0).T[::-1]))
+        turns.append(heading[-1] - heading[0])
+        np.testing.assert_allclose(env.path.points, head, atol=0)
+    assert max(speeds) > 2.5 * min(speeds)           # cadences drawn from (0.5, 3.0)
+    assert max(turns) > 0.5 and min(turns) < -0.5    # bends both ways
+    plain = _crawl_env(init="reference", clip_paths=True, track_reward=1.0)
+    plain.reset(seed=3)
+    same = reference_track(plain._reference_clip[0], plain._reference_clip[1], len(plain._track.qpos) - 1,
+                           plain.dt, plain._track.qpos[0, :7])
+    np.testing.assert_allclose(plain._track.qpos, same.qpos, atol=1e-12)

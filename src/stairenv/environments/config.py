@@ -357,6 +357,14 @@ class PlaMoTrainingAids(FamilyTrainingAids):
     clip_paths: bool = checked(False, Check("bool"), "on a reference start the path is the start clip's own "
                                "head, played on from the start frame (a looping clip cycle after cycle), so "
                                "the path asks for the clip's travel")
+    track_rate: tuple[float, float] = checked(
+        (1.0, 1.0), Check("pair", 0.25, 5.0),
+        "each tracked clip (a reference start's, a standing_clip) is played this many times as fast, drawn per "
+        "episode from (min, max): the same poses at another cadence and speed")
+    track_turn_rate: float = checked(
+        0.0, Check("float", 0.0, 3.0),
+        "each tracked clip is bent to turn at a rate (rad/s) drawn per episode from [-this, this] "
+        "(motion.tracking.bend); 0 = as captured")
     standing_clip: str | None = checked(
         None, Check("call", call=_standing_clip, optional=True),
         "a clip (.npz) that a standing start tracks from its first frame (a get-down into a crawl): the "

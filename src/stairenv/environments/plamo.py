@@ -131,6 +131,10 @@ class PlaMoEnv(HumanoidEnv):
     following the clip. On a standing start the terms are 0 and the path is drawn, unless
     ``standing_clip`` names a clip: a standing start then tracks that clip from its first frame (a
     get-down into a crawl, ``stairenv.motion.stitch``), and every aid above acts on it as on a start clip.
+    ``track_rate`` (min, max) plays each tracked clip faster or slower by a factor drawn per episode, and
+    ``track_turn_rate`` bends its course to turn at a rate drawn from [-it, it] rad/s
+    (``motion.tracking.bend``): with ``clip_paths`` the paths then ask for the speeds and turns the
+    evaluation's do.
 
     **Pushes** (``push_speed``, ``push_interval``, a training aid of every family; None = off): a kick of a
     speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random direction
@@ -184,6 +188,7 @@ class PlaMoEnv(HumanoidEnv):
         self.track_reward, self.max_track_error, self.clip_paths = (aids.track_reward, aids.max_track_error,
                                                                     aids.clip_paths)
         self.standing_clip = aids.standing_clip
+        self.track_rate, self.track_turn_rate = aids.track_rate, aids.track_turn_rate
         self._standing_clip = None if aids.standing_clip is None else MotionClip.load(aids.standing_clip)
         #: the reference a reference start tracks (``motion.tracking.reference_track``; None: no clip aid
         #: is on, or a standing start)
@@ -289,7 +294,11 @@ class PlaMoEnv(HumanoidEnv):
                                                  or self.clip_paths):
             clip, start_time = self._reference_clip
             steps = math.ceil((self.episode_seconds + NUM_WAYPOINTS * WAYPOINT_SPACING + 1.0) / self.dt)
-            self._track = reference_track(clip, start_time, steps, self.dt, self.data.qpos[self._idx.qpos_root])
+            # a drawn cadence and bend (training aids; drawn only where asked, so other episodes draw as before)
+            rate = 1.0 if self.track_rate[0] == self.track_rate[1] == 1.0 else float(rng.uniform(*self.track_rate))
+            turn = float(rng.uniform(-1.0, 1.0)) * self.track_turn_rate if self.track_turn_rate else 0.0
+            self._track = reference_track(clip, start_time, steps, self.dt, self.data.qpos[self._idx.qpos_root],
+                                          rate, turn)
         return reference is not None
 
     def _new_goal(self, rng: np.random.Generator, options: dict[str, Any] | None) -> None:
@@ -490,8 +499,11 @@ class PlaMoEnv(HumanoidEnv):
         the episode's time; 0 on a standing start (no clip to imitate)."""
         if self._reference_clip is None:
             return 0.0
-        clip, start_time = self._reference_clip
-        reference = clip.sample(start_time + self._steps * self.dt)[0, 7:]  # a clip row: root (7), joints
+        if self._track is not None and (self.track_rate != (1.0, 1.0) or self.track_turn_rate):
+            reference = self._track.qpos[self._track.frame(self._steps), 7:]   # the clip at its drawn cadence
+        else:
+            clip, start_time = self._reference_clip
+            reference = clip.sample(start_time + self._steps * self.dt)[0, 7:]  # a clip row: root (7), joints
         return self.pose_reward * task.pose_imitation_term(reference, joints, self.pose_sharpness)
 
     def _tracking(self, body_pos: np.ndarray, root_vel: np.ndarray) -> tuple[tuple[float, float, float], bool]:

@@ -102,11 +102,33 @@ def clip_frames(clip: MotionClip, start_time: float, steps: int, dt: float) -> n
     return frames
 
 
+def bend(qpos: np.ndarray, turn_rate: float, dt: float) -> np.ndarray:
+    """Frames ``qpos`` (T, 35), ``dt`` apart, bent onto a path that turns at ``turn_rate`` (rad/s, left > 0):
+    frame k is turned about z by ``turn_rate * k * dt``, and so is the root's step to it from frame k - 1,
+    so the motion's own sway and pace are kept while its course curves (a path edit of the kind motion
+    graphs use). Frame 0 is unchanged; joints and heights are untouched."""
+    out = qpos.copy()
+    if turn_rate == 0.0 or len(qpos) < 2:
+        return out
+    theta = turn_rate * dt * np.arange(len(qpos))
+    step = np.diff(qpos[:, :2], axis=0)
+    c, s = np.cos(theta[1:]), np.sin(theta[1:])
+    turned = np.column_stack((c * step[:, 0] - s * step[:, 1], s * step[:, 0] + c * step[:, 1]))
+    out[1:, :2] = qpos[0, :2] + np.cumsum(turned, axis=0)
+    turn = Rotation.from_euler("z", theta[:, None])
+    out[:, 3:7] = (turn * Rotation.from_quat(qpos[:, 3:7], scalar_first=True)).as_quat(scalar_first=True)
+    return out
+
+
 def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
-                    placed_root: np.ndarray) -> ReferenceTrack:
+                    placed_root: np.ndarray, rate: float = 1.0, turn_rate: float = 0.0) -> ReferenceTrack:
     """The reference of an episode started from ``clip`` at ``start_time`` with the root placed at
-    ``placed_root`` (the free joint's 7 qpos: x, y, z, w, qx, qy, qz), ``steps`` + 1 frames ``dt`` apart."""
-    frames = clip_frames(clip, start_time, steps, dt)
+    ``placed_root`` (the free joint's 7 qpos: x, y, z, w, qx, qy, qz), ``steps`` + 1 frames ``dt`` apart:
+    the clip played ``rate`` times as fast (a faster crawl: the same poses, a quicker cadence) and bent to
+    turn at ``turn_rate`` rad/s (``bend``); 1 and 0 play it as it is."""
+    frames = clip_frames(clip, start_time, steps, dt * rate)
+    if turn_rate:
+        frames = bend(frames, turn_rate, dt)
     placed_root = np.asarray(placed_root, dtype=np.float64)
     angle = yaw_between(frames[0, 3:7], placed_root[3:7])
     qpos = _turn(frames, angle, frames[0, :2], placed_root[:2])
@@ -131,4 +153,4 @@ def track_speed(track: ReferenceTrack) -> np.ndarray:
     return np.hypot(*np.gradient(track.head[:, :2], track.dt, axis=0).T)
 
 
-__all__ = ["ReferenceTrack", "clip_frames", "reference_track", "track_speed"]
+__all__ = ["ReferenceTrack", "bend", "clip_frames", "reference_track", "track_speed", "yaw_between"]
