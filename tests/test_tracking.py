@@ -14,7 +14,7 @@ from stairenv.environments.plamo import PlaMoEnv
 from stairenv.humanoid.kinematics import body_positions
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion.clip import MotionClip
-from stairenv.motion.tracking import _turn, clip_frames, reference_track, yaw_between
+from stairenv.motion.tracking import turn_frames, clip_frames, reference_track, yaw_between
 from stairenv.tasks.plamo import TRACKING_TERMS, tracking_terms
 
 CRAWL = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
@@ -49,7 +49,7 @@ def test_yaw_between_is_the_turn_about_z_even_for_a_pelvis_facing_the_floor():
     crawl = MotionClip.load(CRAWL)
     for frame in crawl.qpos[::20]:
         for angle in (-2.5, -0.3, 0.0, 0.9, 3.0):
-            turned = _turn(frame[None], angle, frame[:2], frame[:2])[0]
+            turned = turn_frames(frame[None], angle, frame[:2], frame[:2])[0]
             assert yaw_between(frame[3:7], turned[3:7]) == pytest.approx(angle, abs=1e-9)
 
 
@@ -61,7 +61,7 @@ def test_a_looping_clips_next_cycle_starts_where_the_last_ended_turned_as_its_ro
     delta = yaw_between(first[3:7], last[3:7])
     assert abs(delta) < 0.5
     # the seam: the first frame turned by the cycle's turn about z, its root on the last frame's
-    np.testing.assert_allclose(frames[k], _turn(first[None], delta, first[:2], last[:2])[0], atol=1e-9)
+    np.testing.assert_allclose(frames[k], turn_frames(first[None], delta, first[:2], last[:2])[0], atol=1e-9)
     np.testing.assert_allclose(frames[k, :2], last[:2], atol=1e-9)
     # the turned first frame faces as the last one does (DeepMimic's crawl does not close its loop
     # exactly: its pelvis tilts ~0.2 rad otherwise at the seam), closer than the unturned one
@@ -74,7 +74,7 @@ def test_a_looping_clips_next_cycle_starts_where_the_last_ended_turned_as_its_ro
 def test_the_track_starts_where_the_character_was_placed_and_moves_rigidly_with_it():
     crawl = MotionClip.load(CRAWL)
     start = crawl.sample(0.7)[0]
-    placed = _turn(start[None], 1.2, start[:2], np.array([1.0, -2.0]))[0, :7]   # turned 1.2 rad, moved
+    placed = turn_frames(start[None], 1.2, start[:2], np.array([1.0, -2.0]))[0, :7]   # turned 1.2 rad, moved
     placed[2] = 0.5
     track = reference_track(crawl, 0.7, 60, 1 / 30, placed)
     np.testing.assert_allclose(track.qpos[0, :3], placed[:3], atol=1e-12)

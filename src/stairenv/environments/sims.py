@@ -11,11 +11,10 @@ from typing import Any
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from scipy import ndimage
-from scipy.spatial.transform import Rotation
 
 from stairenv.environments.base import DIVERGENCE_WARNING_ROWS, HumanoidEnv, StepOutcome
 from stairenv.environments.config import document_keywords, keyword_signature, resolve
+
 # the checks of SIMS' keywords are SIMSConfig's; named here too, as before
 from stairenv.environments.sims_config import (  # noqa: F401
     CURRICULUM_SKILLS,
@@ -33,19 +32,25 @@ from stairenv.environments.sims_config import (  # noqa: F401
     check_text_encoder,
     host_families,
 )
-from stairenv.humanoid import DOF_NAMES, load_humanoid_spec
-from stairenv.humanoid.kinematics import humanoid_lowest_z
-from stairenv.humanoid.placement import place_state_in_frame
-from stairenv.humanoid.state import HEAD, PELVIS
-from stairenv.motion import interaction_starts
+
+# the env's jobs beside the template: the pose API the stories use, and the starts (named here too, as before)
+from stairenv.environments.sims_pose import ScenePoseAPI, seated_joint_angles, surface_hi  # noqa: F401
+from stairenv.environments.sims_starts import (  # noqa: F401
+    CONTACT_NAMES,
+    REACH_TURNS,
+    START_PENETRATION,
+    START_TRIES,
+    SIMSStarts,
+)
+from stairenv.humanoid import load_humanoid_spec
+from stairenv.humanoid.state import PELVIS
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
-from stairenv.planning.grid import PlanningGrid
 from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
-from stairenv.tasks.stall import StallWatch
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, no_warnings_within_limits
+from stairenv.tasks.stall import StallWatch
 from stairenv.validation import check_choice
 from stairenv.world.furniture import (
     LYING_FAMILIES,
@@ -56,14 +61,6 @@ from stairenv.world.furniture import (
 from stairenv.world.rooms import Room, RoomConfig, add_room_to_spec, generate_room
 
 GOAL_SIZE = 4 * task.NUM_CONTACT_JOINTS  # 15 target offsets (3) + 15 mask bits
-#: Most a start drawn from an interaction clip may press into the furniture or the floor (m), and how
-#: many of its frames are tried before the episode starts as the others do.
-START_PENETRATION = 0.01
-START_TRIES = 4
-#: Turns (rad) from facing the reach target from the piece's outside tried for a reach start, nearest first.
-REACH_TURNS = (0.0, *(sign * k * math.pi / 8 for k in range(1, 8) for sign in (1.0, -1.0)), math.pi)
-_DOF = {name: k for k, name in enumerate(DOF_NAMES)}
-CONTACT_NAMES = task.CONTACT_JOINTS
 _NEAR, _FAR, _STILL = task.WALK_REWARD_TERMS    # the reward terms' info keys (a contact goal's: the first two)
 if task.CONTACT_REWARD_TERMS != (_NEAR, _FAR):
     raise ImportError("SIMSEnv._world_outcome expects the contact reward's terms to be the walk reward's first two")
@@ -105,15 +102,6 @@ def reference_captions(library, skill: str) -> tuple[tuple[str, str], ...]:
     return tuple(sorted(pairs))
 
 
-def seated_joint_angles() -> np.ndarray:
-    """(28,) a sitting pose: hips flexed 90 deg, knees 90 deg, elbows slightly bent."""
-    q = np.zeros(len(DOF_NAMES))
-    for side in ("right", "left"):
-        q[_DOF[f"{side}_hip_y"]] = -math.pi / 2
-        q[_DOF[f"{side}_knee"]] = math.pi / 2
-        q[_DOF[f"{side}_elbow"]] = -0.4
-    return q
-
 
 # The task (stairenv.tasks.sims) and the style features (stairenv.style.features) of one world's step in one
 # compiled call: here, where the env brings its layers together (a task does not import the style).
@@ -141,7 +129,7 @@ def skill_step_and_style(step_count, warnings, warning_rows, speeds, speed_limit
 
 
 @document_keywords(SIMSConfig)
-class SIMSEnv(HumanoidEnv):
+class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
     r"""A SIMS interaction skill (Sec. 3.3 and supplement): walk, sit, lie, reach or get up.
 
     Every reset places the character in a scene (``scene="object"``: one generated piece of
@@ -497,27 +485,6 @@ class SIMSEnv(HumanoidEnv):
             return (0.8 * speed, 1.2 * speed)
         return self.target_speed
 
-    def free_floor_point(self, xy: np.ndarray) -> np.ndarray:
-        """``xy`` where it is on free floor (or the scene has no free map: an object scene), else the centre of
-        the nearest free cell of the room: where a character getting up from a chair at a table stands (the
-        point in front of the chair lies in the table)."""
-        if self._free_xy is None or not len(self._free_xy):
-            return np.array(xy, dtype=float)
-        k, squared = self._nearest_free_cell(xy)
-        return np.array(xy, dtype=float) if squared <= 0.5 * self._free_cell ** 2 else self._free_xy[k].copy()
-
-    def _nearest_free_cell(self, xy: np.ndarray) -> tuple[int, float]:
-        """The room's free cell nearest ``xy``: its index in ``_free_xy`` and squared distance."""
-        d = np.sum(np.square(self._free_xy - xy), axis=1)
-        k = int(np.argmin(d))
-        return k, float(d[k])
-
-    def approach_point(self, placed: PlacedFurniture, distance: float = 0.45) -> np.ndarray:
-        """(x, y) where a character stands to use ``placed``: in front of it, on free floor if known."""
-        point = task.standing_point(placed, task.resolve_part(placed.family, None, "reach"), distance)[:2]
-        if self._free_xy is not None and len(self._free_xy):
-            point = self._free_xy[self._nearest_free_cell(point)[0]].copy()    # the caller's own, not a row
-        return np.asarray(point, dtype=float)
 
     def _set_goal(self, goal: task.ContactGoal, caption: str, style: str, speed: float) -> None:
         self.goal = goal
@@ -565,302 +532,10 @@ class SIMSEnv(HumanoidEnv):
                 raise ValueError(f"text_encoder gives {self._encoder.dim}-d vectors, text_dim is {self.text_dim}")
         return self._encoder
 
-    # --- the character's pose and the scene, for scripted controllers (the kinematic stand-in) -
-    def pose(self) -> np.ndarray:
-        """(35,) the character's pose: root position (3), root orientation (quaternion w, x, y, z)
-        and the 28 joint angles (``DOF_NAMES`` order)."""
-        idx = self._idx
-        return np.concatenate((self.data.qpos[idx.qpos_root], self.data.qpos[idx.qpos_joints]))
-
-    def set_pose(self, q: np.ndarray) -> None:
-        """Put the character in pose ``q`` (as :meth:`pose` gives) at rest (zero velocities) and
-        update the derived quantities (``mj_forward``). Not physics: a scripted controller's write."""
-        idx, data = self._idx, self.data
-        data.qpos[idx.qpos_root] = q[:7]
-        data.qpos[idx.qpos_joints] = q[7:]
-        data.qvel[idx.qvel_root] = 0.0
-        data.qvel[idx.qvel_joints] = 0.0
-        mujoco.mj_forward(self.model, data)
-
-    def pose_action(self, q: np.ndarray) -> np.ndarray:
-        """The action (float32 in [-1, 1]) whose PD targets are the joint angles of pose ``q``."""
-        return np.clip((q[7:] - self._ctrl_offset) / self._ctrl_scale, -1.0, 1.0).astype(np.float32)
-
-    def pose_kinematics(self, q: np.ndarray, data: mujoco.MjData) -> float:
-        """Write pose ``q`` into ``data`` (a scratch ``MjData`` of ``self.model``; its other entries
-        are kept), run ``mj_kinematics`` on it and return the character's lowest point (m) there."""
-        idx = self._idx
-        data.qpos[idx.qpos_root], data.qpos[idx.qpos_joints] = q[:7], q[7:]
-        mujoco.mj_kinematics(self.model, data)
-        return humanoid_lowest_z(self.model, data, self._geoms)
-
-    def joint_limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high), each (28,): the joint angle ranges (rad) in ``DOF_NAMES`` order."""
-        low, high = self._joint_limits
-        return low.copy(), high.copy()
-
-    def planning_grid(self, body_radius: float | None = None) -> PlanningGrid:
-        """The scene's floor as a ``stairenv.planning`` grid for a character of ``body_radius`` (m):
-        ``blocked`` where it cannot stand, flat ground, open sky. A room: its free space
-        (``Room.free_space``; None: the room's body radius); an object scene: the cells of the
-        height grid at least ``body_radius`` (None: 0.25) from any surface above 3 cm (off the
-        grid the floor is open)."""
-        if self.room is not None:
-            space = self.room.free_space(body_radius=body_radius)
-            free, origin, cell = space.free, space.origin, space.cell_size
-        else:
-            heights = self._heights
-            blocked = heights.heights > 0.03
-            dist = ndimage.distance_transform_edt(~blocked) * heights.cell_size
-            free = dist - 0.5 * heights.cell_size >= (0.25 if body_radius is None else body_radius)
-            origin, cell = heights.origin, heights.cell_size
-        return PlanningGrid(np.zeros(free.shape), ~free, np.full(free.shape, np.inf), float(cell), origin)
-
-    # --- placement ----------------------------------------------------------------------------
-    def _random_start(self, rng: np.random.Generator, target: PlacedFurniture | None,
-                      distance: tuple[float, float] | None = None) -> np.ndarray:
-        """A free floor point (rooms), or one ``distance`` (default ``start_distance``) from the
-        target's centre and clear of the furniture (object scenes)."""
-        if self._free_xy is not None and len(self._free_xy):
-            return self._free_xy[int(rng.integers(0, len(self._free_xy)))].copy()
-        distance = self.start_distance if distance is None else distance
-        centre = target.position if target is not None else np.zeros(2)
-        found = self._clear_point(rng, centre, distance)
-        if found is not None:
-            return found[0]
-        radius = max(max(p.furniture.footprint) for p in self.furniture.values()) + 0.5
-        return centre + np.array([radius, 0.0])
-
-    def _clear_point(self, rng: np.random.Generator, centre: np.ndarray, distance: tuple[float, float],
-                     bearing: float = 0.0, spread: float = math.pi) -> tuple[np.ndarray, float] | None:
-        """A point ``distance`` from ``centre`` at a bearing within ``bearing`` +- ``spread``, clear of the
-        furniture, and that bearing (100 tries; None if none was clear)."""
-        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
-        for _ in range(100):
-            angle = bearing + rng.uniform(-spread, spread)
-            xy = centre + rng.uniform(*distance) * np.array([math.cos(angle), math.sin(angle)])
-            if not any(b.contains_xy(xy[None])[0] for b in boxes):
-                return xy, angle
-        return None
-
-    def _front_start(self, rng: np.random.Generator, target: PlacedFurniture) -> tuple[np.ndarray, float]:
-        """A standing start of the ``start_from_front`` curriculum: the spot where the interaction start
-        stands (the seat's front edge, ``_seat_start_frames``), and from it ``episode_start_distance()``
-        away at a bearing within +-180 deg x (level + 1) / N of the direction out of the front, the heading
-        within as much of facing away from the piece; clear of the furniture. The top level: any bearing
-        and any heading, as a plain start's."""
-        _, _, facing, origin = self._seat_start_frames(rng, target, self.skill)
-        spread = math.pi * (self.curriculum_level + 1) / self.start_distance_levels
-        distance = self.episode_start_distance()
-        found = self._clear_point(rng, origin[:2], distance, facing, spread)
-        if found is not None:
-            xy, bearing = found
-            return xy, float(bearing + rng.uniform(-spread, spread))
-        return self._random_start(rng, target, distance), float(rng.uniform(-math.pi, math.pi))
-
-    def random_walk_target(self, rng: np.random.Generator, start: np.ndarray) -> np.ndarray:
-        """(x, y) of a random walk goal ``episode_walk_distance()`` from ``start``: a free floor point
-        (rooms; any free point if none is that far) or a point clear of the furniture (object scenes)."""
-        low, high = self.episode_walk_distance()
-        if self._free_xy is not None and len(self._free_xy):
-            d = np.linalg.norm(self._free_xy - start, axis=1)
-            ok = np.flatnonzero((d >= low) & (d <= high))
-            pool = ok if len(ok) else np.arange(len(self._free_xy))
-            return self._free_xy[int(rng.choice(pool))].copy()
-        boxes = [p.footprint_box(margin=0.35) for p in self.furniture.values()]
-        for _ in range(100):
-            angle = rng.uniform(-math.pi, math.pi)
-            xy = start + rng.uniform(low, high) * np.array([math.cos(angle), math.sin(angle)])
-            if not any(b.contains_xy(xy[None])[0] for b in boxes):
-                return xy
-        return start.copy()
-
-    def place_on(self, placed: PlacedFurniture, pose: str) -> None:
-        """Seat the character on (``pose="sit"``) or lay it on (``"lie"``) ``placed``, resting on it."""
-        model, data = self.model, self.data
-        label = task.resolve_part(placed.family, None, "lie" if pose == "lie" else "sit")
-        surface = placed.contact_surface(label)
-        centre_local = placed.to_local(surface.center[None])[0]
-        joints = np.zeros(len(DOF_NAMES))
-        if pose == "sit":
-            joints = seated_joint_angles()
-            bed = placed.family in ("bed", "double_bed")
-            # sit 0.3 m inside the front edge (beds: the long side), facing out
-            # 0.3 m inside the front edge, less on shallow seats (the back must not hit the backrest)
-            axis = 1 if bed else 0
-            depth = float(np.ptp(placed.to_local(surface.corners())[:, axis]))
-            inset = min(0.3, max(depth - 0.12, 0.5 * depth))
-            local = centre_local.copy()
-            local[axis] = surface_hi(surface, placed)[axis] - inset
-            local[2] = 0.0
-            facing_local = np.eye(3)[axis]
-            facing = placed.rotation @ facing_local
-            rot = Rotation.from_euler("z", math.atan2(facing[1], facing[0]))
-        else:
-            # head towards the pillow (beds) or along the longer side of the surface (sofas: +y)
-            if "pillow" in placed.furniture.labels:
-                pillow = placed.furniture.contact_surface("pillow", index=0).center
-                head_local = pillow - centre_local
-                head_local[2] = 0.0
-                head_local /= max(np.linalg.norm(head_local), 1e-9)
-            else:
-                head_local = np.array([0.0, 1.0, 0.0])
-            local = centre_local - 0.1 * head_local
-            h = placed.rotation @ head_local
-            up = np.array([0.0, 0.0, 1.0])
-            rot = Rotation.from_matrix(np.column_stack((up, np.cross(h, up), h)))
-        world = placed.to_world(local[None])[0]
-        data.qpos[self._idx.qpos_root] = (world[0], world[1], surface.center[2] + 0.12, *rot.as_quat(scalar_first=True))
-        data.qpos[self._idx.qpos_joints] = joints
-        self._rest_on_contacts(placed.name)
-        self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
 
 
-    def resting_pose(self, placed: PlacedFurniture, pose: str) -> np.ndarray:
-        """The pose (as :meth:`pose` gives) that ``place_on(placed, pose)`` puts the character in,
-        computed on the live data, which is then restored (the character does not move)."""
-        data = self.data
-        saved = data.qpos.copy(), data.qvel.copy(), data.ctrl.copy()
-        self.place_on(placed, pose)
-        q = self.pose()
-        data.qpos[:], data.qvel[:], data.ctrl[:] = saved
-        mujoco.mj_forward(self.model, data)
-        return q
 
-    # --- interaction starts (training aid) -------------------------------------------------------
-    def _place_interaction_start(self, rng: np.random.Generator, placed: PlacedFurniture) -> bool:
-        """Put the character in a frame of the skill's clip made for ``placed`` (class docstring,
-        training aids); False (the data then to be overwritten) when no frame tried fits."""
-        if self.skill == "reach":
-            # the goal first: the clip is made for its target (``_new_goal`` then keeps it)
-            self._start_goal = goal = task.contact_goal("reach", placed, rng, details=self.details)
-            return self._place_reach_start(rng, goal)
-        qpos, qvel, yaw, origin = self._seat_start_frames(rng, placed, self.skill)
-        return self._try_start_frames(rng, qpos, qvel, yaw, origin)
 
-    def _seat_start_frames(self, rng: np.random.Generator, placed: PlacedFurniture, skill: str):
-        """The sit (or sit-and-lie) clip's frames for ``placed`` and the frame (yaw, origin) that puts
-        its seat edge (x = 0) on the piece's front edge: for sit facing out of the seat's front (a bed's
-        long side), for lie facing the side whose left is the pillow's end (a sofa's front)."""
-        furniture = placed.furniture
-        label = task.resolve_part(placed.family, None, skill)
-        surface = furniture.contact_surface(label)          # furniture frame
-        corners = surface.corners()
-        lo, hi = corners.min(axis=0), corners.max(axis=0)
-        centre, top = surface.center, float(surface.center[2])
-        bed = placed.family in ("bed", "double_bed")
-        axis, sign = (1, 1.0) if bed else (0, 1.0)
-        pillow = None
-        if skill == "lie" and "pillow" in furniture.labels:
-            pillow = furniture.contact_surface("pillow", index=0)
-            # the character's left (the clip's head end) is (-sign) along x facing +-y: towards the pillow
-            sign = 1.0 if pillow.center[0] <= centre[0] else -1.0
-        lateral = 1 - axis
-        left_sign = -sign if axis == 1 else sign           # the left's direction along the lateral axis
-        half_lateral = 0.5 * float(hi[lateral] - lo[lateral])
-        if skill == "sit":
-            spread = max(half_lateral - (0.6 if bed else 0.45), 0.0)
-            along = float(centre[lateral] + rng.uniform(-spread, spread)) if spread > 0.0 else float(centre[lateral])
-        else:
-            edge = float(hi[axis] if sign > 0 else lo[axis])
-            offset = abs(edge - float(centre[axis]))
-            pillow_height = 0.0 if pillow is None else max(p.vertices[:, 2].max() for p in furniture.parts("pillow")) - top
-            qpos, qvel, head = interaction_starts.lie_frames(top, offset, pillow_height)
-            # the head ends over the pillow's centre; without one the body (about -1.0 .. +0.8 m along
-            # the clip's y from the pelvis) is centred on the surface
-            along = (float(pillow.center[lateral]) - left_sign * float(head[1]) if pillow is not None
-                     else float(centre[lateral]) + left_sign * 0.1)
-        # the front: the outermost face, along the facing axis, of the parts below the seat across the body
-        front = sign * float(hi[axis] if sign > 0 else lo[axis])
-        for part in furniture.part_list:
-            v = part.vertices
-            if v[:, 2].max() <= top + 0.01 and v[:, lateral].min() < along + 0.25 and v[:, lateral].max() > along - 0.25:
-                front = max(front, float((sign * v[:, axis]).max()))
-        if skill == "sit":
-            qpos, qvel = interaction_starts.sit_frames(top)
-        origin_local = np.zeros(3)
-        origin_local[axis], origin_local[lateral] = sign * front, along
-        facing = placed.rotation @ (sign * np.eye(3)[axis])
-        return qpos, qvel, math.atan2(facing[1], facing[0]), placed.to_world(origin_local[None])[0]
-
-    def _place_reach_start(self, rng: np.random.Generator, goal: task.ContactGoal) -> bool:
-        """Stand 0.45-0.75 m from the reach target, facing it from the piece's outside (turned by up to
-        180 deg, nearest first, where that side is blocked), in a frame of a reach made for it."""
-        hand = CONTACT_NAMES[goal.primary].removesuffix("_hand")
-        target = goal.root_target
-        out = target[:2] - self._target.position
-        if np.hypot(*out) < 1e-6:
-            out = (self._target.rotation @ np.array([1.0, 0.0, 0.0]))[:2]
-        base = math.atan2(-out[1], -out[0])
-        side = interaction_starts.REACH_SIDE * (-1.0 if hand == "right" else 1.0)
-        for ahead in interaction_starts.REACH_AHEAD:
-            frames = interaction_starts.reach_frames(ahead, float(target[2]), hand)
-            if frames is None:
-                continue
-            qpos, qvel, _ = frames
-            for turn in REACH_TURNS:
-                yaw = base + turn
-                c, s = math.cos(yaw), math.sin(yaw)
-                origin = np.array([target[0] - (c * ahead - s * side), target[1] - (s * ahead + c * side), 0.0])
-                # the stance and the hold pose must fit before frames are drawn
-                if all(self._start_fits(qpos[k], qvel[k], yaw, origin) for k in (0, len(qpos) - 1)):
-                    return self._try_start_frames(rng, qpos, qvel, yaw, origin)
-        return False
-
-    def _try_start_frames(self, rng: np.random.Generator, qpos: np.ndarray, qvel: np.ndarray, yaw: float,
-                          origin: np.ndarray) -> bool:
-        """Up to ``START_TRIES`` frames drawn uniformly until one fits (it stays placed)."""
-        for _ in range(START_TRIES):
-            k = int(rng.integers(len(qpos)))
-            if self._start_fits(qpos[k], qvel[k], yaw, origin):
-                self._start = self.data.qpos[self._idx.qpos_root][:2].copy()
-                return True
-        return False
-
-    def _start_fits(self, qpos: np.ndarray, qvel: np.ndarray, yaw: float, origin: np.ndarray) -> bool:
-        """Place the state (given in the frame ``yaw``, ``origin``), servos holding it; whether it presses
-        at most ``START_PENETRATION`` into anything but itself."""
-        model, data = self.model, self.data
-        place_state_in_frame(model, data, self._idx, qpos.astype(np.float64), qvel.astype(np.float64), yaw,
-                             origin, lift=0.0)
-        self._hold_pose_ctrl()
-        mujoco.mj_forward(model, data)
-        return self.start_penetration() <= START_PENETRATION
-
-    def start_penetration(self) -> float:
-        """The deepest contact (m) between the character and anything else (furniture, walls, floor) in
-        the current state (after ``mj_forward``); 0 when none presses in."""
-        data, ours = self.data, self._humanoid_geom_mask
-        n = data.ncon
-        if n == 0:
-            return 0.0
-        geoms = data.contact.geom[:n]
-        other = ours[geoms[:, 0]] != ours[geoms[:, 1]]
-        return float(max(0.0, -data.contact.dist[:n][other].min())) if other.any() else 0.0
-
-    def _rest_on_contacts(self, body_name: str, iterations: int = 20) -> None:
-        """Raise the character until it no longer penetrates the floor or the piece ``body_name``
-        (then 2 mm of clearance). Other pieces (a table a chair stands at) are ignored: rising
-        over them would put the character on the table."""
-        model, data = self.model, self.data
-        support = {model.body(body_name).id, 0}
-        for _ in range(iterations):
-            mujoco.mj_forward(model, data)
-            depth = 0.0
-            for c in data.contact[:data.ncon]:
-                ours = self._humanoid_geom_mask[c.geom1], self._humanoid_geom_mask[c.geom2]
-                if ours[0] == ours[1]:
-                    continue
-                other = c.geom2 if ours[0] else c.geom1
-                if model.geom_bodyid[other] in support:
-                    depth = max(depth, -c.dist)
-            if depth <= 0.0:
-                break
-            data.qpos[self._idx.qpos_root.start + 2] += depth + 0.002
-        lowest = humanoid_lowest_z(model, data, self._geoms)
-        if lowest < 0.002:
-            data.qpos[self._idx.qpos_root.start + 2] += 0.002 - lowest
 
     # --- observation and reward ---------------------------------------------------------------
     BATCH_OUTCOMES = True
@@ -1010,6 +685,3 @@ class SIMSEnv(HumanoidEnv):
         return tuple((joints[j], targets[j], (1.0, 0.5, 0.1, 1.0)) for j in np.flatnonzero(self.goal.mask))
 
 
-def surface_hi(surface, placed: PlacedFurniture) -> np.ndarray:
-    """Largest furniture-frame (x, y) of a world contact surface's corners."""
-    return placed.to_local(surface.corners()).max(axis=0)

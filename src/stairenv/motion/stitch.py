@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from stairenv.motion.clip import MotionClip, blend_poses
-from stairenv.motion.tracking import _turn, clip_frames
+from stairenv.motion.tracking import turn_frames, clip_frames
 
 #: how far back (s) the lead clip's travel before the blend is measured, for its heading
 TRAVEL_WINDOW = 0.5
@@ -73,7 +73,7 @@ def stitch(lead: MotionClip, window: tuple[float, float], follow: MotionClip, fo
         raise ValueError("stitch aligns the clips by their travel: the lead's window end and the follow clip "
                          "must both move (more than 1 mm)")
     angle = float(np.arctan2(lead_travel[1], lead_travel[0]) - np.arctan2(follow_travel[1], follow_travel[0]))
-    follow_part = _turn(follow_part, angle, follow_frames[0, :2], anchor[:2])
+    follow_part = turn_frames(follow_part, angle, follow_frames[0, :2], anchor[:2])
     weight = _smoothstep((times - joint) / blend) if blend > 0 else (times >= joint).astype(float)
     qpos = blend_poses(lead_part, follow_part, weight)
     qpos[:, :2] -= qpos[0, :2]                                         # the clip starts at the origin

@@ -61,7 +61,7 @@ def yaw_between(quat_from: np.ndarray, quat_to: np.ndarray) -> float:
     return float(np.arctan2(x_axis[1], x_axis[0]))
 
 
-def _turn(qpos: np.ndarray, angle: float | np.ndarray, pivot: np.ndarray, to: np.ndarray) -> np.ndarray:
+def turn_frames(qpos: np.ndarray, angle: float | np.ndarray, pivot: np.ndarray, to: np.ndarray) -> np.ndarray:
     """Frames ``qpos`` (T, 35) turned about z by ``angle`` (a scalar or (T,)) around ``pivot`` (x, y), the
     pivot moved to ``to`` (x, y); joints and heights unchanged."""
     out = qpos.copy()
@@ -95,9 +95,9 @@ def clip_frames(clip: MotionClip, start_time: float, steps: int, dt: float) -> n
         part = frames[rows]
         for _ in range(abs(int(k))):  # k cycles on (or back, for a negative start time)
             if k > 0:
-                part = _turn(part, delta, first[:2], last[:2])
+                part = turn_frames(part, delta, first[:2], last[:2])
             else:
-                part = _turn(part, -delta, last[:2], first[:2])
+                part = turn_frames(part, -delta, last[:2], first[:2])
         frames[rows] = part
     return frames
 
@@ -131,7 +131,7 @@ def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
         frames = bend(frames, turn_rate, dt)
     placed_root = np.asarray(placed_root, dtype=np.float64)
     angle = yaw_between(frames[0, 3:7], placed_root[3:7])
-    qpos = _turn(frames, angle, frames[0, :2], placed_root[:2])
+    qpos = turn_frames(frames, angle, frames[0, :2], placed_root[:2])
     qpos[:, 2] += placed_root[2] - frames[0, 2]
     model = humanoid_model()
     ids = [model.body(name).id for name in BODY_NAMES]
@@ -153,4 +153,4 @@ def track_speed(track: ReferenceTrack) -> np.ndarray:
     return np.hypot(*np.gradient(track.head[:, :2], track.dt, axis=0).T)
 
 
-__all__ = ["ReferenceTrack", "bend", "clip_frames", "reference_track", "track_speed", "yaw_between"]
+__all__ = ["ReferenceTrack", "bend", "clip_frames", "reference_track", "track_speed", "turn_frames", "yaw_between"]
