@@ -53,22 +53,18 @@ def test_yaw_between_is_the_turn_about_z_even_for_a_pelvis_facing_the_floor():
             assert yaw_between(frame[3:7], turned[3:7]) == pytest.approx(angle, abs=1e-9)
 
 
-def test_a_looping_clips_next_cycle_starts_where_the_last_ended_turned_as_its_root_turned():
+def test_a_looping_clips_next_cycle_starts_where_the_last_ended_moved_not_turned():
     crawl = MotionClip.load(CRAWL)
     k = crawl.num_frames - 1   # one cycle at the clip's own rate
     frames = clip_frames(crawl, 0.0, 2 * k, 1 / crawl.fps)
     first, last = crawl.qpos[0], crawl.qpos[-1]
-    delta = yaw_between(first[3:7], last[3:7])
-    assert abs(delta) < 0.5
-    # the seam: the first frame turned by the cycle's turn about z, its root on the last frame's
-    np.testing.assert_allclose(frames[k], turn_frames(first[None], delta, first[:2], last[:2])[0], atol=1e-9)
+    travel = last[:2] - first[:2]
+    # the seam: the first frame moved by one cycle's travel (DeepMimic's cycle offset), not turned
     np.testing.assert_allclose(frames[k, :2], last[:2], atol=1e-9)
-    # the turned first frame faces as the last one does (DeepMimic's crawl does not close its loop
-    # exactly: its pelvis tilts ~0.2 rad otherwise at the seam), closer than the unturned one
-    seam = Rotation.from_quat(frames[k, 3:7], scalar_first=True)
-    end = Rotation.from_quat(last[3:7], scalar_first=True)
-    start = Rotation.from_quat(first[3:7], scalar_first=True)
-    assert (seam * end.inv()).magnitude() < (start * end.inv()).magnitude()
+    np.testing.assert_allclose(frames[k, 2:], first[2:], atol=1e-9)
+    np.testing.assert_allclose(frames[2 * k, :2], first[:2] + 2 * travel, atol=1e-9)
+    # so the course is straight: every cycle's frames are the first cycle's, moved along the travel
+    np.testing.assert_allclose(frames[k:2 * k, :2] - frames[:k, :2], np.broadcast_to(travel, (k, 2)), atol=1e-9)
 
 
 def test_the_track_starts_where_the_character_was_placed_and_moves_rigidly_with_it():
@@ -292,3 +288,22 @@ def test_the_env_draws_each_episodes_cadence_and_bend_only_when_asked():
     same = reference_track(plain._reference_clip[0], plain._reference_clip[1], len(plain._track.qpos) - 1,
                            plain.dt, plain._track.qpos[0, :7])
     np.testing.assert_allclose(plain._track.qpos, same.qpos, atol=1e-12)
+
+
+@pytest.mark.parametrize("name, window, follow, blend", [
+    ("get_down_forearm_crawl", (1.87, 3.4), "dm_crawl", 0.8),
+    ("stand_crouch_walk", (1.7, 1.87), "crouch_walk_1.0mps", 1.2),
+    ("stand_jog", (1.7, 1.87), "dm_jog", 1.0),
+])
+def test_the_shipped_stitched_clips_are_what_their_notice_says(name, window, follow, blend):
+    from stairenv.motion.plamo_set import label_clip
+    from stairenv.motion.stitch import stitch
+
+    shipped = MotionClip.load(files("stairenv.motion.data.stitched") / f"{name}.npz")
+    follow_clip = MotionClip.load(files("stairenv.motion.data.plamo") / f"{follow}.npz")
+    start = 0.67 if follow == "dm_crawl" else 0.0
+    made = label_clip(stitch(MotionClip.load(WALK_CRAWL), window, follow_clip, start, blend, 16.0, name=name),
+                      shipped.meta["locomotion"])
+    assert made.num_frames == shipped.num_frames
+    np.testing.assert_allclose(made.qpos, shipped.qpos, atol=1e-6)   # tolerances: another CPU's low bits
+    assert name in (files("stairenv.motion.data.stitched") / "NOTICE.txt").read_text()

@@ -5,7 +5,7 @@ standing and crawls as low as PlaMo's crawl paths ask (CMU 133_01 gets down onto
 its head ~0.7 m up; DeepMimic's crawl is on the forearms, ~0.37 m). ``stitch`` joins such clips the way
 motion graphs do (Kovar et al. 2002): the lead clip is played over a window, the follow clip is turned
 about z and moved so that its root, at the blend's start, lies on the lead's, heading the way the lead
-was travelling (the follow clip's heading: its travel over a cycle),
+was travelling, or facing if it stood still (the follow clip's heading: its travel over a cycle),
 and for ``blend`` seconds the two are blended with a smooth weight (``clip.blend_poses``: slerp for the
 root and the 3-axis joints, linear otherwise); then the follow clip plays on (a looping one cycle after
 cycle, ``motion.tracking.clip_frames``) until the stitched clip's ``duration``. The root's height is
@@ -24,12 +24,16 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from stairenv.motion.clip import MotionClip, blend_poses
 from stairenv.motion.tracking import turn_frames, clip_frames
 
 #: how far back (s) the lead clip's travel before the blend is measured, for its heading
 TRAVEL_WINDOW = 0.5
+#: a lead whose root moves less than this (m) over ``TRAVEL_WINDOW`` stands still: its heading is the way its
+#: pelvis faces (upright, its x axis is level), not its travel
+STILL_TRAVEL = 0.05
 
 
 def _smoothstep(x: np.ndarray) -> np.ndarray:
@@ -69,10 +73,14 @@ def stitch(lead: MotionClip, window: tuple[float, float], follow: MotionClip, fo
     lead_travel = anchor[:2] - lead.sample(max(start, end - TRAVEL_WINDOW))[0, :2]
     span = min(round((follow.duration if follow.loop else TRAVEL_WINDOW) * fps), steps)
     follow_travel = follow_frames[span, :2] - follow_frames[0, :2]
-    if min(np.linalg.norm(lead_travel), np.linalg.norm(follow_travel)) < 1e-3:
-        raise ValueError("stitch aligns the clips by their travel: the lead's window end and the follow clip "
-                         "must both move (more than 1 mm)")
-    angle = float(np.arctan2(lead_travel[1], lead_travel[0]) - np.arctan2(follow_travel[1], follow_travel[0]))
+    if np.linalg.norm(follow_travel) < 1e-3:
+        raise ValueError("stitch aligns the clips by their travel: the follow clip must move (more than 1 mm)")
+    if np.linalg.norm(lead_travel) < STILL_TRAVEL:    # a lead standing still: the way its pelvis faces
+        forward = Rotation.from_quat(anchor[3:7], scalar_first=True).apply([1.0, 0.0, 0.0])
+        lead_heading = float(np.arctan2(forward[1], forward[0]))
+    else:
+        lead_heading = float(np.arctan2(lead_travel[1], lead_travel[0]))
+    angle = lead_heading - float(np.arctan2(follow_travel[1], follow_travel[0]))
     follow_part = turn_frames(follow_part, angle, follow_frames[0, :2], anchor[:2])
     weight = _smoothstep((times - joint) / blend) if blend > 0 else (times >= joint).astype(float)
     qpos = blend_poses(lead_part, follow_part, weight)

@@ -5,8 +5,9 @@ from the frame the episode started in (reference-state initialisation). ``refere
 that reference for one episode as arrays at the env's step rate, in the world:
 
 - the clip is played on from ``start_time``; a looping clip (``clip.loop``) carries on cycle after
-  cycle, each cycle's root moved and turned by the travel of the one before (DeepMimic's cycle
-  offset), so a crawl keeps crawling forwards; a clip that does not loop holds its last frame;
+  cycle, each cycle's root moved on by one cycle's travel (DeepMimic's cycle offset), so a crawl keeps
+  crawling forwards; a clip that does not loop holds its last frame; ``rate`` plays it faster or
+  slower and ``turn_rate`` bends its course (``bend``);
 - the frames are moved rigidly (a turn about z and a shift) so that the start frame's root lies on
   the root the character was placed with (``placement.place_reference_state`` turns the start frame
   to the start heading and rests it on the floor): the track starts where the character is;
@@ -77,28 +78,19 @@ def turn_frames(qpos: np.ndarray, angle: float | np.ndarray, pivot: np.ndarray, 
 
 def clip_frames(clip: MotionClip, start_time: float, steps: int, dt: float) -> np.ndarray:
     """``steps`` + 1 frames (qpos) of ``clip`` played on from ``start_time`` every ``dt`` seconds, in the
-    clip's own frame: a looping clip carried on cycle after cycle (each cycle's root moved and turned by
-    the one before's travel), other clips held at their last frame."""
+    clip's own frame: a looping clip carried on cycle after cycle, each cycle's root moved on by one
+    cycle's horizontal travel (the last frame's root less the first's) and not turned, as DeepMimic plays
+    its loops (``cMotionController::CalcRootCycleOffset``): a loop whose last frame faces a little otherwise
+    than its first (DeepMimic's jog by 0.11 rad, its crawl by 0.18) keeps its course rather than circling.
+    Other clips are held at their last frame."""
     times = start_time + dt * np.arange(steps + 1)
     if not clip.loop or clip.num_frames < 2:
         return clip.sample(times)
     duration = clip.duration
     cycles = np.floor(times / duration).astype(int)
     frames = clip.sample(times - cycles * duration)
-    first, last = clip.qpos[0], clip.qpos[-1]
-    # one cycle's travel: the map taking the first frame's root (position, yaw) onto the last frame's
-    delta = yaw_between(first[3:7], last[3:7])
-    for k in np.unique(cycles):
-        if k == 0:
-            continue
-        rows = cycles == k
-        part = frames[rows]
-        for _ in range(abs(int(k))):  # k cycles on (or back, for a negative start time)
-            if k > 0:
-                part = turn_frames(part, delta, first[:2], last[:2])
-            else:
-                part = turn_frames(part, -delta, last[:2], first[:2])
-        frames[rows] = part
+    travel = clip.qpos[-1, :2] - clip.qpos[0, :2]
+    frames[:, :2] += cycles[:, None] * travel
     return frames
 
 
