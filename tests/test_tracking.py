@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from importlib.resources import files
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -233,6 +234,12 @@ def test_a_standing_start_tracks_the_standing_clip_from_its_first_frame():
     assert terminated and info["track_lost"]
     with pytest.raises(ValueError, match="standing_clip"):
         PlaMoEnv(standing_clip="/no/such/clip.npz")
+    env = _crawl_env(init="default", clip_paths=True, standing_clip=str(Path(GET_DOWN).parent))
+    drawn = set()
+    for seed in range(8):
+        env.reset(seed=seed)
+        drawn.add(env._reference_clip[0].name)
+    assert len(drawn) > 1    # a folder: one of its clips drawn per standing start
     with pytest.raises(TypeError, match="standing_clip"):
         PlaMoEnv(standing_clip=3)
 
@@ -292,18 +299,20 @@ def test_the_env_draws_each_episodes_cadence_and_bend_only_when_asked():
 
 @pytest.mark.parametrize("name, window, follow, blend", [
     ("get_down_forearm_crawl", (1.87, 3.4), "dm_crawl", 0.8),
-    ("stand_crouch_walk", (1.7, 1.87), "crouch_walk_1.0mps", 1.2),
+    ("crouch/stand_crouch_walk_0.71m", (1.7, 1.87), "crouch/crouch_walk_0.71m_1.0mps", 1.2),
     ("stand_jog", (1.7, 1.87), "dm_jog", 1.0),
 ])
 def test_the_shipped_stitched_clips_are_what_their_notice_says(name, window, follow, blend):
     from stairenv.motion.plamo_set import label_clip
     from stairenv.motion.stitch import stitch
 
-    shipped = MotionClip.load(files("stairenv.motion.data.stitched") / f"{name}.npz")
-    follow_clip = MotionClip.load(files("stairenv.motion.data.plamo") / f"{follow}.npz")
+    data = Path(WALK_CRAWL).parents[1]
+    shipped = MotionClip.load(data / "stitched" / f"{name}.npz")
+    follow_clip = MotionClip.load(data / ("" if "/" in follow else "plamo") / f"{follow}.npz")
     start = 0.67 if follow == "dm_crawl" else 0.0
-    made = label_clip(stitch(MotionClip.load(WALK_CRAWL), window, follow_clip, start, blend, 16.0, name=name),
+    made = label_clip(stitch(MotionClip.load(WALK_CRAWL), window, follow_clip, start, blend, 16.0,
+                             name=name.split("/")[-1]),
                       shipped.meta["locomotion"])
     assert made.num_frames == shipped.num_frames
     np.testing.assert_allclose(made.qpos, shipped.qpos, atol=1e-6)   # tolerances: another CPU's low bits
-    assert name in (files("stairenv.motion.data.stitched") / "NOTICE.txt").read_text()
+    assert name.split("/")[-1].rsplit("_", 1)[0] in (data / "stitched" / "NOTICE.txt").read_text()

@@ -30,7 +30,7 @@ from typing import Any, Self
 from stairenv.environments.base import INITS, check_reference_motion
 from stairenv.humanoid import PD_GAINS
 from stairenv.motion import stair_starts
-from stairenv.motion.clip import MotionClip
+from stairenv.motion.library import MotionLibrary
 from stairenv.planning.locomotion import LOCOMOTIONS, Locomotion, get_locomotion
 from stairenv.rendering import RENDER_MODES
 from stairenv.tasks import curriculum
@@ -74,15 +74,17 @@ def _reference_motion(value):
 
 
 def _standing_clip(value):
-    """``standing_clip``: None or one readable ``.npz`` clip (loaded at construction, never run)."""
+    """``standing_clip``: None, one readable ``.npz`` clip or a folder of them (loaded at construction, never
+    run)."""
     if value is None:
         return None
     if not isinstance(value, (str, os.PathLike)):
-        raise TypeError(f"standing_clip must be None or the path of a .npz clip, got {type(value).__name__}")
+        raise TypeError(f"standing_clip must be None or the path of a .npz clip or folder of them, "
+                        f"got {type(value).__name__}")
     try:
-        MotionClip.load(value)
+        MotionLibrary.load(value)
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as error:
-        raise ValueError(f"standing_clip {str(value)!r} could not be loaded as a clip: {error}") from error
+        raise ValueError(f"standing_clip {str(value)!r} could not be loaded as clips: {error}") from error
     return value
 
 
@@ -367,8 +369,9 @@ class PlaMoTrainingAids(FamilyTrainingAids):
         "(motion.tracking.bend); 0 = as captured")
     standing_clip: str | None = checked(
         None, Check("call", call=_standing_clip, optional=True),
-        "a clip (.npz) that a standing start tracks from its first frame (a get-down into a crawl): the "
-        "pose and tracking aids and clip_paths act on it as on a reference start's clip; None = off")
+        "a clip (.npz), or a folder of them (one drawn per episode), that a standing start tracks from its "
+        "first frame (a get-down into a crawl): the pose and tracking aids and clip_paths act on it as on a "
+        "reference start's clip; None = off")
 
 
 @checked_config

@@ -17,7 +17,6 @@ from stairenv.environments.config import MAX_TERRAIN_CELLS, PATH_GENERATORS, TER
 from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.model import HEAD_CENTRE_OFFSET
 from stairenv.humanoid.state import HEAD, PELVIS
-from stairenv.motion.clip import MotionClip
 from stairenv.motion.library import MotionLibrary
 from stairenv.motion.tracking import ReferenceTrack, reference_track, track_speed
 from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
@@ -129,8 +128,9 @@ class PlaMoEnv(HumanoidEnv):
     the episode ends (``info["track_lost"]``) when the bodies are on average more than ``max_track_error``
     from the clip's; with ``clip_paths`` the path is the clip's own head, so that following the path is
     following the clip. On a standing start the terms are 0 and the path is drawn, unless
-    ``standing_clip`` names a clip: a standing start then tracks that clip from its first frame (a
-    get-down into a crawl, ``stairenv.motion.stitch``), and every aid above acts on it as on a start clip.
+    ``standing_clip`` names a clip (or a folder of them, one drawn per episode): a standing start then
+    tracks that clip from its first frame (a get-down into a crawl, ``stairenv.motion.stitch``), and every
+    aid above acts on it as on a start clip.
     ``track_rate`` (min, max) plays each tracked clip faster or slower by a factor drawn per episode, and
     ``track_turn_rate`` bends its course to turn at a rate drawn from [-it, it] rad/s
     (``motion.tracking.bend``): with ``clip_paths`` the paths then ask for the speeds and turns the
@@ -189,7 +189,7 @@ class PlaMoEnv(HumanoidEnv):
                                                                     aids.clip_paths)
         self.standing_clip = aids.standing_clip
         self.track_rate, self.track_turn_rate = aids.track_rate, aids.track_turn_rate
-        self._standing_clip = None if aids.standing_clip is None else MotionClip.load(aids.standing_clip)
+        self._standing_clips = None if aids.standing_clip is None else MotionLibrary.load(aids.standing_clip).clips
         #: the reference a reference start tracks (``motion.tracking.reference_track``; None: no clip aid
         #: is on, or a standing start)
         self._track: ReferenceTrack | None = None
@@ -287,8 +287,9 @@ class PlaMoEnv(HumanoidEnv):
             reference = self._reference_pose(rng, self._starts_by_locomotion[kind])
         self._focus_terrain(start)
         self._place_at(start, heading, reference, self._floor_under(start))
-        if reference is None and self._standing_clip is not None:  # the training aid: a get-down to track
-            self._reference_clip = (self._standing_clip, 0.0)
+        if reference is None and self._standing_clips is not None:  # the training aid: a get-down to track
+            clips = self._standing_clips    # (one clip: nothing drawn)
+            self._reference_clip = (clips[int(rng.integers(len(clips)))] if len(clips) > 1 else clips[0], 0.0)
         self._track = None
         if self._reference_clip is not None and (self.track_reward or self.max_track_error is not None
                                                  or self.clip_paths):
