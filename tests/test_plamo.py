@@ -215,6 +215,31 @@ def test_tracking_error_table(tmp_path):
     assert (tmp_path / "t.csv").read_text().startswith("terrain,locomotion")
 
 
+def _elementwise(obs):
+    """A batch-capable policy computed element by element, so batch and single calls round alike."""
+    return np.tanh(0.05 * np.asarray(obs)[..., 40:68])
+
+
+def test_table2_on_side_by_side_worlds_equals_one_after_another():
+    from stairenv.evaluation.plamo import evaluate
+
+    # 5 episodes a cell on 3 worlds: worlds take new episodes as theirs end, one idles at the end
+    kwargs = dict(terrains=("flat", "stairs"), locomotions=("walk",), episodes=5, seed=21, max_episode_steps=60,
+                  push_speed=2.5)
+    one = evaluate(_elementwise, **kwargs)
+    side = evaluate(_elementwise, num_envs=3, **kwargs)
+    assert side.details == one.details and side.rows == one.rows
+    assert [e.index for e in side.details] == [0, 1, 2, 3, 4] * 2
+    assert len({e.steps for e in one.details}) > 2     # episodes end at different steps
+    assert side.meta["settings"]["num_envs"] == 3 and one.meta["settings"]["num_envs"] == 1
+    serial = evaluate(_elementwise, num_envs=2, physics="serial", **kwargs)
+    assert serial.rows == one.rows
+    with pytest.raises(ValueError, match="num_envs"):
+        evaluate(_elementwise, num_envs=0, **kwargs)
+    with pytest.raises(ValueError, match="physics"):
+        evaluate(_elementwise, physics="warp", **kwargs)    # one world after another has no back-end to choose
+
+
 def test_reference_init_on_terrain():
     env = gym.make("PlaMo-v0", terrain="stairs", init="reference")
     u = env.unwrapped

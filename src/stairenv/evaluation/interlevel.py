@@ -48,6 +48,7 @@ from stairenv.evaluation.pushes import (  # noqa: F401  (PUSH_STREAM, apply_push
     push_plan,
 )
 from stairenv.evaluation.report import Column, Layout, Report
+from stairenv.evaluation.worlds import check_num_envs, run_on_worlds
 from stairenv.policy_loading import Policy, load_policy, policy_label
 from stairenv.world.stairs import PAPER_TEST_HEIGHTS
 
@@ -280,8 +281,9 @@ class _EpisodeTracker:
     sequential and the batched evaluation record)."""
 
     def __init__(self, index: int, seed: int, fixed_height: float | None, info: dict[str, Any],
-                 recorder: GaitRecorder | None = None, data: Any = None, push_speed: float = 0.0) -> None:
-        self.index, self.seed, self.fixed_height = index, seed, fixed_height
+                 recorder: GaitRecorder | None = None, data: Any = None, push_speed: float = 0.0,
+                 dt: float | None = None) -> None:
+        self.index, self.seed, self.fixed_height, self.dt = index, seed, fixed_height, dt
         self.push = EpisodePush(seed, push_speed)
         self.recorder, self.data = recorder, data
         self.num_steps = int(info["stairs"]["num_steps"]) if recorder is not None else None
@@ -314,7 +316,9 @@ class _EpisodeTracker:
             return True
         return False
 
-    def result(self, dt: float | None) -> EpisodeResult:
+    def result(self, dt: float | None = None) -> EpisodeResult:
+        """The episode's result (``dt``: the env's step, for the gait; by default the one given at the start)."""
+        dt = self.dt if dt is None else dt
         gait = summarize(self.recorder.trace(dt, self.num_steps)) if self.recorder is not None else None
         return EpisodeResult(
             index=self.index, seed=self.seed, step_height=self.step_height, fixed_height=self.fixed_height,
@@ -339,52 +343,18 @@ def _run_episode(env: gym.Env, policy: Policy, seed: int, index: int, fixed_heig
             return tracker.result(env.unwrapped.dt if recorder is not None else None)
 
 
-def _batch_actions(policy: Policy, obs: np.ndarray, action_shape: tuple[int, ...]) -> np.ndarray:
-    """The policy's actions for a batch of observations: one call where the policy takes a batch
-    (returns ``(N, *action_shape)``), else one call per row."""
-    actions = np.asarray(policy(obs))
-    if actions.shape == (len(obs), *action_shape):
-        return actions
-    return np.stack([np.asarray(policy(row)) for row in obs])
-
-
 def _run_batched(vec: Any, policy: Policy, episodes: Sequence[tuple[int, int]], fixed_height: float | None,
                  gait: bool, on_result: Any, push_speed: float = 0.0) -> None:
-    """Run ``episodes`` ((index, seed) pairs) on the worlds of the batched env ``vec``: each world
-    takes the next episode when its last one ends (reset with that episode's seed, as the sequential
-    evaluation does); worlds left without an episode step on, unrecorded, until all are done."""
-    n = vec.num_envs
-    pending = list(episodes)
-    first = pending[:n]
-    del pending[:n]
-    # the vector env wants one full reset before it steps; each world's own reset below gives its info
-    # dict as the single env does (the vector reset's infos are stacked), at the cost of n extra resets
-    obs, _ = vec.reset(seed=[seed for _, seed in first] + [None] * (n - len(first)))
-    recorders = [GaitRecorder(env.model) for env in vec.envs] if gait else [None] * n
-    trackers: list[_EpisodeTracker | None] = [None] * n
-
-    def start(k: int, index: int, seed: int, info: dict[str, Any]) -> None:
-        trackers[k] = _EpisodeTracker(index, seed, fixed_height, info, recorders[k], vec.envs[k].data, push_speed)
-
-    for k, (index, seed) in enumerate(first):    # the reset's info per world, as the single env gives it
-        obs[k], info = vec.reset_world(k, seed=seed)
-        start(k, index, seed, info)
-    action_shape = vec.single_action_space.shape
+    """Run ``episodes`` ((index, seed) pairs) on the worlds of the batched env ``vec``
+    (``evaluation.worlds.run_on_worlds``: each world takes the next episode when its last one ends, reset
+    with that episode's seed, as the sequential evaluation does)."""
+    recorders = [GaitRecorder(env.model) for env in vec.envs] if gait else [None] * vec.num_envs
     dt = vec.envs[0].dt
-    while any(tracker is not None for tracker in trackers):
-        for k, tracker in enumerate(trackers):
-            if tracker is not None:
-                tracker.before_step(vec.envs[k])
-        obs, rewards, terminated, truncated, infos, _ = vec.step_worlds(_batch_actions(policy, obs, action_shape))
-        for k, tracker in enumerate(trackers):
-            if tracker is None or not tracker.update(rewards[k], terminated[k], truncated[k], infos[k]):
-                continue
-            on_result(tracker.result(dt))
-            trackers[k] = None
-            if pending:
-                index, seed = pending.pop(0)
-                obs[k], info = vec.reset_world(k, seed=seed)
-                start(k, index, seed, info)
+
+    def start(k: int, index: int, seed: int, info: dict[str, Any]) -> _EpisodeTracker:
+        return _EpisodeTracker(index, seed, fixed_height, info, recorders[k], vec.envs[k].data, push_speed, dt)
+
+    run_on_worlds(vec, policy, episodes, start, on_result)
 
 
 def evaluate(
@@ -452,8 +422,7 @@ def evaluate(
         isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) or max_episode_steps < 1
     ):
         raise ValueError(f"max_episode_steps must be None or an integer >= 1, got {max_episode_steps!r}")
-    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    num_envs = check_num_envs(num_envs)
     push_speed = check_push_speed(push_speed)
     if not isinstance(policy, (str, os.PathLike)) and not callable(policy):
         raise ValueError(f"policy must be a callable (obs -> action) or a policy spec string, got {policy!r}")

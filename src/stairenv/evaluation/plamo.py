@@ -28,6 +28,7 @@ import numpy as np
 import stairenv  # noqa: F401  (registers the envs)
 from stairenv.evaluation.pushes import EpisodePush, check_push_speed, push_meta
 from stairenv.evaluation.report import Column, Layout, Report
+from stairenv.evaluation.worlds import check_num_envs, run_on_worlds
 from stairenv.policy_loading import load_policy, policy_label
 
 TERRAINS: tuple[str, ...] = ("flat", "slope", "rough", "stairs")
@@ -106,6 +107,39 @@ class TrackingEpisode:
     push_angle: float | None = None  # its direction in the world's xy plane (rad)
 
 
+class _TrackingRun:
+    """One Table 2 episode's bookkeeping, fed each step (one home for the sequential and the batched run)."""
+
+    def __init__(self, terrain: str, locomotion: str, index: int, seed: int, push_speed: float) -> None:
+        self.terrain, self.locomotion, self.index, self.seed = terrain, locomotion, index, seed
+        self.push = EpisodePush(seed, push_speed)
+        self.steps, self.terminated, self.info = 0, False, {}
+        self.xy: list[float] = []
+        self.z: list[float] = []
+
+    def before_step(self, env: Any) -> None:
+        self.push.before_step(env, self.steps)
+
+    def update(self, reward: float, terminated: bool, truncated: bool, info: dict[str, Any]) -> bool:
+        self.steps += 1
+        if not info["physics_unstable"]:
+            self.xy.append(info["xy_error"])
+            self.z.append(info["z_error"])
+        if terminated or truncated:
+            self.terminated, self.info = bool(terminated), info
+            return True
+        return False
+
+    def result(self) -> _TrackingRun:
+        return self
+
+    def episode(self) -> TrackingEpisode:
+        terminated, info = self.terminated, self.info
+        return TrackingEpisode(self.terrain, self.locomotion, self.index, self.seed, self.steps, terminated,
+                               bool(terminated and info.get("fell", False)),
+                               bool(terminated and info.get("off_path", False)), self.push.step, self.push.angle)
+
+
 def tracking_errors(
     policy: Callable[[np.ndarray], Any],
     terrains: Sequence[str] = TERRAINS,
@@ -118,15 +152,22 @@ def tracking_errors(
     progress_bar: bool = False,
     constant_paths: bool = True,
     push_speed: float = 0.0,
+    num_envs: int = 1,
+    physics: str | None = None,
+    physics_device: str | None = None,
 ) -> list[dict[str, Any]]:
     """One row (:data:`ROW_FIELDS`) per (terrain, locomotion): mean XY and Z error (m), steps,
     early terminations. ``env_kwargs`` go to every env (``terrain``, ``locomotion`` and
     ``constant_paths`` are set here; ``constant_paths=False``: heights and speeds change along a path
     within the locomotion's ranges, as in training); the height field is ``TRACKING_TERRAIN_SIZE`` on a
     side unless ``env_kwargs`` says otherwise. ``push_speed`` (m/s, 0 = none): each episode's character
-    is kicked once (:mod:`stairenv.evaluation.pushes`; an episode that ends before its push step gets none)."""
+    is kicked once (:mod:`stairenv.evaluation.pushes`; an episode that ends before its push step gets none).
+    ``num_envs`` > 1: a cell's episodes run on that many worlds of the batched env side by side
+    (:mod:`stairenv.evaluation.worlds`; the same episodes, step for step, for a policy that acts on each row
+    of a batch as on that observation alone), its physics back-end ``physics`` ("mujoco", "threads",
+    "warp"; None: the vector env's default) on ``physics_device`` (Warp's: "cuda:0", "cpu"; None: its first GPU)."""
     return _tracking(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
-                     progress_bar, constant_paths, push_speed)[0]
+                     progress_bar, constant_paths, push_speed, num_envs, physics, physics_device)[0]
 
 
 def _tracking(
@@ -141,11 +182,22 @@ def _tracking(
     progress_bar: bool,
     constant_paths: bool,
     push_speed: float,
+    num_envs: int = 1,
+    physics: str | None = None,
+    physics_device: str | None = None,
 ) -> tuple[list[dict[str, Any]], list[TrackingEpisode]]:
     """:func:`tracking_errors`'s rows and the episodes behind them."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     push_speed = check_push_speed(push_speed)
+    num_envs = check_num_envs(num_envs)
+    # a policy that reseeds itself per episode keeps the sequential order its seeds assume
+    batched = num_envs > 1 and not callable(getattr(policy, "reset", None))
+    if (physics is not None or physics_device is not None) and not batched:
+        raise ValueError(f"physics={physics!r}, physics_device={physics_device!r} need the batched env: num_envs > 1 "
+                         "(and a policy without reset)")
+    vec_kwargs = {key: value for key, value in (("physics", physics), ("physics_device", physics_device))
+                  if value is not None}
     from tqdm.auto import tqdm
 
     rows, details = [], []
@@ -159,35 +211,45 @@ def _tracking(
                                           "constant_paths": constant_paths}
                 if max_episode_steps is not None:
                     kwargs["max_episode_steps"] = max_episode_steps
-                env = gym.make(env_id, **kwargs)
-                xy, z, terminated_count = [], [], 0
-                for episode in range(episodes):
-                    if callable(getattr(policy, "reset", None)):
-                        policy.reset(seed + episode)
-                    obs, _ = env.reset(seed=seed + episode)
-                    push = EpisodePush(seed + episode, push_speed)
-                    steps = 0
-                    while True:
-                        push.before_step(env.unwrapped, steps)
-                        obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
-                        steps += 1
-                        if not info["physics_unstable"]:
-                            xy.append(info["xy_error"])
-                            z.append(info["z_error"])
-                        if terminated or truncated:
-                            terminated_count += bool(terminated)
-                            break
-                    details.append(TrackingEpisode(
-                        terrain, locomotion, episode, seed + episode, steps, bool(terminated),
-                        bool(terminated and info.get("fell", False)), bool(terminated and info.get("off_path", False)),
-                        push.step, push.angle))
+                runs: list[_TrackingRun] = []
+
+                def done(run: _TrackingRun) -> None:
+                    runs.append(run)
                     bar.update(1)
-                env.close()
+
+                if batched:
+                    vec = gym.make_vec(env_id, num_envs=min(num_envs, episodes), vectorization_mode="vector_entry_point",
+                                       **kwargs, **vec_kwargs)
+                    try:
+                        run_on_worlds(vec, policy, [(i, seed + i) for i in range(episodes)],
+                                      lambda k, i, s, info: _TrackingRun(terrain, locomotion, i, s, push_speed), done)
+                    finally:
+                        vec.close()
+                else:
+                    env = gym.make(env_id, **kwargs)
+                    try:
+                        for episode in range(episodes):
+                            if callable(getattr(policy, "reset", None)):
+                                policy.reset(seed + episode)
+                            obs, _ = env.reset(seed=seed + episode)
+                            run = _TrackingRun(terrain, locomotion, episode, seed + episode, push_speed)
+                            while True:
+                                run.before_step(env.unwrapped)
+                                obs, reward, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+                                if run.update(reward, terminated, truncated, info):
+                                    break
+                            done(run)
+                    finally:
+                        env.close()
+                runs.sort(key=lambda run: run.index)
+                details.extend(run.episode() for run in runs)
+                xy = [e for run in runs for e in run.xy]
+                z = [e for run in runs for e in run.z]
                 paper = PAPER_TABLE2.get((terrain, locomotion))
                 rows.append({
                     "terrain": terrain, "locomotion": locomotion, "episodes": episodes, "steps": len(xy),
                     "xy_error_m": float(np.mean(xy)), "z_error_m": float(np.mean(z)),
-                    "early_termination_pct": 100.0 * terminated_count / episodes,
+                    "early_termination_pct": 100.0 * sum(run.terminated for run in runs) / episodes,
                     "paper_xy_error_m": None if paper is None else paper[0],
                     "paper_z_error_m": None if paper is None else paper[1],
                 })
@@ -209,11 +271,15 @@ def evaluate(
     locomotions: Sequence[str] = LOCOMOTIONS,
     constant_paths: bool = True,
     push_speed: float = 0.0,
+    num_envs: int = 1,
+    physics: str | None = None,
+    physics_device: str | None = None,
 ) -> Report:
     """PlaMo Table 2: :func:`tracking_errors` of ``policy`` (a callable or a spec for
     :func:`~stairenv.policy_loading.load_policy`) as a report, each episode (:class:`TrackingEpisode`)
     in its details. ``push_speed`` (m/s, 0 = none): one kick per episode (:mod:`stairenv.evaluation.pushes`);
-    the settings then record the speed, the window of steps and how many episodes it reached."""
+    the settings then record the speed, the window of steps and how many episodes it reached. ``num_envs``,
+    ``physics`` and ``physics_device``: as :func:`tracking_errors`'s."""
     push_speed = check_push_speed(push_speed)
     label = label or policy_label(policy)
     if isinstance(policy, (str, os.PathLike)):
@@ -223,9 +289,11 @@ def evaluate(
         finally:
             probe.close()
     rows, details = _tracking(policy, terrains, locomotions, episodes, seed, env_id, max_episode_steps, env_kwargs,
-                              progress_bar, constant_paths, push_speed)
+                              progress_bar, constant_paths, push_speed, num_envs, physics, physics_device)
+    batched = num_envs > 1 and not callable(getattr(policy, "reset", None))
     settings = {"env_id": env_id, "episodes": episodes, "seed": seed, "env_kwargs": dict(env_kwargs or {}),
                 "max_episode_steps": max_episode_steps, "constant_paths": constant_paths,
+                "num_envs": int(num_envs) if batched else 1, "physics": physics, "physics_device": physics_device,
                 **push_meta(push_speed, sum(e.push_step is not None for e in details))}
     return Report(label, rows, LAYOUT, details, meta={"table": "tracking", "label": label, "settings": settings})
 
