@@ -74,3 +74,28 @@ def test_distill_refuses_another_envs_template(baseline_script, tmp_path, capsys
     plamo = next((Path(__file__).resolve().parents[1] / "checkpoints" / "PlaMo-v0").glob("*.pt"))  # the lineage's
     assert baseline_script("distill_walk").main(["--template", str(plamo), "--out", str(tmp_path / "x.pt")]) == 2
     assert "SIMS-Walk-v0" in capsys.readouterr().err
+
+
+def test_plamo_distillation_labels_each_world_by_its_paths_locomotion_now(baseline_script):
+    """baselines/distill_plamo.py: row k is labelled by the specialist of the locomotion world k's path asks
+    for at the world's time (sprint by the run specialist); a world whose path changes locomotion changes
+    teacher."""
+    distill = baseline_script("distill_plamo")
+    from stairenv.environments.plamo import PlaMoEnv
+
+    worlds = [PlaMoEnv(locomotion=kind) for kind in ("crawl", "walk", "sprint")]
+    for seed, env in enumerate(worlds):
+        env.reset(seed=seed)
+    teachers = {kind: (lambda value: lambda obs: np.full((len(obs), 28), value))(value)
+                for value, kind in enumerate(("crawl", "crouch-walk", "walk", "run"))}
+    teacher = distill.routed_teacher(worlds, teachers)
+    labels = teacher(np.zeros((3, worlds[0].observation_space.shape[0])))
+    np.testing.assert_array_equal(labels[:, 0], [0, 2, 3])
+    assert teacher.counts == {"crawl": 1, "walk": 1, "run": 1}
+    mixed = PlaMoEnv()                       # every locomotion: find a step where the path's changes
+    mixed.reset(seed=7)
+    kinds = []
+    for _ in range(300):
+        kinds.append(distill.path_locomotion(mixed))
+        mixed._steps += 1                     # (the teacher reads the episode's time only)
+    assert len(set(kinds)) > 1
