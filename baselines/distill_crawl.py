@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, dagger
+from stairenv.training.dagger import Student, add_arguments, distil
 from stairenv.training.ppo import make_env, read_checkpoint
 
 #: the crawl-only env: every path a crawl, every start a crawl frame, the paths at the paper's speeds
@@ -43,15 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--template", type=Path, required=True,
                         help="a lean checkpoint of a PlaMo-v0 run: the student's shape, normaliser and the rest")
-    parser.add_argument("--out", type=Path, required=True, help="the checkpoint to write (for --init-from)")
-    parser.add_argument("--iterations", type=int, default=6)
-    parser.add_argument("--steps", type=int, default=150, help="env steps per iteration (default: 150 = 5 s)")
-    parser.add_argument("--n-envs", type=int, default=64)
-    parser.add_argument("--epochs", type=int, default=6, help="passes over all the data per iteration")
-    parser.add_argument("--action-noise", type=float, default=0.05)
-    parser.add_argument("--learning-rate", type=float, default=3e-4)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--physics-threads", type=int, default=2)
+    add_arguments(parser)
     return parser
 
 
@@ -67,7 +59,6 @@ def main(argv: list[str] | None = None) -> int:
     venv = make_env(config)
     worlds = [env.unwrapped for env in venv.envs]
     torch.manual_seed(args.seed)
-    rng = np.random.default_rng(args.seed)
     student = Student(template, config, venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
                       args.n_envs, args.learning_rate)
     obs, _ = venv.reset(seed=args.seed)
@@ -85,12 +76,8 @@ def main(argv: list[str] | None = None) -> int:
         root_heights.clear()
         ended.update(dict.fromkeys(ended, 0))
 
-    dagger(venv, obs, student, lambda obs: np.stack([playback_action(env) for env in worlds]),
-           iterations=args.iterations, steps=args.steps, epochs=args.epochs, action_noise=args.action_noise, rng=rng,
-           after_step=after_step, after_iteration=after_iteration)
-    venv.close()
-    student.save(args.out)
-    print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
+    distil(venv, obs, student, lambda obs: np.stack([playback_action(env) for env in worlds]), args, after_step,
+           after_iteration)
     return 0
 
 

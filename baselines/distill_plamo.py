@@ -32,7 +32,7 @@ from stairenv import pretrained
 from stairenv.planning.locomotion import LOCOMOTIONS, get_locomotion, nearest_locomotion
 from stairenv.policy_loading import load_policy
 from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, dagger
+from stairenv.training.dagger import Student, add_arguments, distil
 from stairenv.training.ppo import make_env, read_checkpoint
 
 #: the specialist a locomotion without its own is taught by
@@ -76,15 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="a lean checkpoint of a PlaMo-v0 run: the student's shape, normaliser, paths and starts")
     parser.add_argument("--teacher", type=teacher_argument, action="append", required=True,
                         metavar="LOCOMOTION=POLICY", help="a specialist (.npz or pretrained), repeatable")
-    parser.add_argument("--out", type=Path, required=True, help="the checkpoint to write (for --init-from)")
-    parser.add_argument("--iterations", type=int, default=6)
-    parser.add_argument("--steps", type=int, default=150, help="env steps per iteration (default: 150 = 5 s)")
-    parser.add_argument("--n-envs", type=int, default=64)
-    parser.add_argument("--epochs", type=int, default=6, help="passes over all the data per iteration")
-    parser.add_argument("--action-noise", type=float, default=0.05)
-    parser.add_argument("--learning-rate", type=float, default=3e-4)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--physics-threads", type=int, default=2)
+    add_arguments(parser)
     return parser
 
 
@@ -109,7 +101,6 @@ def main(argv: list[str] | None = None) -> int:
     teachers = {kind: pretrained.load(config.env_id) if spec == "pretrained" else load_policy(spec, worlds[0])
                 for kind, spec in specs.items()}
     torch.manual_seed(args.seed)
-    rng = np.random.default_rng(args.seed)
     student = Student(template, config, venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
                       args.n_envs, args.learning_rate)
     obs, _ = venv.reset(seed=args.seed)
@@ -131,11 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         teacher.counts.clear()
         ended.clear()
 
-    dagger(venv, obs, student, teacher, iterations=args.iterations, steps=args.steps, epochs=args.epochs,
-           action_noise=args.action_noise, rng=rng, after_step=after_step, after_iteration=after_iteration)
-    venv.close()
-    student.save(args.out)
-    print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
+    distil(venv, obs, student, teacher, args, after_step, after_iteration)
     return 0
 
 

@@ -36,7 +36,7 @@ from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_SIZE as CLIMBER_OBS_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_STRUCTURE as CLIMBER
 from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, dagger
+from stairenv.training.dagger import Student, add_arguments, distil
 from stairenv.training.ppo import make_env, read_checkpoint
 
 #: the training aid that shortens goals at the curriculum's first levels: the data should cover 1-5 m
@@ -76,15 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--template", type=Path, required=True,
                         help="a lean checkpoint of a SIMS-Walk-v0 run: the student's shape, normaliser and the rest")
-    parser.add_argument("--out", type=Path, required=True, help="the checkpoint to write (for --init-from)")
-    parser.add_argument("--iterations", type=int, default=6, help="DAgger iterations (default: 6)")
-    parser.add_argument("--steps", type=int, default=300, help="env steps per iteration (default: 300 = 10 s)")
-    parser.add_argument("--n-envs", type=int, default=64)
-    parser.add_argument("--epochs", type=int, default=4, help="passes over all the data per iteration")
-    parser.add_argument("--action-noise", type=float, default=0.05, help="std of the executed actions' noise")
-    parser.add_argument("--learning-rate", type=float, default=3e-4)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--physics-threads", type=int, default=1)
+    add_arguments(parser, steps=300, epochs=4, physics_threads=1)
     return parser
 
 
@@ -102,7 +94,6 @@ def main(argv: list[str] | None = None) -> int:
     venv = make_env(config)
     structure = venv.envs[0].unwrapped.observation_structure
     torch.manual_seed(args.seed)
-    rng = np.random.default_rng(args.seed)
     student = Student(template, config, venv.single_observation_space.shape[0], venv.single_action_space.shape[0],
                       args.n_envs, args.learning_rate)
     obs, _ = venv.reset(seed=args.seed)
@@ -127,11 +118,7 @@ def main(argv: list[str] | None = None) -> int:
               f"fit loss {loss:.4f}, {seconds:.0f} s", flush=True)
         ended.update(dict.fromkeys(ended, 0))
 
-    dagger(venv, obs, student, label, iterations=args.iterations, steps=args.steps, epochs=args.epochs,
-           action_noise=args.action_noise, rng=rng, after_step=after_step, after_iteration=after_iteration)
-    venv.close()
-    student.save(args.out)
-    print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
+    distil(venv, obs, student, label, args, after_step, after_iteration)
     return 0
 
 

@@ -10,6 +10,7 @@ with the student's actor in place of its own, for ``train_ppo.py --init-from``.
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -88,3 +89,31 @@ def dagger(venv, obs: np.ndarray, student: Student, teacher: Callable[[np.ndarra
             after_step(obs, terminated | truncated, infos)
         loss = student.fit(inputs, labels, epochs)
         after_iteration(iteration, beta, sum(len(x) for x in inputs), loss, time.perf_counter() - begun)
+
+
+def add_arguments(parser: argparse.ArgumentParser, *, steps: int = 150, epochs: int = 6,
+                  physics_threads: int = 2) -> None:
+    """The flags every distillation script takes (``--out`` and the DAgger loop's), its defaults where given."""
+    parser.add_argument("--out", type=Path, required=True, help="the checkpoint to write (for --init-from)")
+    parser.add_argument("--iterations", type=int, default=6, help="DAgger iterations (default: %(default)s)")
+    parser.add_argument("--steps", type=int, default=steps,
+                        help="env steps per iteration (default: %(default)s; 30 a second)")
+    parser.add_argument("--n-envs", type=int, default=64)
+    parser.add_argument("--epochs", type=int, default=epochs, help="passes over all the data per iteration")
+    parser.add_argument("--action-noise", type=float, default=0.05, help="std of the executed actions' noise")
+    parser.add_argument("--learning-rate", type=float, default=3e-4)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--physics-threads", type=int, default=physics_threads)
+
+
+def distil(venv, obs: np.ndarray, student: Student, teacher: Callable[[np.ndarray], np.ndarray],
+           args: argparse.Namespace, after_step: Callable[[np.ndarray, np.ndarray, list], None],
+           after_iteration: Callable[[int, float, int, float, float], None]) -> None:
+    """``dagger`` with ``add_arguments``' settings (its rng seeded by ``--seed``), then the env closed and the
+    template with the student's actor written to ``--out``."""
+    dagger(venv, obs, student, teacher, iterations=args.iterations, steps=args.steps, epochs=args.epochs,
+           action_noise=args.action_noise, rng=np.random.default_rng(args.seed), after_step=after_step,
+           after_iteration=after_iteration)
+    venv.close()
+    student.save(args.out)
+    print(f"wrote {args.out}: the template's checkpoint with the distilled actor")
