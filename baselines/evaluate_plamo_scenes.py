@@ -24,6 +24,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--max-episode-steps", type=int, default=None)
+    parser.add_argument("--num-envs", type=int, default=1,
+                        help="run the episodes on this many worlds of the batched env side by side (the same "
+                             "episodes; physics on every core); 1 = one after another (default: %(default)s)")
     parser.add_argument("--slalom", action="store_true", help="plot the slalom scene")
     parser.add_argument("--json")
     parser.add_argument("--out", default="plamo_plan.png")
@@ -38,9 +41,11 @@ def main(argv: list[str] | None = None) -> None:
     policy = load_policy(args.policy, probe, seed=args.seed)
     probe.close()
     if args.what == "scenes":
-        rows = [scene_episodes(policy, args.episodes, args.seed, None, args.max_episode_steps, args.policy)]
+        rows = [scene_episodes(policy, args.episodes, args.seed, None, args.max_episode_steps, args.policy,
+                               args.num_envs)]
     else:
-        rows = slalom_comparison(policy, args.episodes, args.seed, max_episode_steps=args.max_episode_steps)
+        rows = slalom_comparison(policy, args.episodes, args.seed, max_episode_steps=args.max_episode_steps,
+                                 num_envs=args.num_envs)
     report = scene_report(rows, args.policy, {"what": args.what, "episodes": args.episodes, "seed": args.seed,
                                               "max_episode_steps": args.max_episode_steps})
     print(report.format_table())

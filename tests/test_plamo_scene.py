@@ -284,3 +284,16 @@ def test_a_reset_error_quotes_at_most_80_characters_of_the_instructions():
             break
     else:
         pytest.fail("no scene of 20 without a tree")
+
+
+def test_scene_episodes_on_side_by_side_worlds_equal_one_after_another():
+    from stairenv.evaluation.plamo import scene_episodes
+
+    def elementwise(obs):   # a batch-capable policy computed element by element: batch and row calls agree
+        return np.tanh(0.05 * np.asarray(obs)[..., 40:68])
+
+    one = scene_episodes(elementwise, episodes=3, seed=5, max_episode_steps=40)
+    side = scene_episodes(elementwise, episodes=3, seed=5, max_episode_steps=40, num_envs=2)
+    assert side == one
+    with pytest.raises(ValueError, match="num_envs"):
+        scene_episodes(elementwise, episodes=1, num_envs=0)

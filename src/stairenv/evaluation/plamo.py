@@ -313,6 +313,23 @@ def write_rows(rows: Sequence[Mapping[str, Any]], csv_path: str | Path | None = 
         report.to_json(json_path)
 
 
+class _SceneRun:
+    """One scene episode's bookkeeping (the sequential and the batched run share it)."""
+
+    def __init__(self, index: int, info: dict[str, Any]) -> None:
+        self.index, self.planned, self.info = index, float(info["planned_time"]), info
+
+    def before_step(self, env: Any) -> None:
+        pass
+
+    def update(self, reward: float, terminated: bool, truncated: bool, info: dict[str, Any]) -> bool:
+        self.info = info
+        return bool(terminated or truncated)
+
+    def result(self) -> _SceneRun:
+        return self
+
+
 def scene_episodes(
     policy: Callable[[np.ndarray], Any],
     episodes: int = 20,
@@ -320,49 +337,66 @@ def scene_episodes(
     env_kwargs: dict[str, Any] | None = None,
     max_episode_steps: int | None = None,
     label: str = "",
+    num_envs: int = 1,
 ) -> dict[str, Any]:
     """Run ``PlaMoScene-v0`` episodes: success rate, mean completion time of successes, replans
-    (detours and waits), waits, and checks where neither a detour nor a wait avoided the ball."""
+    (detours and waits), waits, and checks where neither a detour nor a wait avoided the ball.
+    ``num_envs`` > 1: the episodes run on that many worlds of the batched env side by side
+    (:mod:`stairenv.evaluation.worlds`; the same scenes and, for a policy that acts on each row of a batch
+    as on that observation alone, the same episodes)."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    num_envs = check_num_envs(num_envs)
     make_kwargs = dict(env_kwargs or {})
     if max_episode_steps is not None:
         make_kwargs["max_episode_steps"] = max_episode_steps
-    env = gym.make("PlaMoScene-v0", **make_kwargs)
-    successes, times, replans, waits, failures, planned = 0, [], [], [], [], []
-    for episode in range(episodes):
-        if callable(getattr(policy, "reset", None)):
-            policy.reset(seed + episode)
-        obs, info = env.reset(seed=seed + episode)
-        planned.append(info["planned_time"])
-        while True:
-            obs, _, terminated, truncated, info = env.step(np.asarray(policy(obs)))
-            if terminated or truncated:
-                break
-        successes += bool(info["success"])
-        if info["success"]:
-            times.append(info["time"])
-        replans.append(info["replans"])
-        waits.append(info["waits"])
-        failures.append(info["replan_failures"])
-    env.close()
+    runs: list[_SceneRun] = []
+    if num_envs > 1 and not callable(getattr(policy, "reset", None)):
+        vec = gym.make_vec("PlaMoScene-v0", num_envs=min(num_envs, episodes), vectorization_mode="vector_entry_point",
+                           **make_kwargs)
+        try:
+            run_on_worlds(vec, policy, [(i, seed + i) for i in range(episodes)],
+                          lambda k, i, s, info: _SceneRun(i, info), runs.append)
+        finally:
+            vec.close()
+    else:
+        env = gym.make("PlaMoScene-v0", **make_kwargs)
+        try:
+            for episode in range(episodes):
+                if callable(getattr(policy, "reset", None)):
+                    policy.reset(seed + episode)
+                obs, info = env.reset(seed=seed + episode)
+                run = _SceneRun(episode, info)
+                while True:
+                    obs, reward, terminated, truncated, info = env.step(np.asarray(policy(obs)))
+                    if run.update(reward, terminated, truncated, info):
+                        break
+                runs.append(run)
+        finally:
+            env.close()
+    runs.sort(key=lambda run: run.index)
+    ends = [run.info for run in runs]
+    times = [info["time"] for info in ends if info["success"]]
     return {
-        "label": label, "episodes": episodes, "success_pct": 100.0 * successes / episodes,
+        "label": label, "episodes": episodes, "success_pct": 100.0 * sum(bool(info["success"]) for info in ends) / episodes,
         "completion_time_s": float(np.mean(times)) if times else None,
-        "planned_time_s": float(np.mean(planned)), "replans_per_episode": float(np.mean(replans)),
-        "waits_per_episode": float(np.mean(waits)), "replan_failures_per_episode": float(np.mean(failures)),
+        "planned_time_s": float(np.mean([run.planned for run in runs])),
+        "replans_per_episode": float(np.mean([info["replans"] for info in ends])),
+        "waits_per_episode": float(np.mean([info["waits"] for info in ends])),
+        "replan_failures_per_episode": float(np.mean([info["replan_failures"] for info in ends])),
     }
 
 
 def slalom_comparison(policy: Callable[[np.ndarray], Any], episodes: int = 10, seed: int = 0,
                       constant_speeds: Sequence[float] = (1.0, 2.0, 3.0, 4.0),
-                      max_episode_steps: int | None = None) -> list[dict[str, Any]]:
+                      max_episode_steps: int | None = None, num_envs: int = 1) -> list[dict[str, Any]]:
     """PlaMo's slalom test: the planned (QP) speed profile against constant speeds along the same path."""
-    rows = [scene_episodes(policy, episodes, seed, {"scene_kind": "slalom"}, max_episode_steps, "planned speed")]
+    rows = [scene_episodes(policy, episodes, seed, {"scene_kind": "slalom"}, max_episode_steps, "planned speed",
+                           num_envs)]
     for speed in constant_speeds:
         rows.append(scene_episodes(policy, episodes, seed,
                                    {"scene_kind": "slalom", "speed_profile": "constant", "constant_speed": speed},
-                                   max_episode_steps, f"constant {speed:g} m/s"))
+                                   max_episode_steps, f"constant {speed:g} m/s", num_envs))
     return rows
 
 
