@@ -421,6 +421,8 @@ KINDS = {
                                                   and s["scene"] == "object" else 0, integer=True),
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
         "near_distance": Optional(Number(0.0, 10.0, low_open=True)),
+        # act on interaction starts, which no preset has: only the defaults
+        "track_reward": Number(0.0, 0.0), "max_track_error": Examples((None,)),
         # needs start_distance_levels, which no preset sets: only False
         "start_from_front": Examples((False,)),
         # getup starts low: only None (an empty number range) there

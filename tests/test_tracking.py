@@ -16,7 +16,7 @@ from stairenv.humanoid.kinematics import body_positions
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion.clip import MotionClip
 from stairenv.motion.tracking import turn_frames, clip_frames, reference_track, yaw_between
-from stairenv.tasks.plamo import TRACKING_TERMS, tracking_terms
+from stairenv.tasks.terms import TRACKING_TERMS, tracking_terms
 
 CRAWL = str(files("stairenv.motion.data.plamo") / "dm_crawl.npz")
 CMU_CRAWL = str(files("stairenv.motion.data.cmu") / "cmu_crawl_133_01.npz")
@@ -316,3 +316,42 @@ def test_the_shipped_stitched_clips_are_what_their_notice_says(name, window, fol
     assert made.num_frames == shipped.num_frames
     np.testing.assert_allclose(made.qpos, shipped.qpos, atol=1e-6)   # tolerances: another CPU's low bits
     assert name.split("/")[-1].rsplit("_", 1)[0] in (data / "stitched" / "NOTICE.txt").read_text()
+
+
+def test_a_sims_interaction_start_tracks_its_clip_and_pays_the_terms_by_hand():
+    from stairenv.environments.sims import SIMSEnv
+    from stairenv.humanoid.kinematics import body_positions as fk_bodies
+
+    env = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0,
+                  max_track_error=0.4)
+    for seed in range(6):
+        env.reset(seed=seed)
+        if env._interaction_start:
+            break
+    assert env._interaction_start and env._track is not None
+    track = env._track
+    # the track starts on the placed state: the start frame, where the character stands
+    np.testing.assert_allclose(track.qpos[0, :3], env.data.qpos[:3], atol=1e-6)
+    np.testing.assert_allclose(track.body_pos, fk_bodies(track.qpos), atol=1e-9)
+    _, reward, _, _, info = env.step(np.zeros(28))
+    state = env._read_state()
+    expected = tracking_terms(state.body_pos[0], track.body_pos[1], state.root_lin_vel[0], track.root_vel[1], 2.0,
+                              root=PELVIS)
+    assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
+    assert reward == pytest.approx(info["reward_near"] + info["reward_far"] + sum(expected[:3]), rel=1e-12)
+    # held still while the clip sits down, the character is left behind: the track is lost
+    for _ in range(120):
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated or truncated:
+            break
+    assert (terminated and info["track_lost"]) or info["success"]
+    # a standing start has no clip: zero terms, never lost; without the aids no entries
+    standing = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1e-9, track_reward=2.0)
+    standing.reset(seed=0)
+    info = standing.step(np.zeros(28))[4]
+    assert standing._track is None and info["reward_track_root"] == 0.0
+    plain = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0)
+    plain.reset(seed=0)
+    assert "reward_track_root" not in plain.step(np.zeros(28))[4]
+    with pytest.raises(ValueError, match="interaction_start_fraction"):
+        SIMSEnv(skill="sit", track_reward=1.0)

@@ -188,6 +188,23 @@ class FamilyTrainingAids(ReferenceStarts):
 
 
 @checked_config
+class ClipTracking(FamilyTrainingAids):
+    """DeepMimic's imitation, a training aid of the families whose starts can come from a clip (PlaMo, SIMS):
+    on such a start the clip is played on from the start frame and the reward gains its tracking terms
+    (``tasks.terms.tracking_terms``: the root's position and velocity, the bodies' positions about the root),
+    the episode ends once the bodies are on average ``max_track_error`` from the clip's. Off by default."""
+
+    track_reward: float = checked(0.0, Check("float", 0.0, 10.0),
+                                  "weight of the clip-tracking terms on reference starts (reward_track_root, "
+                                  "_velocity, _bodies: the start clip played on, placed where the character "
+                                  "started; tasks.terms.tracking_terms); 0 = off")
+    max_track_error: float | None = checked(
+        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
+        "mean distance (m) of the bodies from the played-on start clip's that ends a reference start's "
+        "episode (info track_lost): a pose-distance termination; None = off")
+
+
+@checked_config
 class InterLevelTrainingAids(FamilyTrainingAids):
     """What only shapes training: the final evaluation builds its env without these keywords
     (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
@@ -314,7 +331,7 @@ class PlaMoTermination:
 
 
 @checked_config
-class PlaMoTrainingAids(FamilyTrainingAids):
+class PlaMoTrainingAids(ClipTracking):
     """What only shapes training (dropped by the final evaluation); off by default."""
 
     matched_starts: bool = checked(True, Check("bool"), "a reference start is a frame of the path's opening "
@@ -348,14 +365,6 @@ class PlaMoTrainingAids(FamilyTrainingAids):
     pose_sharpness: float = checked(2.0, Check("float", 0.0, 100.0, low_open=True),
                                     "k of reward_pose = pose_reward exp(-k sum_j (q_ref_j - q_j)^2) (rad^-2; "
                                     "DeepMimic's 2)")
-    track_reward: float = checked(0.0, Check("float", 0.0, 10.0),
-                                  "weight of the clip-tracking terms on reference starts (reward_track_root, "
-                                  "_velocity, _bodies: the start clip played on, placed where the character "
-                                  "started; tasks.plamo.tracking_terms); 0 = off")
-    max_track_error: float | None = checked(
-        None, Check("float", 0.0, 10.0, low_open=True, optional=True),
-        "mean distance (m) of the bodies from the played-on start clip's that ends a reference start's "
-        "episode (info track_lost): a pose-distance termination; None = off")
     clip_paths: bool = checked(False, Check("bool"), "on a reference start the path is the start clip's own "
                                "head, played on from the start frame (a looping clip cycle after cycle), so "
                                "the path asks for the clip's travel")

@@ -21,6 +21,7 @@ from stairenv.motion.library import MotionLibrary
 from stairenv.motion.tracking import ReferenceTrack, reference_track, track_speed
 from stairenv.planning.locomotion import LOCOMOTIONS, locomotion_labels, nearest_locomotion
 from stairenv.tasks import curriculum
+from stairenv.tasks.terms import TRACKING_TERMS, tracking_terms
 from stairenv.tasks import plamo as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, proprioception
 from stairenv.validation import check_number
@@ -124,7 +125,7 @@ class PlaMoEnv(HumanoidEnv):
     travel) and placed where the character started (``stairenv.motion.tracking.reference_track``). The
     reward gains ``reward_track_root`` = 0.4 w exp(-5 |p_root - p^_root|^2), ``reward_track_velocity`` =
     0.3 w exp(-2 |v_root - v^_root|^2) and ``reward_track_bodies`` = 0.3 w exp(-10 mean_b |(p_b - p_root) -
-    (p^_b - p^_root)|^2) (``stairenv.tasks.plamo.tracking_terms``: the clip's travel, not only its pose);
+    (p^_b - p^_root)|^2) (``stairenv.tasks.terms.tracking_terms``: the clip's travel, not only its pose);
     the episode ends (``info["track_lost"]``) when the bodies are on average more than ``max_track_error``
     from the clip's; with ``clip_paths`` the path is the clip's own head, so that following the path is
     following the clip. On a standing start the terms are 0 and the path is drawn, unless
@@ -487,7 +488,7 @@ class PlaMoEnv(HumanoidEnv):
             if env.track_reward or env.max_track_error is not None:  # the training aid: track the start clip
                 tracked, lost = env._tracking(state.body_pos[k], state.root_lin_vel[k])
                 if env.track_reward:
-                    named_terms.update(zip(task.TRACKING_TERMS, tracked))
+                    named_terms.update(zip(TRACKING_TERMS, tracked))
                     reward += tracked[0] + tracked[1] + tracked[2]
                 if env.max_track_error is not None:
                     results["track_lost"] = lost
@@ -508,13 +509,13 @@ class PlaMoEnv(HumanoidEnv):
         return self.pose_reward * task.pose_imitation_term(reference, joints, self.pose_sharpness)
 
     def _tracking(self, body_pos: np.ndarray, root_vel: np.ndarray) -> tuple[tuple[float, float, float], bool]:
-        """``task.tracking_terms`` against this episode's reference track at this step (zeros on a standing
+        """``tracking_terms`` against this episode's reference track at this step (zeros on a standing
         start, which has no clip to track), and whether the bodies are more than ``max_track_error`` from it."""
         track = self._track
         if track is None:
             return (0.0, 0.0, 0.0), False
         i = track.frame(self._steps)
-        root, velocity, bodies, error = task.tracking_terms(body_pos, track.body_pos[i], root_vel, track.root_vel[i],
+        root, velocity, bodies, error = tracking_terms(body_pos, track.body_pos[i], root_vel, track.root_vel[i],
                                                             self.track_reward, PELVIS)
         return (root, velocity, bodies), self.max_track_error is not None and error > self.max_track_error
 

@@ -46,11 +46,13 @@ from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
+from stairenv.motion.tracking import ReferenceTrack, track_of_frames
 from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
 from stairenv.tasks import sims as task
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE, jit, no_warnings_within_limits
 from stairenv.tasks.stall import StallWatch
+from stairenv.tasks.terms import TRACKING_TERMS, tracking_terms
 from stairenv.validation import check_choice
 from stairenv.world.furniture import (
     LYING_FAMILIES,
@@ -219,6 +221,12 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
       reward grows only through 0.4 exp(-10 |x* - x|^2), which is nearly flat from 0.45 to 0.71 m (the
       shipped walker stopped there); with d at the success radius the far term's speed and facing terms
       keep paying the approach until the goal is reached.
+    - Clip tracking (``track_reward`` w, ``max_track_error``; with interaction starts): an interaction start
+      follows its clip on from the start frame, placed as the start was (``motion.tracking.track_of_frames``):
+      the reward gains DeepMimic's ``reward_track_root``, ``reward_track_velocity`` and
+      ``reward_track_bodies`` (``stairenv.tasks.terms.tracking_terms``, weight w; 0 on other starts) and the
+      episode ends (``info["track_lost"]``) once the bodies are on average ``max_track_error`` from the
+      clip's: imitation first, the contact goal's reward beside it (issue #55's sit, lie and reach).
     - Pushes (``push_speed``, ``push_interval``; every family's, ``HumanoidEnv._setup_pushes``): a kick
       of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
       direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
@@ -266,6 +274,10 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
         self.min_root_height = aids.min_root_height
+        self.track_reward, self.max_track_error = aids.track_reward, aids.max_track_error
+        self._tracking_on = bool(self.track_reward) or self.max_track_error is not None
+        self._start_clip: np.ndarray | None = None
+        self._track: ReferenceTrack | None = None
         #: the reward's near-zone bound |x* - x|^2 (m^2): the paper's, or the ``near_distance`` aid's
         self._near_squared_distance = (task.NEAR_SQUARED_DISTANCE if aids.near_distance is None
                                        else aids.near_distance ** 2)
@@ -301,7 +313,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         self._step_buffers = (np.empty(size), np.empty((task.NUM_CONTACT_JOINTS, 3)), np.empty(task.STEP_VALUES_SIZE))
         #: no training aid adds to a step's results or info (those keywords are fixed once the env is built)
         self._plain_outcomes = (self.stall_seconds is None and self.min_root_height is None
-                                and not self.interaction_start_fraction > 0.0)
+                                and not self.interaction_start_fraction > 0.0 and not self._tracking_on)
 
     # the keywords: SIMSConfig's fields, defaults included (``config=`` stays out of the signature)
     __init__.__signature__ = keyword_signature(SIMSConfig)
@@ -411,6 +423,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Get up: seated or lying on the piece; otherwise standing (or in a reference state) on the floor."""
         target = self._target
+        self._start_clip = self._track = None
         if self.skill == "getup":
             pose = self.getup_from
             if pose == "any":
@@ -419,6 +432,8 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
             return False
         if self._interaction_start:
             if self._place_interaction_start(rng, target):
+                if self._tracking_on:    # the training aid: the clip followed on from the start frame
+                    self._track = track_of_frames(self._start_clip, self.dt)
                 return True
             # no frame fits this piece: a start as the others, from the state reset left (the frames
             # tried wrote joint angles and velocities)
@@ -566,7 +581,8 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         for k, (env, row) in enumerate(zip(envs, values.tolist())):
             env._prev_root_vel = values[k, 4:6]
             near, far, still, error, _, _, x, y, z, head_z = row
-            outcomes.append(env._world_outcome(obs[k], targets[k], near, far, still, error, x, y, z, head_z))
+            outcomes.append(env._world_outcome(obs[k], targets[k], near, far, still, error, x, y, z, head_z,
+                                               body_pos[k], root_lin_vel[k]))
         return outcomes
 
     def _finish_step(self):
@@ -599,7 +615,8 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         attributes = self.__dict__    # private attributes, set directly (HumanoidEnv.__setattr__ checks keywords)
         if not self._plain_outcomes:
             outcome = attributes["_last_outcome"] = self._world_outcome(obs, targets, near, far, still, error, x, y,
-                                                                        z, head_z)
+                                                                        z, head_z, state.body_pos[0],
+                                                                        state.root_lin_vel[0])
             info = self._full_info(outcome, unstable=False, terms=True, amp_obs=amp_obs)
         else:    # _world_outcome and _full_info without the aids (tests/test_sims_skills.py compares them)
             skill = goal.skill
@@ -630,10 +647,12 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
 
     def _world_outcome(self, obs: np.ndarray, targets: np.ndarray, near: float, far: float, still: float,
-                       error: float, x: float, y: float, z: float, head_z: float) -> StepOutcome:
+                       error: float, x: float, y: float, z: float, head_z: float, body_pos: np.ndarray | None = None,
+                       root_vel: np.ndarray | None = None) -> StepOutcome:
         """The step outcome of this world from ``task.skill_step``'s results (the weighted reward terms, the
         error, the root's position and the head's height, Python floats): success, the fall and the aids' ends,
-        the bookkeeping."""
+        the bookkeeping. ``body_pos`` (15, 3) and ``root_vel`` (3,): the state the tracking aid compares with
+        its clip."""
         goal = self.goal
         skill = goal.skill
         success = error < task.SUCCESS_DISTANCE[skill]
@@ -654,8 +673,25 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         # the terms (task.WALK_REWARD_TERMS, CONTACT_REWARD_TERMS) and their sum, left to right as numpy's sum of
         # fewer than 8 numbers
         if skill == "walk":
-            return StepOutcome(obs, sum((near, far, still)), {_NEAR: near, _FAR: far, _STILL: still}, ended, results)
-        return StepOutcome(obs, sum((near, far)), {_NEAR: near, _FAR: far}, ended, results)
+            outcome = StepOutcome(obs, sum((near, far, still)), {_NEAR: near, _FAR: far, _STILL: still}, ended,
+                                  results)
+        else:
+            outcome = StepOutcome(obs, sum((near, far)), {_NEAR: near, _FAR: far}, ended, results)
+        if self._tracking_on:  # the training aid: track the interaction start's clip (zeros on other starts)
+            tracked, lost = (0.0, 0.0, 0.0), False
+            if self._track is not None:
+                i = self._track.frame(self._steps)
+                *tracked, track_error = tracking_terms(body_pos, self._track.body_pos[i], root_vel,
+                                                       self._track.root_vel[i], self.track_reward, PELVIS)
+                lost = self.max_track_error is not None and track_error > self.max_track_error
+            terms = dict(outcome.terms)
+            if self.track_reward:
+                terms.update(zip(TRACKING_TERMS, tracked))
+            if self.max_track_error is not None:
+                results["track_lost"] = bool(lost)
+            outcome = StepOutcome(obs, outcome.reward + sum(tracked) if self.track_reward else outcome.reward, terms,
+                                  ended or lost, results)
+        return outcome
 
     def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool,
                    amp_obs: np.ndarray | None = None) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from stairenv.environments.config import FamilyTrainingAids, HumanoidConfig, PlaMoObservation, UNIT, group
+from stairenv.environments.config import ClipTracking, HumanoidConfig, PlaMoObservation, UNIT, group
 from stairenv.motion.synthesis import WALK_STYLES
 from stairenv.tasks import sims as task
 from stairenv.validation import Check, check_choice, check_fields, check_int, check_str, checked, checked_config
@@ -222,7 +222,7 @@ class SIMSTermination:
 
 
 @checked_config
-class SIMSTrainingAids(FamilyTrainingAids):
+class SIMSTrainingAids(ClipTracking):
     """What only shapes training (dropped by the final evaluation); off by default. ``reference_motion``
     None: builtin:sims (standing starts from its walk and idle clips)."""
 
@@ -275,6 +275,9 @@ class SIMSConfig(HumanoidConfig):
         if aids.interaction_start_fraction > 0.0 and skill not in NEAR_START_SKILLS:
             raise ValueError(f"interaction_start_fraction applies to the skills {list(NEAR_START_SKILLS)}, "
                              f"not {skill!r}; leave it 0.0")
+        if (aids.track_reward or aids.max_track_error is not None) and not aids.interaction_start_fraction > 0.0:
+            raise ValueError("track_reward and max_track_error act on interaction starts (the clip tracked from the "
+                             "start frame): they need interaction_start_fraction > 0; leave them 0.0 and None")
         if aids.start_from_front and (skill not in ("sit", "lie") or not aids.start_distance_levels):
             raise ValueError(f"start_from_front needs the skill sit or lie (not {skill!r}) and start_distance_levels "
                              "(it grows with that curriculum); leave it False")

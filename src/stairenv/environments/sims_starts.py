@@ -11,6 +11,7 @@ import numpy as np
 
 from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.motion import interaction_starts
+from stairenv.motion.tracking import frames_in_world
 from stairenv.tasks import sims as task
 from stairenv.world.furniture import PlacedFurniture
 
@@ -172,6 +173,8 @@ class SIMSStarts:
             k = int(rng.integers(len(qpos)))
             if self._start_fits(qpos[k], qvel[k], yaw, origin):
                 self._start = self.data.qpos[self._idx.qpos_root][:2].copy()
+                #: the clip's frames from the start frame on, in the world: what the tracking aid follows
+                self._start_clip = frames_in_world(qpos[k:], yaw, origin)
                 return True
         return False
 

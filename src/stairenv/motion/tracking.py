@@ -13,7 +13,7 @@ that reference for one episode as arrays at the env's step rate, in the world:
   to the start heading and rests it on the floor): the track starts where the character is;
 - forward kinematics gives every body's position and the head's centre, yaw and pitch.
 
-The env's tracking terms (``stairenv.tasks.plamo.tracking_terms``) and its path made from the clip's
+The env's tracking terms (``stairenv.tasks.terms.tracking_terms``) and its path made from the clip's
 head (``clip_path``) read these arrays.
 """
 
@@ -125,6 +125,13 @@ def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
     angle = yaw_between(frames[0, 3:7], placed_root[3:7])
     qpos = turn_frames(frames, angle, frames[0, :2], placed_root[:2])
     qpos[:, 2] += placed_root[2] - frames[0, 2]
+    return track_of_frames(qpos, dt)
+
+
+def track_of_frames(qpos: np.ndarray, dt: float) -> ReferenceTrack:
+    """The reference of frames ``qpos`` (T, 35) already in the world, ``dt`` apart: forward kinematics for
+    the bodies and the head, central differences for the root's velocity."""
+    qpos = np.asarray(qpos, dtype=np.float64)
     model = humanoid_model()
     ids = [model.body(name).id for name in BODY_NAMES]
     head_id = model.body("head").id
@@ -138,6 +145,14 @@ def reference_track(clip: MotionClip, start_time: float, steps: int, dt: float,
                           head_pitch=np.arctan2(forward[:, 2], np.hypot(forward[:, 0], forward[:, 1])), dt=dt)
 
 
+def frames_in_world(qpos: np.ndarray, yaw: float, origin: np.ndarray) -> np.ndarray:
+    """Frames ``qpos`` (T, 35) given in a local frame (turned by ``yaw`` about z, its origin at world
+    ``origin``) in the world, as ``humanoid.placement.place_state_in_frame`` places one (without lift)."""
+    out = turn_frames(np.asarray(qpos, dtype=np.float64), yaw, np.zeros(2), np.asarray(origin, dtype=np.float64)[:2])
+    out[:, 2] += float(origin[2])
+    return out
+
+
 def track_speed(track: ReferenceTrack) -> np.ndarray:
     """(T,) the head's horizontal speed along the track (m/s)."""
     if len(track.head) < 2:
@@ -145,4 +160,5 @@ def track_speed(track: ReferenceTrack) -> np.ndarray:
     return np.hypot(*np.gradient(track.head[:, :2], track.dt, axis=0).T)
 
 
-__all__ = ["ReferenceTrack", "bend", "clip_frames", "reference_track", "track_speed", "turn_frames", "yaw_between"]
+__all__ = ["ReferenceTrack", "bend", "clip_frames", "frames_in_world", "reference_track", "track_of_frames",
+           "track_speed", "turn_frames", "yaw_between"]
