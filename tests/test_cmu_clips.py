@@ -59,3 +59,32 @@ def test_notice_names_every_clip_with_trial_origin_and_licence(clips):
         line = next(line for line in notice.splitlines() if line.startswith(captured.name + " "))
         assert captured.trial in line, captured.name
         assert captured.origin.split(" @ ")[1].split(" : ")[0][:7] in notice, captured.name
+
+
+def test_the_stair_ascent_is_step_over_step(clips):
+    """CMU 83_32: each new tread is reached by the other foot than the last (left, right, left: ~0.19 m steps),
+    the character starting on its floor (z = 0 under the first frames) and ending ~0.56 m up."""
+    from stairenv.humanoid.kinematics import body_positions
+    from stairenv.humanoid.model import BODY_NAMES
+
+    clip = clips["cmu_stairs_up_83_32"]
+    assert clip.meta["terrain"] == "stairs"
+    positions = body_positions(clip.qpos)
+    plants = []    # (time, foot, height) of each still stretch of a foot
+    for foot in ("right_foot", "left_foot"):
+        track = positions[:, BODY_NAMES.index(foot)]
+        still = np.linalg.norm(np.gradient(track[:, :2], axis=0), axis=1) * clip.fps < 0.15
+        edges = np.flatnonzero(np.diff(np.concatenate(([0], still.astype(int), [0]))))
+        for start, end in zip(edges[::2], edges[1::2]):
+            if end - start >= 4:
+                plants.append((start, foot, float(np.median(track[start:end, 2]))))
+    plants.sort()
+    ground = min(height for _, _, height in plants)
+    rising, level = [], ground + 0.1
+    for _, foot, height in plants:
+        if height > level:            # a new, higher tread
+            rising.append(foot)
+            level = height + 0.1
+    assert len(rising) == 3 and rising[0] != rising[1] != rising[2]
+    top = max(height for _, _, height in plants) - ground
+    assert 0.5 < top < 0.62

@@ -48,6 +48,7 @@ class Captured:
     seconds: tuple[float, float] | None = None
     note: str = ""
     transition: bool = False    # the clip changes locomotion (gets down, gets up): meta["transition"]
+    terrain: str = "flat"       # "stairs": grounded by its first frames' floor, not a line through its support
 
 
 _REPO = "github.com/una-dinosauria/cmu-mocap"
@@ -65,6 +66,11 @@ CLIPS: tuple[Captured, ...] = (
              f"{_REPO} @ f50fdd380214418ff240056a728a34adaf7bd1b0 : 133/133_01.bvh", seconds=(1.0, 10.5),
              note="walks, gets down onto hands and knees, crawls ~1.6 m, gets up and walks on: the getting down "
                   "a crawl from a standing start needs", transition=True),
+    Captured("cmu_stairs_up_83_32", "83_32", "walk forward stepping up stairs", "walk",
+             f"{_REPO} @ 5d98bb6b62b4735d89ff5f53e96899de2b92d8b4 : data/083/83_32.bvh", seconds=(1.5, 8.6),
+             note="stands, walks four steps and climbs three steps of ~0.19 m step over step (feet alternating), "
+                  "then stands on the top: the real stair ascent beside the synthesised ones (InterLevel)",
+             terrain="stairs"),
 )
 
 
@@ -80,10 +86,13 @@ def build_clip(captured: Captured, raw_dir: str | Path) -> MotionClip:
     cut = MotionClip(qpos, clip.fps, captured.name, False, f"CMU {captured.trial}", dict(clip.meta))
     extra = {**({"note": captured.note} if captured.note else {}),
              **({"transition": True} if captured.transition else {})}
-    return label_clip(on_support(cut, source_file=f"CMU {captured.trial}.bvh", origin=captured.origin, licence=LICENCE,
-                                 description=captured.description,
-                                 seconds=None if captured.seconds is None else list(captured.seconds), **extra),
-                      captured.locomotion)
+    about = dict(source_file=f"CMU {captured.trial}.bvh", origin=captured.origin, licence=LICENCE,
+                 description=captured.description, seconds=None if captured.seconds is None else list(captured.seconds),
+                 **extra)
+    if captured.terrain == "stairs":    # the support rises with the steps: the importer's floor (its first frame's)
+        grounded = MotionClip(cut.qpos, cut.fps, cut.name, False, cut.source, {**cut.meta, **about})
+        return label_clip(grounded, captured.locomotion, terrain="stairs")
+    return label_clip(on_support(cut, **about), captured.locomotion)
 
 
 def build_clips(raw_dir: str | Path) -> list[MotionClip]:
@@ -100,8 +109,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      description="Rebuild the shipped CMU clips from the raw CMU BVH files.")
     parser.add_argument("--raw", type=Path, required=True, help="folder holding <trial>.bvh (e.g. 133_01.bvh)")
     parser.add_argument("--out", type=Path, default=DATA_DIR, help="folder for the .npz clips (default: the package's)")
+    parser.add_argument("--only", nargs="+", metavar="NAME", help="rebuild only these clips (e.g. those whose raw "
+                        "files you have: ../shared/motions/CMU holds 83_32.bvh)")
     args = parser.parse_args(argv)
-    save_and_describe(build_clips(args.raw), args.out)
+    chosen = [c for c in CLIPS if args.only is None or c.name in args.only]
+    if args.only is not None and len(chosen) != len(set(args.only)):
+        parser.error(f"--only: unknown clip names; the clips are {[c.name for c in CLIPS]}")
+    save_and_describe([build_clip(captured, args.raw) for captured in chosen], args.out)
     return 0
 
 
