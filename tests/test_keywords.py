@@ -381,6 +381,8 @@ KINDS = {
         "step_height_levels": Number(0, 100, integer=True),
         "curriculum_promote_at": Optional(Number(DEMOTE_BELOW, 1.0)),  # at least curriculum_demote_below
         "curriculum_demote_below": UNIT,
+        # act on stair starts, which no preset has: only the defaults
+        "track_reward": Number(0.0, 0.0), "max_track_error": Optional(Number(0.0, 0.0, low_open=True)),
     },
     PlaMoEnv: {
         "terrain": Choice(TERRAIN_KINDS), "locomotion": Optional(Choice(tuple(LOCOMOTIONS))),
@@ -422,7 +424,7 @@ KINDS = {
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
         "near_distance": Optional(Number(0.0, 10.0, low_open=True)),
         # act on interaction starts, which no preset has: only the defaults
-        "track_reward": Number(0.0, 0.0), "max_track_error": Examples((None,)),
+        "track_reward": Number(0.0, 0.0), "max_track_error": Optional(Number(0.0, 0.0, low_open=True)),
         # needs start_distance_levels, which no preset sets: only False
         "start_from_front": Examples((False,)),
         # getup starts low: only None (an empty number range) there

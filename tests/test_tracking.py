@@ -355,3 +355,35 @@ def test_a_sims_interaction_start_tracks_its_clip_and_pays_the_terms_by_hand():
     assert "reward_track_root" not in plain.step(np.zeros(28))[4]
     with pytest.raises(ValueError, match="interaction_start_fraction"):
         SIMSEnv(skill="sit", track_reward=1.0)
+
+
+def test_an_interlevel_stair_start_tracks_its_climb_and_pays_the_terms_by_hand():
+    from stairenv.environments.interlevel import InterLevelEnv
+    from stairenv.humanoid.kinematics import body_positions as fk_bodies
+
+    kwargs = dict(stairs_start_fraction=1.0, step_height=(0.10, 0.10), step_depth=(0.30, 0.30))
+    env = InterLevelEnv(**kwargs, track_reward=2.0, max_track_error=0.4)
+    env.reset(seed=2)
+    start = env.data.qpos.copy()
+    track = env._track
+    assert env._stairs_start and track is not None
+    np.testing.assert_allclose(track.qpos[0], env.data.qpos, atol=1e-6)          # starts on the placed state
+    np.testing.assert_allclose(track.body_pos, fk_bodies(track.qpos), atol=1e-9)
+    _, reward, _, _, info = env.step(np.zeros(28))
+    state = env._read_state()
+    expected = tracking_terms(state.body_pos[0], track.body_pos[1], state.root_lin_vel[0], track.root_vel[1], 2.0,
+                              root=PELVIS)
+    assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
+    paper = sum(info[name] for name in env._outcome_terms if name not in TRACKING_TERMS)
+    assert reward == pytest.approx(paper + sum(expected[:3]), rel=1e-9)
+    for _ in range(150):    # held still while the climb goes on: lost (or fallen)
+        _, _, terminated, truncated, info = env.step(np.zeros(28))
+        if terminated or truncated:
+            break
+    assert terminated and (info["track_lost"] or info["fell"])
+    # the same draws as without the aid: the same staircase and start
+    plain = InterLevelEnv(**kwargs)
+    plain.reset(seed=2)
+    np.testing.assert_array_equal(plain.data.qpos, start)
+    with pytest.raises(ValueError, match="stairs_start_fraction"):
+        InterLevelEnv(track_reward=1.0)

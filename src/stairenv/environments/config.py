@@ -205,7 +205,7 @@ class ClipTracking(FamilyTrainingAids):
 
 
 @checked_config
-class InterLevelTrainingAids(FamilyTrainingAids):
+class InterLevelTrainingAids(ClipTracking):
     """What only shapes training: the final evaluation builds its env without these keywords
     (``baselines/train_ppo.py``'s ``evaluation_kwargs``). All off by default (the paper's protocol)."""
 
@@ -269,6 +269,9 @@ class InterLevelConfig(HumanoidConfig):
             raise ValueError("step_height_levels needs a step_height range; it cannot split step_height_set")
         if aids.stairs_start_fraction > 0.0:
             stair_starts.check_staircases(stairs.step_height_set or stairs.step_height, stairs.step_depth)
+        if (aids.track_reward or aids.max_track_error is not None) and not aids.stairs_start_fraction > 0.0:
+            raise ValueError("track_reward and max_track_error act on stair starts (the climb tracked from the "
+                             "start frame): they need stairs_start_fraction > 0; leave them 0.0 and None")
 
 # --- PlaMo ------------------------------------------------------------------------------------
 PATH_GENERATORS = ("coupled", "naive")

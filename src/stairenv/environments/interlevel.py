@@ -14,12 +14,14 @@ from stairenv.environments.base import HumanoidEnv, StepOutcome, row_of
 from stairenv.environments.config import KEYWORD_NAMES, InterLevelConfig, document_keywords, keyword_signature, resolve
 from stairenv.environments.config import REWARDS  # noqa: F401 (importable from here, as before)
 from stairenv.humanoid import NUM_DOFS, STANDING_ROOT_HEIGHT, load_humanoid_spec
-from stairenv.humanoid.placement import place_state_in_frame
+from stairenv.humanoid.placement import PLACEMENT_CLEARANCE, place_state_in_frame
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion import stair_starts
+from stairenv.motion.tracking import ReferenceTrack, frames_in_world, track_of_frames
 from stairenv.rotations import yaw_to_quat_wxyz
 from stairenv.tasks import curriculum
 from stairenv.tasks.stall import StallWatch
+from stairenv.tasks.terms import TRACKING_TERMS, tracking_terms
 from stairenv.tasks import interlevel as task
 from stairenv.tasks import interscene
 from stairenv.world.stairs import STAIRS_CONFIG_RANGES, Staircase, StairsConfig, StairsSlots, generate_stairs
@@ -148,6 +150,11 @@ class InterLevelEnv(HumanoidEnv):
       of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
       direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
       evaluations' ``--push-speed`` tests it.
+    - Clip tracking (``track_reward`` w, ``max_track_error``; with stair starts): a stair start follows its
+      climb on from the start frame, placed as the start was (imitation first, for a step-over-step gait):
+      the reward gains ``reward_track_root``, ``reward_track_velocity`` and ``reward_track_bodies``
+      (``stairenv.tasks.terms.tracking_terms``, weight w; 0 on floor starts) and the episode ends
+      (``info["track_lost"]``) once the bodies are on average ``max_track_error`` from the climb's.
     """
 
     def __init__(self, *, config: InterLevelConfig | None = None, **keywords) -> None:
@@ -159,7 +166,11 @@ class InterLevelEnv(HumanoidEnv):
         self.reward_name = rewards.kind
         self._term_names = task.REWARD_TERMS if rewards.kind == "interlevel" else interscene.REWARD_TERMS
         #: a step outcome's reward terms, in ``info`` and in the order they are summed
-        self._outcome_terms = (*self._term_names, "reward_success", "reward_failure")
+        self._outcome_terms = (*self._term_names, "reward_success", "reward_failure",
+                               *(TRACKING_TERMS if aids.track_reward else ()))
+        self.track_reward, self.max_track_error = aids.track_reward, aids.max_track_error
+        self._tracking_on = bool(aids.track_reward) or aids.max_track_error is not None
+        self._track: ReferenceTrack | None = None
         self._apply_config(config)
         self.stairs_config = config.stairs
         self.stairs_start_fraction = aids.stairs_start_fraction
@@ -252,10 +263,15 @@ class InterLevelEnv(HumanoidEnv):
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """In a disc of ``start_radius`` around the centre; standing with joint noise or a reference state."""
         model, data = self.model, self.data
+        self._track = None
         if self._stairs_start:
             stairs = self.stairs
-            qpos, qvel = stair_starts.climb_state(stairs.step_height, stairs.step_depth, stairs.num_steps, rng)
-            place_state_in_frame(model, data, self._idx, qpos, qvel, stairs.yaw, stairs.origin)
+            climb, qvel = stair_starts.climb_start(stairs.step_height, stairs.step_depth, stairs.num_steps, rng)
+            place_state_in_frame(model, data, self._idx, climb[0], qvel, stairs.yaw, stairs.origin)
+            if self._tracking_on:    # the training aid: the climb followed on from the start frame, placed alike
+                frames = frames_in_world(climb, stairs.yaw, stairs.origin)
+                frames[:, 2] += PLACEMENT_CLEARANCE
+                self._track = track_of_frames(frames, self.dt)
             self._hold_pose_ctrl()
             self._reset_forward(model, data)
             return True
@@ -308,20 +324,26 @@ class InterLevelEnv(HumanoidEnv):
     @classmethod
     def _step_outcomes(cls, envs: list[InterLevelEnv], state) -> list[StepOutcome]:
         """``_outcome_arrays`` as one ``StepOutcome`` per world, its numbers as Python numbers."""
-        obs, reward, terms, flags, results = cls._outcome_arrays(envs, state)
+        obs, reward, terms, flags, results, lost = cls._outcome_arrays(envs, state)
         names = envs[0]._outcome_terms
         rewards, flag_rows, result_rows = reward.tolist(), flags.tolist(), results.tolist()
-        return [StepOutcome(obs[k], rewards[k], dict(zip(names, world_terms)), flag_rows[k][_ENDED],
-                            _named_results(result_rows[k], flag_rows[k]))
-                for k, world_terms in enumerate(terms.tolist())]
+        outcomes = [StepOutcome(obs[k], rewards[k], dict(zip(names, world_terms)), flag_rows[k][_ENDED],
+                                _named_results(result_rows[k], flag_rows[k]))
+                    for k, world_terms in enumerate(terms.tolist())]
+        if lost is not None and envs[0].max_track_error is not None:
+            for outcome, world_lost in zip(outcomes, lost.tolist()):
+                outcome.results["track_lost"] = world_lost
+        return outcomes
 
     @classmethod
     def _step_outcome_batch(cls, envs: list[InterLevelEnv], state, rows: np.ndarray | None = None) -> StepOutcome:
         """``_outcome_arrays`` as one ``StepOutcome`` of arrays (each term and result a column over the
         worlds)."""
-        obs, reward, terms, flags, results = cls._outcome_arrays(envs, state, rows)
-        return StepOutcome(obs, reward, dict(zip(envs[0]._outcome_terms, terms.T)), flags[:, _ENDED],
-                           _named_results(results.T, flags.T))
+        obs, reward, terms, flags, results, lost = cls._outcome_arrays(envs, state, rows)
+        named = _named_results(results.T, flags.T)
+        if lost is not None and envs[0].max_track_error is not None:
+            named["track_lost"] = lost
+        return StepOutcome(obs, reward, dict(zip(envs[0]._outcome_terms, terms.T)), flags[:, _ENDED], named)
 
     @classmethod
     def _outcome_arrays(cls, envs: list[InterLevelEnv], state, rows: np.ndarray | None = None):
@@ -350,7 +372,23 @@ class InterLevelEnv(HumanoidEnv):
             terms, results, steps, carry["_stall.approach"], carry["_stall.approach_at"], first._end_parameters)
         prev_root[...] = state.body_pos[:, PELVIS]
         cls._put_carry(envs, rows, carry)
-        return obs, reward, terms, flags, results
+        lost = None
+        if first._tracking_on:    # the training aid: each stair start's climb tracked (zeros for the others)
+            tracked, lost = np.zeros((len(envs), 3)), np.zeros(len(envs), dtype=bool)
+            for k, env in enumerate(envs):
+                track = env._track
+                if track is not None:
+                    i = track.frame(int(steps[k]))
+                    root, velocity, bodies, error = tracking_terms(
+                        state.body_pos[k], track.body_pos[i], state.root_lin_vel[k], track.root_vel[i],
+                        env.track_reward, PELVIS)
+                    tracked[k] = root, velocity, bodies
+                    lost[k] = env.max_track_error is not None and error > env.max_track_error
+            if first.track_reward:
+                reward = reward + tracked.sum(axis=1)
+                terms = np.concatenate((terms, tracked), axis=1)
+            flags[:, _ENDED] |= lost
+        return obs, reward, terms, flags, results, lost
 
     def _info(self, results: dict[str, Any]) -> dict[str, Any]:
         return {**results, **self._episode_info()}

@@ -111,10 +111,18 @@ def climb_state(step_height: float, step_depth: float, num_steps: int, rng: np.r
                 ) -> tuple[np.ndarray, np.ndarray]:
     """One state (qpos (35,), qvel (34,)) drawn uniformly from the climb frames of
     :func:`climb_frames`, either foot leading, in the staircase's frame."""
+    rest, qvel = climb_start(step_height, step_depth, num_steps, rng)
+    return rest[0], qvel
+
+
+def climb_start(step_height: float, step_depth: float, num_steps: int, rng: np.random.Generator
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`climb_state`'s draw (the same random numbers) as the climb from the drawn frame on: qpos
+    (T - k, 35) of frames k.. (what a tracking aid follows) and the start's qvel (34,), float64."""
     lead_foot = ("right", "left")[int(rng.integers(2))]
     qpos, qvel = climb_frames(step_height, step_depth, num_steps, lead_foot)
     k = int(rng.integers(len(qpos)))
-    return qpos[k].astype(np.float64), qvel[k].astype(np.float64)
+    return qpos[k:].astype(np.float64), qvel[k].astype(np.float64)
 
 
 def grid_keys(step_height: tuple[float, float], step_depth: tuple[float, float],
