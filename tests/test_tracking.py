@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from stairenv.environments.plamo import PlaMoEnv
 from stairenv.humanoid.kinematics import body_positions
@@ -318,9 +317,22 @@ def test_the_shipped_stitched_clips_are_what_their_notice_says(name, window, fol
     assert name.split("/")[-1].rsplit("_", 1)[0] in (data / "stitched" / "NOTICE.txt").read_text()
 
 
+def _first_step_pays_the_terms(env, track, weight: float):
+    """One zero-action step of ``env`` (its track just built on the placed state): the info's tracking terms
+    are ``tracking_terms`` of the state against the track's next frame, by hand. Returns (reward, the terms)."""
+    from stairenv.humanoid.kinematics import body_positions as fk_bodies
+
+    np.testing.assert_allclose(track.body_pos, fk_bodies(track.qpos), atol=1e-9)
+    _, reward, _, _, info = env.step(np.zeros(28))
+    state = env._read_state()
+    expected = tracking_terms(state.body_pos[0], track.body_pos[1], state.root_lin_vel[0], track.root_vel[1], weight,
+                              root=PELVIS)
+    assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
+    return reward, info, sum(expected[:3])
+
+
 def test_a_sims_interaction_start_tracks_its_clip_and_pays_the_terms_by_hand():
     from stairenv.environments.sims import SIMSEnv
-    from stairenv.humanoid.kinematics import body_positions as fk_bodies
 
     env = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0,
                   max_track_error=0.4)
@@ -332,13 +344,8 @@ def test_a_sims_interaction_start_tracks_its_clip_and_pays_the_terms_by_hand():
     track = env._track
     # the track starts on the placed state: the start frame, where the character stands
     np.testing.assert_allclose(track.qpos[0, :3], env.data.qpos[:3], atol=1e-6)
-    np.testing.assert_allclose(track.body_pos, fk_bodies(track.qpos), atol=1e-9)
-    _, reward, _, _, info = env.step(np.zeros(28))
-    state = env._read_state()
-    expected = tracking_terms(state.body_pos[0], track.body_pos[1], state.root_lin_vel[0], track.root_vel[1], 2.0,
-                              root=PELVIS)
-    assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
-    assert reward == pytest.approx(info["reward_near"] + info["reward_far"] + sum(expected[:3]), rel=1e-12)
+    reward, info, tracked = _first_step_pays_the_terms(env, track, 2.0)
+    assert reward == pytest.approx(info["reward_near"] + info["reward_far"] + tracked, rel=1e-12)
     # held still while the clip sits down, the character is left behind: the track is lost
     for _ in range(120):
         _, _, terminated, truncated, info = env.step(np.zeros(28))
@@ -359,7 +366,6 @@ def test_a_sims_interaction_start_tracks_its_clip_and_pays_the_terms_by_hand():
 
 def test_an_interlevel_stair_start_tracks_its_climb_and_pays_the_terms_by_hand():
     from stairenv.environments.interlevel import InterLevelEnv
-    from stairenv.humanoid.kinematics import body_positions as fk_bodies
 
     kwargs = dict(stairs_start_fraction=1.0, step_height=(0.10, 0.10), step_depth=(0.30, 0.30))
     env = InterLevelEnv(**kwargs, track_reward=2.0, max_track_error=0.4)
@@ -368,14 +374,9 @@ def test_an_interlevel_stair_start_tracks_its_climb_and_pays_the_terms_by_hand()
     track = env._track
     assert env._stairs_start and track is not None
     np.testing.assert_allclose(track.qpos[0], env.data.qpos, atol=1e-6)          # starts on the placed state
-    np.testing.assert_allclose(track.body_pos, fk_bodies(track.qpos), atol=1e-9)
-    _, reward, _, _, info = env.step(np.zeros(28))
-    state = env._read_state()
-    expected = tracking_terms(state.body_pos[0], track.body_pos[1], state.root_lin_vel[0], track.root_vel[1], 2.0,
-                              root=PELVIS)
-    assert [info[name] for name in TRACKING_TERMS] == pytest.approx(expected[:3], rel=1e-9)
+    reward, info, tracked = _first_step_pays_the_terms(env, track, 2.0)
     paper = sum(info[name] for name in env._outcome_terms if name not in TRACKING_TERMS)
-    assert reward == pytest.approx(paper + sum(expected[:3]), rel=1e-9)
+    assert reward == pytest.approx(paper + tracked, rel=1e-9)
     for _ in range(150):    # held still while the climb goes on: lost (or fallen)
         _, _, terminated, truncated, info = env.step(np.zeros(28))
         if terminated or truncated:
