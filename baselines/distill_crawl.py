@@ -12,6 +12,12 @@ path; PPO (``train_ppo.py --init-from OUT``) then has to steer the crawl along i
 
     python baselines/distill_crawl.py --template /work/runs/p18_16m_std2.pt --out runs/crawl_distilled.pt
 
+Any locomotion's clips are played back alike (``--locomotion``, ``--reference``: a folder of clips labelled
+with it), e.g. the crouch-walks at three depths for the crouch-walk specialist:
+
+    python baselines/distill_crawl.py --template checkpoints/PlaMo-v0/w1_checkpoint_5001216.pt \
+        --locomotion crouch-walk --reference src/stairenv/motion/data/crouch --flat --out runs/crouch_distilled.pt
+
 The DAgger loop is ``stairenv.training.dagger``'s, shared with ``distill_walk.py``.
 """
 
@@ -43,6 +49,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--template", type=Path, required=True,
                         help="a lean checkpoint of a PlaMo-v0 run: the student's shape, normaliser and the rest")
+    parser.add_argument("--locomotion", default="crawl",
+                        help="the locomotion whose paths and clips (of --reference) are played back (default: crawl)")
+    parser.add_argument("--reference", default=None,
+                        help="a folder or .npz of clips labelled with that locomotion (default: builtin:plamo's)")
+    parser.add_argument("--flat", action="store_true",
+                        help="flat ground and none of the template's height aids (min_root_height, max_z_error, "
+                             "max_z_above): the specialists' training conditions")
     add_arguments(parser)
     return parser
 
@@ -54,7 +67,13 @@ def main(argv: list[str] | None = None) -> int:
     if config.env_id != "PlaMo-v0":
         print(f"--template: a PlaMo-v0 run's checkpoint is needed, this one is {config.env_id}'s", file=sys.stderr)
         return 2
-    config = config.replace(env_kwargs={**config.env_kwargs, **CRAWL_KWARGS}, num_envs=args.n_envs,
+    playback = {**CRAWL_KWARGS, "locomotion": args.locomotion,
+                **({} if args.reference is None else {"reference_motion": args.reference})}
+    env_kwargs = {**config.env_kwargs, **playback}
+    if args.flat:
+        env_kwargs = {key: value for key, value in env_kwargs.items()
+                      if key not in ("min_root_height", "max_z_error", "max_z_above")} | {"terrain": "flat"}
+    config = config.replace(env_kwargs=env_kwargs, num_envs=args.n_envs,
                             physics_threads=args.physics_threads, seed=args.seed)
     venv = make_env(config)
     worlds = [env.unwrapped for env in venv.envs]
