@@ -483,3 +483,22 @@ def test_plamo_worlds_keep_their_own_terrain_on_the_device(terrain):
     assert warp.physics.overflows == 0
     warp.close()
     c.close()
+
+
+@warp_only
+@pytest.mark.slow
+def test_plamo_table2_runs_on_the_device_as_on_the_host():
+    """``evaluate_plamo.py --num-envs N --physics warp``: PlaMo's Table 2 on MuJoCo Warp (CPU device) runs the
+    same episodes as on MuJoCo C side by side (the same seeds, the same flat walk paths, the shipped walker) and
+    measures alike: the back-ends' contacts differ in the low bits, so each row's mean errors agree within
+    5 cm and its early terminations within one episode of the four."""
+    from stairenv import pretrained
+    from stairenv.evaluation.plamo import evaluate
+
+    walker = pretrained.load("PlaMo-v0")
+    kwargs = dict(terrains=("flat",), locomotions=("walk",), episodes=4, seed=31, max_episode_steps=60, num_envs=2)
+    host = evaluate(walker, **kwargs).rows[0]
+    device = evaluate(walker, physics="warp", physics_device="cpu", **kwargs).rows[0]
+    assert abs(device["xy_error_m"] - host["xy_error_m"]) <= 0.05, (device, host)
+    assert abs(device["z_error_m"] - host["z_error_m"]) <= 0.05, (device, host)
+    assert abs(device["early_termination_pct"] - host["early_termination_pct"]) <= 25.0
