@@ -189,19 +189,20 @@ class FamilyTrainingAids(ReferenceStarts):
 
 @checked_config
 class ClipTracking(FamilyTrainingAids):
-    """DeepMimic's imitation, a training aid of the families whose starts can come from a clip (PlaMo, SIMS):
-    on such a start the clip is played on from the start frame and the reward gains its tracking terms
+    """DeepMimic's imitation, a training aid of every family whose starts can come from a clip (PlaMo: a
+    reference start or its ``standing_clip``; SIMS: an interaction start; InterLevel: a stair start): on such
+    a start the clip is played on from the start frame and the reward gains its tracking terms
     (``tasks.terms.tracking_terms``: the root's position and velocity, the bodies' positions about the root),
     the episode ends once the bodies are on average ``max_track_error`` from the clip's. Off by default."""
 
     track_reward: float = checked(0.0, Check("float", 0.0, 10.0),
-                                  "weight of the clip-tracking terms on reference starts (reward_track_root, "
+                                  "weight of the clip-tracking terms on starts from a clip (reward_track_root, "
                                   "_velocity, _bodies: the start clip played on, placed where the character "
                                   "started; tasks.terms.tracking_terms); 0 = off")
     max_track_error: float | None = checked(
         None, Check("float", 0.0, 10.0, low_open=True, optional=True),
-        "mean distance (m) of the bodies from the played-on start clip's that ends a reference start's "
-        "episode (info track_lost): a pose-distance termination; None = off")
+        "mean distance (m) of the bodies from the played-on start clip's that ends the episode of a start from "
+        "a clip (info track_lost): a pose-distance termination; None = off")
 
 
 @checked_config

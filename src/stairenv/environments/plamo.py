@@ -516,7 +516,7 @@ class PlaMoEnv(HumanoidEnv):
             return (0.0, 0.0, 0.0), False
         i = track.frame(self._steps)
         root, velocity, bodies, error = tracking_terms(body_pos, track.body_pos[i], root_vel, track.root_vel[i],
-                                                            self.track_reward, PELVIS)
+                                                       self.track_reward, PELVIS)
         return (root, velocity, bodies), self.max_track_error is not None and error > self.max_track_error
 
     def _terrain_samples(self, out: np.ndarray, root: np.ndarray, c: float, s: float,
