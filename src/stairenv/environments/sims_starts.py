@@ -173,8 +173,8 @@ class SIMSStarts:
             k = int(rng.integers(len(qpos)))
             if self._start_fits(qpos[k], qvel[k], yaw, origin):
                 self._start = self.data.qpos[self._idx.qpos_root][:2].copy()
-                #: the clip's frames from the start frame on, in the world: what the tracking aid follows
-                self._start_clip = frames_in_world(qpos[k:], yaw, origin)
+                if self._tracking_on:  # the tracking aid follows the clip's frames from here on, in the world
+                    self._start_clip = frames_in_world(qpos[k:], yaw, origin)
                 return True
         return False
 
