@@ -30,9 +30,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, add_arguments, distil
-from stairenv.training.ppo import make_env, read_checkpoint
+from stairenv.training.dagger import Student, add_arguments, distil, read_template
+from stairenv.training.ppo import make_env
 
 #: the crawl-only env: every path a crawl, every start a crawl frame, the paths at the paper's speeds
 CRAWL_KWARGS = {"locomotion": "crawl", "init": "reference", "matched_starts": True, "speed_levels": 0}
@@ -62,8 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    template = read_checkpoint(args.template)
-    config = TrainConfig.from_dict(template["config"])
+    template, config = read_template(args.template)
     if config.env_id != "PlaMo-v0":
         print(f"--template: a PlaMo-v0 run's checkpoint is needed, this one is {config.env_id}'s", file=sys.stderr)
         return 2

@@ -31,9 +31,8 @@ import torch
 from stairenv import pretrained
 from stairenv.planning.locomotion import LOCOMOTIONS, get_locomotion, nearest_locomotion
 from stairenv.policy_loading import load_policy
-from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, add_arguments, distil
-from stairenv.training.ppo import make_env, read_checkpoint
+from stairenv.training.dagger import Student, add_arguments, distil, read_template
+from stairenv.training.ppo import make_env
 
 #: the specialist a locomotion without its own is taught by
 FALLBACK = {"sprint": "run"}
@@ -83,8 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    template = read_checkpoint(args.template)
-    config = TrainConfig.from_dict(template["config"])
+    template, config = read_template(args.template)
     if config.env_id != "PlaMo-v0":
         print(f"--template: a PlaMo-v0 run's checkpoint is needed, this one is {config.env_id}'s", file=sys.stderr)
         return 2

@@ -35,9 +35,8 @@ from stairenv import pretrained
 from stairenv.tasks.kernels import PROPRIOCEPTION_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_SIZE as CLIMBER_OBS_SIZE
 from stairenv.tasks.interlevel import OBSERVATION_STRUCTURE as CLIMBER
-from stairenv.training.config import TrainConfig
-from stairenv.training.dagger import Student, add_arguments, distil
-from stairenv.training.ppo import make_env, read_checkpoint
+from stairenv.training.dagger import Student, add_arguments, distil, read_template
+from stairenv.training.ppo import make_env
 
 #: the training aid that shortens goals at the curriculum's first levels: the data should cover 1-5 m
 LEFT_OUT_AIDS = ("start_distance_levels",)
@@ -82,8 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    template = read_checkpoint(args.template)
-    config = TrainConfig.from_dict(template["config"])
+    template, config = read_template(args.template)
     if config.env_id != "SIMS-Walk-v0":
         print(f"--template: a SIMS-Walk-v0 run's checkpoint is needed, this one is {config.env_id}'s", file=sys.stderr)
         return 2

@@ -99,3 +99,31 @@ def test_plamo_distillation_labels_each_world_by_its_paths_locomotion_now(baseli
         kinds.append(distill.path_locomotion(mixed))
         mixed._steps += 1                     # (the teacher reads the episode's time only)
     assert len(set(kinds)) > 1
+
+
+def test_the_sims_playback_labels_the_start_clips_next_frame_and_a_run_writes_the_template(baseline_script,
+                                                                                            tmp_path, capsys):
+    """distill_sims.py: the teacher's action puts the PD targets on the start clip's joint angles one step ahead
+    (its last frame held), None for a world without a clip; a short run writes the template with a new actor."""
+    script = baseline_script("distill_sims")
+    env = gym.make("SIMS-Sit-v0", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0).unwrapped
+    env.reset(seed=0)
+    clip = env._start_clip
+    for _ in range(3):
+        action = script.playback_action(env)
+        target = np.clip(clip[min(env._steps + 1, len(clip) - 1), 7:], env._ctrl_offset - env._ctrl_scale,
+                         env._ctrl_offset + env._ctrl_scale)
+        np.testing.assert_allclose(env._ctrl_offset + env._ctrl_scale * action, target, atol=1e-9)
+        env.step(action)
+    env._start_clip = None
+    assert script.playback_action(env) is None
+    sit = Path(__file__).resolve().parents[1] / "checkpoints" / "SIMS-Sit-v0" / "s13_checkpoint_6500352.pt"
+    out = tmp_path / "sit.pt"
+    assert script.main(["--template", str(sit), "--out", str(out), "--iterations", "1", "--steps", "4",
+                        "--n-envs", "2", "--epochs", "2"]) == 0
+    template, distilled = read_checkpoint(sit), read_checkpoint(out)
+    for name, value in template["model"].items():
+        assert torch.equal(value, distilled["model"][name]) == (not name.startswith(("policy_net", "action_mean")))
+    plamo = next((Path(__file__).resolve().parents[1] / "checkpoints" / "PlaMo-v0").glob("*.pt"))
+    assert script.main(["--template", str(plamo), "--out", str(tmp_path / "x.pt")]) == 2
+    assert "a SIMS run's checkpoint" in capsys.readouterr().err

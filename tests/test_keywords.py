@@ -422,6 +422,7 @@ KINDS = {
         "start_distance_levels": lambda s: Number(0, 100 if s["skill"] in CURRICULUM_SKILLS
                                                   and s["scene"] == "object" else 0, integer=True),
         "stall_seconds": Optional(Number(0.0, 3600.0, low_open=True)), "stall_distance": Number(0.0, 100.0),
+        "hold_seconds": Optional(Number(0.0, 3600.0, low_open=True)),
         "near_distance": Optional(Number(0.0, 10.0, low_open=True)),
         # act on interaction starts, which no preset has: only the defaults
         "track_reward": Number(0.0, 0.0), "max_track_error": Optional(Number(0.0, 0.0, low_open=True)),

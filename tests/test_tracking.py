@@ -388,3 +388,61 @@ def test_an_interlevel_stair_start_tracks_its_climb_and_pays_the_terms_by_hand()
     np.testing.assert_array_equal(plain.data.qpos, start)
     with pytest.raises(ValueError, match="stairs_start_fraction"):
         InterLevelEnv(track_reward=1.0)
+
+
+def _playback(env) -> np.ndarray:
+    """The action whose PD targets are the start clip's next frame (``baselines/distill_sims.py``'s teacher)."""
+    clip = env._start_clip
+    target = clip[min(env._steps + 1, len(clip) - 1), 7:]
+    return np.clip((target - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0)
+
+
+def test_a_sims_hold_cuts_the_episode_after_the_goal_is_held_for_its_seconds():
+    import gymnasium as gym
+
+    from stairenv.environments.sims import SIMSEnv
+
+    hold = 0.5
+    needed = math.ceil(hold * 30 - 1e-6)    # steps of success in a row (30 Hz)
+    cut = 0
+    for seed in range(6):
+        env = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0,
+                      hold_seconds=hold)
+        env.reset(seed=seed)
+        run = 0
+        for _ in range(300):
+            _, _, terminated, truncated, info = env.step(_playback(env))
+            run = run + 1 if info["success"] else 0
+            assert info["held"] == (run >= needed and not terminated)
+            assert truncated == info["held"]    # cut, not terminated: the trainer bootstraps its value
+            if terminated or truncated:
+                break
+        cut += bool(truncated)
+        assert not truncated or run == needed
+    assert cut >= 3    # the played-back sit holds the seat in most starts
+    # batched: the same seeds cut at the same steps; without the aid no "held" and no cut
+    vec = gym.make_vec("SIMS-Sit-v0", num_envs=2, vectorization_mode="vector_entry_point", text_encoder="hashing",
+                       interaction_start_fraction=1.0, track_reward=2.0, hold_seconds=hold)
+    single = [SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0,
+                      hold_seconds=hold) for _ in range(2)]
+    vec.reset(seed=[3, 4])
+    for k, env in enumerate(single):
+        env.reset(seed=3 + k)
+    worlds = [env.unwrapped for env in vec.unwrapped.envs]
+    live = [True, True]
+    for _ in range(120):
+        actions = np.stack([_playback(w) for w in worlds])
+        _, _, terminated, truncated, _ = vec.step(actions)
+        for k, env in enumerate(single):
+            if live[k]:
+                _, _, term, trunc, _ = env.step(actions[k])
+                assert (term, trunc) == (terminated[k], truncated[k])
+                live[k] = not (term or trunc)
+        if not any(live):
+            break
+    plain = SIMSEnv(skill="sit", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0)
+    plain.reset(seed=0)
+    _, _, _, truncated, info = plain.step(_playback(plain))
+    assert "held" not in info and not truncated
+    with pytest.raises(ValueError, match="hold_seconds"):
+        SIMSEnv(skill="sit", hold_seconds=-1.0)

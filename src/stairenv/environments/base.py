@@ -102,7 +102,9 @@ class StepOutcome(NamedTuple):
 
     ``results`` are the task's named per-world numbers (``progress``, ``success``, ``contact_error``...)
     that ``_info`` presents; ``terms`` the reward terms by their ``info`` key (``reward_*``), which
-    add up to ``reward``. A batched env holds the same fields with a leading world dimension.
+    add up to ``reward``. ``truncated``: the episode is cut without a terminal state (a training aid's end,
+    whose value the trainer bootstraps). A batched env holds the same fields with a leading world dimension
+    (``truncated`` may stay a plain False for every world).
     """
 
     obs: np.ndarray
@@ -110,11 +112,13 @@ class StepOutcome(NamedTuple):
     terms: dict[str, float]
     terminated: bool
     results: dict[str, Any]
+    truncated: bool = False
 
     def world(self, k: int) -> StepOutcome:
         """World ``k``'s outcome of a batched one, its numbers as Python numbers (as a single env's)."""
         return StepOutcome(self.obs[k], self.reward.item(k), {key: value.item(k) for key, value in self.terms.items()},
-                           self.terminated.item(k), {key: value.item(k) for key, value in self.results.items()})
+                           self.terminated.item(k), {key: value.item(k) for key, value in self.results.items()},
+                           bool(np.ndim(self.truncated) and self.truncated[k]))
 
 
 class BatchStep(NamedTuple):
@@ -646,7 +650,7 @@ class HumanoidEnv(gym.Env):
         info = self._full_info(outcome, unstable=False, terms=True)
         if self.render_mode == "human":
             self.render()
-        return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
+        return outcome.obs, outcome.reward, bool(outcome.terminated), bool(outcome.truncated), info
 
     #: True where ``_step_outcomes`` computes a batch's outcomes in one call: a batched env then finishes all its
     #: worlds with ``_finish_batch`` after the physics instead of ``_finish_step`` world by world.
@@ -670,7 +674,7 @@ class HumanoidEnv(gym.Env):
             amp_obs = FeatureHistory.push_each([env._amp for env in worlds], amp_features(state))
             for k, env, outcome, world_amp_obs in zip(stable, worlds, outcomes, amp_obs):
                 env._outcome = outcome
-                results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), False,
+                results[k] = (outcome.obs, outcome.reward, bool(outcome.terminated), bool(outcome.truncated),
                               env._full_info(outcome, unstable=False, terms=True, amp_obs=world_amp_obs))
         return results
 
@@ -724,7 +728,7 @@ class HumanoidEnv(gym.Env):
                        "physics_unstable": np.zeros(len(worlds), dtype=bool), "amp_obs": amp_obs,
                        "reference_start": reference_start, **outcome.terms}
             obs, reward, terminated = outcome.obs, outcome.reward, outcome.terminated
-            truncated = np.zeros(len(worlds), dtype=bool)
+            truncated = np.zeros(len(worlds), dtype=bool) | outcome.truncated
         if unstable:    # the unstable worlds' rows, from their whole results
             rows_unstable = np.array(list(unstable), dtype=np.int64)
             results = list(unstable.values())

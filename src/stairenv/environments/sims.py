@@ -227,6 +227,10 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
       ``reward_track_bodies`` (``stairenv.tasks.terms.tracking_terms``, weight w; 0 on other starts) and the
       episode ends (``info["track_lost"]``) once the bodies are on average ``max_track_error`` from the
       clip's: imitation first, the contact goal's reward beside it (issue #55's sit, lie and reach).
+    - Interaction early termination (``hold_seconds`` h; InterScene's): once the contact goal has been held
+      (``info["success"]`` at the end of h x 30 steps in a row), the episode is cut (truncated,
+      ``info["held"] = True``, present only with the aid), so the trainer bootstraps the value of holding on
+      and the samples go to new starts, while holding stays the best thing to do.
     - Pushes (``push_speed``, ``push_interval``; every family's, ``HumanoidEnv._setup_pushes``): a kick
       of a speed drawn from ``push_speed`` (m/s) added to the root's horizontal velocity in a random
       direction every ``push_interval`` seconds (drawn), so that the policy learns to recover, as the
@@ -273,6 +277,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         #: this world's level of the start-distance curriculum (None until the first reset draws it)
         self.curriculum_level: int | None = None
         self.stall_seconds, self.stall_distance = aids.stall_seconds, aids.stall_distance
+        self.hold_seconds = aids.hold_seconds
         self.min_root_height = aids.min_root_height
         self.track_reward, self.max_track_error = aids.track_reward, aids.max_track_error
         self._tracking_on = bool(self.track_reward) or self.max_track_error is not None
@@ -313,7 +318,8 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         self._step_buffers = (np.empty(size), np.empty((task.NUM_CONTACT_JOINTS, 3)), np.empty(task.STEP_VALUES_SIZE))
         #: no training aid adds to a step's results or info (those keywords are fixed once the env is built)
         self._plain_outcomes = (self.stall_seconds is None and self.min_root_height is None
-                                and not self.interaction_start_fraction > 0.0 and not self._tracking_on)
+                                and self.hold_seconds is None and not self.interaction_start_fraction > 0.0
+                                and not self._tracking_on)
 
     # the keywords: SIMSConfig's fields, defaults included (``config=`` stays out of the signature)
     __init__.__signature__ = keyword_signature(SIMSConfig)
@@ -523,6 +529,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         root, target = state.body_pos[0, PELVIS], self.goal.root_target
         self._start_root_distance = self._root_distance = math.hypot(target[0] - root[0], target[1] - root[1])
         self._stall = StallWatch(self.stall_seconds, self.stall_distance, self.dt)
+        self._held_steps = 0
 
     def embed_text(self, text: str) -> np.ndarray:
         """The env's text embedding (``text_encoder`` reduced to ``text_dim``) of ``text``; use it for
@@ -644,7 +651,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
                     **terms}
         if self.render_mode == "human":
             self.render()
-        return outcome.obs, outcome.reward, bool(outcome.terminated), False, info
+        return outcome.obs, outcome.reward, bool(outcome.terminated), bool(outcome.truncated), info
 
     def _world_outcome(self, obs: np.ndarray, targets: np.ndarray, near: float, far: float, still: float,
                        error: float, x: float, y: float, z: float, head_z: float, body_pos: np.ndarray | None = None,
@@ -670,13 +677,18 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         if self.min_root_height is not None:  # only with the aid: no sitting on the floor
             results["grounded"] = bool(z < self.min_root_height) and not fell
             ended = ended or results["grounded"]
+        held = False
+        if self.hold_seconds is not None:  # only with the aid: InterScene's interaction early termination
+            # steps that ended succeeding, in a row (the reset's outcome, at step 0, is not a step held)
+            attributes["_held_steps"] = steps_held = self._held_steps + 1 if success and self._steps else 0
+            results["held"] = held = steps_held * self.dt >= self.hold_seconds - 1e-9 and not ended
         # the terms (task.WALK_REWARD_TERMS, CONTACT_REWARD_TERMS) and their sum, left to right as numpy's sum of
         # fewer than 8 numbers
         if skill == "walk":
             outcome = StepOutcome(obs, sum((near, far, still)), {_NEAR: near, _FAR: far, _STILL: still}, ended,
-                                  results)
+                                  results, held)
         else:
-            outcome = StepOutcome(obs, sum((near, far)), {_NEAR: near, _FAR: far}, ended, results)
+            outcome = StepOutcome(obs, sum((near, far)), {_NEAR: near, _FAR: far}, ended, results, held)
         if self._tracking_on:  # the training aid: track the interaction start's clip (zeros on other starts)
             tracked, lost = (0.0, 0.0, 0.0), False
             if self._track is not None:
@@ -690,7 +702,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
             if self.max_track_error is not None:
                 results["track_lost"] = bool(lost)
             outcome = StepOutcome(obs, outcome.reward + sum(tracked) if self.track_reward else outcome.reward, terms,
-                                  ended or lost, results)
+                                  ended or lost, results, held and not lost)
         return outcome
 
     def _full_info(self, outcome: StepOutcome, unstable: bool, terms: bool,

@@ -239,6 +239,10 @@ class SIMSTrainingAids(ClipTracking):
                                           "stall_distance for this long; None = never")
     stall_distance: float = checked(0.2, Check("float", 0.0, 100.0),
                                     "least fall of the contact error (m) that counts as progress")
+    hold_seconds: float | None = checked(
+        None, Check("float", 0.0, 3600.0, low_open=True, optional=True),
+        "InterScene's interaction early termination: cut an episode (truncated, its value bootstrapped) once "
+        "its contact goal has been held (success) for this long without a break; None = never")
     min_root_height: float | None = checked(None, Check("float", 0.0, 2.0, low_open=True, optional=True),
                                             "all skills but getup: end an episode when the pelvis is less than "
                                             "this above the floor (sitting or lying on the floor; seated on a "

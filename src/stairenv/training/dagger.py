@@ -19,7 +19,13 @@ import numpy as np
 import torch
 
 from stairenv.training.config import TrainConfig
-from stairenv.training.ppo import ActorCritic, Normalizer
+from stairenv.training.ppo import ActorCritic, Normalizer, read_checkpoint
+
+
+def read_template(path: Path) -> tuple[dict, TrainConfig]:
+    """The ``--template`` lean checkpoint (read without running code) and its run's ``TrainConfig``."""
+    template = read_checkpoint(path)
+    return template, TrainConfig.from_dict(template["config"])
 
 
 class Student:
