@@ -9,8 +9,8 @@ starts (``docs/sims_training.md``, 2026-12-08). So the playback is the teacher: 
 labelled with the playback's action for its own clip and time, and the student, an actor of the
 ``--template`` run's shape and observation normaliser, is fitted to the labels of the states it visits
 (Ross et al. 2011; the loop is ``stairenv.training.dagger``'s). A world whose start found no frame that fits
-its piece starts standing; its label is the template's own action (the walker it was), so that the student
-keeps walking where it has no clip. PPO (``train_ppo.py --init-from OUT``) then has to reach the piece
+its piece starts standing; its label is the template's own action, so that the student keeps the template's
+behaviour where it has no clip. PPO (``train_ppo.py --init-from OUT``) then has to reach the piece
 from a standing start and hold the contact goal.
 
     python baselines/distill_sims.py --template checkpoints/SIMS-Sit-v0/s13_checkpoint_6500352.pt \\
