@@ -127,3 +127,19 @@ def test_the_sims_playback_labels_the_start_clips_next_frame_and_a_run_writes_th
     plamo = next((Path(__file__).resolve().parents[1] / "checkpoints" / "PlaMo-v0").glob("*.pt"))
     assert script.main(["--template", str(plamo), "--out", str(tmp_path / "x.pt")]) == 2
     assert "a SIMS run's checkpoint" in capsys.readouterr().err
+
+
+def test_the_walkers_view_of_a_sims_world_is_the_walk_envs_own_observation(baseline_script):
+    """distill_sims.walk_view: a SIMS world's observation with its goal replaced by a walk goal is what SIMS-Walk-v0
+    observes for that goal (the same proprioception, heightmap and text; the pelvis target in the heading frame)."""
+    script = baseline_script("distill_sims")
+    env = gym.make("SIMS-Walk-v0", text_encoder="hashing")
+    walk = env.unwrapped
+    obs, _ = env.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        obs, *_ = env.step(0.1 * rng.uniform(-1.0, 1.0, env.action_space.shape))
+        view = script.walk_view(walk, obs, walk.goal.root_target[:2], obs[walk.observation_structure["text"]])
+        np.testing.assert_allclose(view, obs, rtol=0, atol=1e-12)
+    moved = script.walk_view(walk, obs, walk.goal.root_target[:2] + 1.0, obs[walk.observation_structure["text"]])
+    assert not np.allclose(moved, obs)
