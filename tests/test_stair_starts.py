@@ -32,6 +32,57 @@ def test_climb_frames_are_the_synthesised_climb_on_the_stairs():
         stair_starts.climb_frames(0.155, 0.30, 6)
 
 
+def test_a_synthesised_climb_is_kept_on_the_disk_and_read_back_instead_of_synthesised(tmp_path, monkeypatch):
+    monkeypatch.setenv("STAIRENV_CACHE", str(tmp_path))
+    monkeypatch.setattr(stair_starts, "_CLIMBS", type(stair_starts._CLIMBS)())
+    key = (12, 30, 4, "left")
+    qpos, qvel = stair_starts.climb_frames(0.12, 0.30, 4, "left")
+    path = stair_starts.climb_path(key)
+    assert path.is_file() and path.is_relative_to(tmp_path / "climbs")
+    # another process (an empty in-process cache) reads the file and synthesises nothing
+    monkeypatch.setattr(stair_starts, "_CLIMBS", type(stair_starts._CLIMBS)())
+
+    def no_synthesis(*key):
+        raise AssertionError("synthesised although the disk holds the climb")
+
+    monkeypatch.setattr(stair_starts, "_synthesise", no_synthesis)
+    again = stair_starts.climb_frames(0.12, 0.30, 4, "left")
+    np.testing.assert_array_equal(again[0], qpos)
+    np.testing.assert_array_equal(again[1], qvel)
+    assert stair_starts.fill_cache([(12, 30, 4, "left")], workers=1) == 0
+
+
+@pytest.mark.parametrize("content", ["garbage", "pickle", "shape", "nan"])
+def test_a_cached_climb_file_that_is_not_a_climb_is_synthesised_again_and_replaced(tmp_path, monkeypatch, content):
+    monkeypatch.setenv("STAIRENV_CACHE", str(tmp_path))
+    monkeypatch.setattr(stair_starts, "_CLIMBS", type(stair_starts._CLIMBS)())
+    key = (10, 28, 3, "right")
+    path = stair_starts.climb_path(key)
+    path.parent.mkdir(parents=True)
+    good = np.zeros((5, 35), np.float32), np.zeros((5, 34), np.float32)
+    if content == "garbage":
+        path.write_bytes(b"PK\x03\x04 not a zip")
+    elif content == "pickle":    # an object array would need pickle to load: refused, never run
+        np.savez(path, qpos=np.array([{"a": 1}], dtype=object), qvel=good[1])
+    elif content == "shape":
+        np.savez(path, qpos=np.zeros((5, 7), np.float32), qvel=good[1])
+    else:
+        np.savez(path, qpos=np.full((5, 35), np.nan, np.float32), qvel=good[1])
+    assert stair_starts.load_climb(key) is None
+    qpos, _ = stair_starts.climb_frames(0.10, 0.28, 3, "right")
+    assert qpos.shape[1] == 35 and np.isfinite(qpos).all()
+    np.testing.assert_array_equal(stair_starts.load_climb(key)[0], qpos)    # the file replaced
+
+
+def test_a_cache_folder_that_cannot_be_written_is_left_alone(tmp_path, monkeypatch):
+    blocked = tmp_path / "file"
+    blocked.write_text("a file where the cache folder would be")
+    monkeypatch.setenv("STAIRENV_CACHE", str(blocked))
+    monkeypatch.setattr(stair_starts, "_CLIMBS", type(stair_starts._CLIMBS)())
+    qpos, _ = stair_starts.climb_frames(0.10, 0.28, 3, "right")
+    assert len(qpos) and not stair_starts.climb_path((10, 28, 3, "right")).exists()
+
+
 def _foot_clearances(env) -> list[float]:
     """Height of each foot's lowest geom point over the tread (or floor) under its body."""
     model, data, stairs = env.model, env.data, env.stairs

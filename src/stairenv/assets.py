@@ -1,4 +1,5 @@
-"""Where the package's data lives: the MJCF models (``xml/``) and env presets (``envs/``).
+"""Where the package's data lives: the MJCF models (``xml/``) and env presets (``envs/``), and the user's cache
+(``cache_dir``: what the package computes once on a machine and keeps).
 
 In a built wheel both folders are installed inside the package
 (``stairenv/xml``, ``stairenv/envs``); in an editable install they are read from
@@ -7,6 +8,7 @@ the repository's top level, where the user's design puts them.
 
 from __future__ import annotations
 
+import os
 from importlib import resources
 from pathlib import Path
 
@@ -30,3 +32,10 @@ def xml_path(filename: str) -> Path:
     if not path.is_file():
         raise FileNotFoundError(f"MJCF asset {filename!r} not found in {path.parent}")
     return path
+
+
+def cache_dir() -> Path:
+    """``$STAIRENV_CACHE`` or ``~/.cache/stairenv``: the text embeddings and the synthesised stair climbs
+    computed on this machine."""
+    env = os.environ.get("STAIRENV_CACHE")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "stairenv"

