@@ -186,7 +186,10 @@ def main(argv: list[str] | None = None) -> int:
     worlds = [env.unwrapped for env in venv.envs]
     torch.manual_seed(args.seed)
     obs_size, action_size = venv.single_observation_space.shape[0], venv.single_action_space.shape[0]
-    student = Student(template, config, obs_size, action_size, args.n_envs, args.learning_rate)
+    # the template's curriculum levels measured the template's episodes, not the student's: a run from the output
+    # starts its own curriculum at level 0
+    student = Student({**template, "curriculum_level": []}, config, obs_size, action_size, args.n_envs,
+                      args.learning_rate)
     if args.walker is None:    # a world without a clip keeps the template's own action
         walker = Student(template, config, obs_size, action_size, args.n_envs, args.learning_rate)
     else:

@@ -124,6 +124,7 @@ def test_the_sims_playback_labels_the_start_clips_next_frame_and_a_run_writes_th
     template, distilled = read_checkpoint(sit), read_checkpoint(out)
     for name, value in template["model"].items():
         assert torch.equal(value, distilled["model"][name]) == (not name.startswith(("policy_net", "action_mean")))
+    assert template["curriculum_level"] and distilled["curriculum_level"] == []    # the student's run starts at 0
     plamo = next((Path(__file__).resolve().parents[1] / "checkpoints" / "PlaMo-v0").glob("*.pt"))
     assert script.main(["--template", str(plamo), "--out", str(tmp_path / "x.pt")]) == 2
     assert "a SIMS run's checkpoint" in capsys.readouterr().err
