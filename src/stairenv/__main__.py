@@ -42,10 +42,10 @@ from stairenv.policy_loading import PRETRAINED  # ``--policy`` for the policy sh
 
 DEFAULT_ENV = "InterLevel-v0"
 #: the first episode's seed where ``--seed`` is not given: for InterLevel-v0 a staircase the shipped climber
-#: climbs to M_T (measured 2026-12-07: the episode succeeds, and again in 23 of 24 reruns with its actions
-#: perturbed by 1e-6 to 1e-4, as another machine's low bits would; the shipped policy succeeds in 57.6% of the
+#: climbs to M_T (measured 2026-12-08: the episode succeeds, and again in 21 of 24 reruns with its actions
+#: perturbed by 1e-6 to 1e-4, as another machine's low bits would; the shipped policy succeeds in 57.7% of the
 #: paper's 1,000 staircases, the README says), 0 for every other env
-DEFAULT_SEEDS = {"InterLevel-v0": 35}
+DEFAULT_SEEDS = {"InterLevel-v0": 3}
 #: what ``--policy`` falls back to when the package ships no trained policy for the env
 FALLBACK_POLICY = "zero"
 def default_out(env_id: str) -> str:
@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seconds", type=float, default=None,
                         help="video length in seconds (default: one episode, filmed to its end)")
     parser.add_argument("--seed", type=int, default=None,
-                        help="seed of the first episode (default: 35 for InterLevel-v0, a staircase its shipped "
+                        help="seed of the first episode (default: 3 for InterLevel-v0, a staircase its shipped "
                              "policy climbs to the end; 0 for the other envs)")
     parser.add_argument("--out", default=None,
                         help="output .mp4 path (default: videos/<env name>.mp4, e.g. videos/interlevel.mp4)")
