@@ -36,7 +36,6 @@ import zipfile
 import numpy as np
 
 from stairenv.assets import cache_dir, xml_path
-from stairenv.motion.clip import MotionClip
 from stairenv.motion.ik import leg_geometry
 from stairenv.motion.synthesis import MAX_STEP_DEPTH, MAX_STEP_HEIGHT, climb_stairs
 
@@ -145,11 +144,15 @@ def store_climb(key: tuple[int, int, int, str], climb: tuple[np.ndarray, np.ndar
     path = climb_path(key)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False) as handle:
-            np.savez(handle, qpos=climb[0], qvel=climb[1])
-        os.replace(handle.name, path)
+        handle = tempfile.NamedTemporaryFile(dir=path.parent, suffix=".tmp", delete=False)
     except OSError:
         return
+    try:
+        with handle:
+            np.savez(handle, qpos=climb[0], qvel=climb[1])
+        os.replace(handle.name, path)
+    except OSError:    # a full disk: no half-written file stays behind
+        Path(handle.name).unlink(missing_ok=True)
 
 
 def _remember(key: tuple[int, int, int, str], climb: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
