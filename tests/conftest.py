@@ -20,6 +20,20 @@ def _sb3_logs_in_a_temporary_folder(tmp_path_factory):
         os.environ["SB3_LOGDIR"] = previous
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _a_cache_of_this_session(tmp_path_factory):
+    """The package's cache (``$STAIRENV_CACHE``: text embeddings, stair climbs) of this test session alone,
+    subprocesses included: what a test synthesises or reads does not depend on what the machine kept before."""
+    folder = tmp_path_factory.mktemp("stairenv-cache")
+    previous = os.environ.get("STAIRENV_CACHE")
+    os.environ["STAIRENV_CACHE"] = str(folder)
+    yield
+    if previous is None:
+        os.environ.pop("STAIRENV_CACHE", None)
+    else:
+        os.environ["STAIRENV_CACHE"] = previous
+
+
 @pytest.fixture(scope="session")
 def baseline_script():
     """Load ``baselines/<name>.py`` as a module (the scripts are not a package)."""

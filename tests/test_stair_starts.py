@@ -13,6 +13,13 @@ from stairenv.motion import stair_starts
 from stairenv.motion.synthesis import climb_stairs
 
 
+@pytest.fixture(autouse=True)
+def _own_climb_cache(tmp_path_factory, monkeypatch):
+    """Each test's climbs kept in a disk cache of its own: what it synthesises or reads does not depend on the
+    climbs this machine kept before (``stair_starts.load_climb``)."""
+    monkeypatch.setenv("STAIRENV_CACHE", str(tmp_path_factory.mktemp("stairenv_cache")))
+
+
 def test_snap_rounds_to_the_grid_inside_the_range():
     assert stair_starts.snap(0.1349, 0.05, 0.20) == 0.13
     assert stair_starts.snap(0.1351, 0.05, 0.20) == 0.14

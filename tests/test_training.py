@@ -223,7 +223,8 @@ def test_actor_critic_mirrors_sb3_parameter_order():
 
 
 def run_script(args: list[str], cwd: Path) -> str:
-    env = {**os.environ, "MUJOCO_GL": "egl"}
+    # a cache of the run's own: what it synthesises does not depend on earlier tests' climbs
+    env = {**os.environ, "MUJOCO_GL": "egl", "STAIRENV_CACHE": str(Path(cwd) / "stairenv-cache")}
     done = subprocess.run([sys.executable, str(SCRIPT), *args], cwd=cwd, env=env, capture_output=True, text=True,
                           timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
