@@ -10,28 +10,25 @@ import pytest  # noqa: E402
 def _sb3_logs_in_a_temporary_folder(tmp_path_factory):
     """SB3 makes an empty SB3-<date> folder in the system temp dir for every ``learn`` without
     TensorBoard; keep them inside pytest's own temporary folders (subprocesses inherit it)."""
-    folder = tmp_path_factory.mktemp("sb3-logs")
-    previous = os.environ.get("SB3_LOGDIR")
-    os.environ["SB3_LOGDIR"] = str(folder)
-    yield
-    if previous is None:
-        os.environ.pop("SB3_LOGDIR", None)
-    else:
-        os.environ["SB3_LOGDIR"] = previous
+    yield from _environ("SB3_LOGDIR", tmp_path_factory.mktemp("sb3-logs"))
 
 
 @pytest.fixture(autouse=True, scope="session")
 def _a_cache_of_this_session(tmp_path_factory):
     """The package's cache (``$STAIRENV_CACHE``: text embeddings, stair climbs) of this test session alone,
     subprocesses included: what a test synthesises or reads does not depend on what the machine kept before."""
-    folder = tmp_path_factory.mktemp("stairenv-cache")
-    previous = os.environ.get("STAIRENV_CACHE")
-    os.environ["STAIRENV_CACHE"] = str(folder)
+    yield from _environ("STAIRENV_CACHE", tmp_path_factory.mktemp("stairenv-cache"))
+
+
+def _environ(name: str, value) -> object:
+    """A session fixture's body: ``os.environ[name]`` is ``value`` until the session ends, then what it was."""
+    previous = os.environ.get(name)
+    os.environ[name] = str(value)
     yield
     if previous is None:
-        os.environ.pop("STAIRENV_CACHE", None)
+        os.environ.pop(name, None)
     else:
-        os.environ["STAIRENV_CACHE"] = previous
+        os.environ[name] = previous
 
 
 @pytest.fixture(scope="session")
