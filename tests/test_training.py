@@ -696,3 +696,15 @@ def test_ranks_on_other_cpus_drift_within_a_tolerance_and_are_realigned(tmp_path
     with pytest.raises(RuntimeError, match="differ by 0.001"):
         trainer.checkpoint(tmp_path / "apart.pt")
     trainer.close()
+
+
+def test_a_recipes_true_switch_is_turned_off_by_its_no_flag(tmp_path):
+    """A boolean run setting a recipe turns on (``amp_text_condition = true``) is turned off on the command line by
+    its ``--no-`` flag (flags win over ``--config`` keys), and the recipe's value holds without it."""
+    toml = tmp_path / "run.toml"
+    toml.write_text('style = "amp"\namp_text_condition = true\nupdate_bf16 = true\n')
+    args = cli.parse_args(["--config", str(toml)])
+    assert args.amp_text_condition is True and args.update_bf16 is True
+    args = cli.parse_args(["--config", str(toml), "--no-amp-text-condition", "--no-update-bf16", "--style", "none"])
+    assert args.amp_text_condition is False and args.update_bf16 is False and args.style == "none"
+    assert {"amp_text_condition", "update_bf16"} <= args.given

@@ -174,7 +174,7 @@ def build_parser(description: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--eval-max-episode-steps", type=int, default=None, help="shorter evaluation episodes")
     _config_flag(p, "style", choices=("amp", "none"))
     _config_flag(p, "reference", type=str)
-    _config_flag(p, "amp_text_condition", action="store_true")
+    _config_flag(p, "amp_text_condition", action=argparse.BooleanOptionalAction)
     p.add_argument("--amp-text-captions", choices=("reference", "all"), default="reference",
                    help="with --amp-text-condition: the policy sees the reference clips' texts only (reference), "
                         "or every caption of the env, the discriminator its style's reference text (all)")
@@ -207,7 +207,7 @@ def build_parser(description: str | None = None) -> argparse.ArgumentParser:
                         "checkpoint's), or SB3's policy")
     p.add_argument("--update-threads", type=int, default=field_default("update_threads"),
                    help=f"{FIELD_DOCS['update_threads']} (TrainConfig.update_threads)")
-    _config_flag(p, "update_bf16", action="store_true")
+    _config_flag(p, "update_bf16", action=argparse.BooleanOptionalAction)
     p.add_argument("--no-progress-bar", action="store_true")
     _config_flag(p, "learning_rate")
     _config_flag(p, "n_steps")
