@@ -40,8 +40,7 @@ CRAWL_KWARGS = {"locomotion": "crawl", "init": "reference", "matched_starts": Tr
 def playback_action(env) -> np.ndarray:
     """The action whose PD targets are the world's start clip one step ahead (``_apply_action`` inverted)."""
     clip, start_time = env._reference_clip
-    target = clip.sample(start_time + (env._steps + 1) * env.dt)[0, 7:]
-    return np.clip((target - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0)
+    return env.action_of_targets(clip.sample(start_time + (env._steps + 1) * env.dt)[0, 7:])
 
 
 def build_parser() -> argparse.ArgumentParser:

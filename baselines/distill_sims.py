@@ -56,13 +56,12 @@ PLAYBACK_KWARGS = {"interaction_start_fraction": 1.0, "track_reward": 2.0, "max_
 
 
 def playback_action(env) -> np.ndarray | None:
-    """The action whose PD targets are the world's start clip one step ahead (its last frame held once it
-    ends; ``_apply_action`` inverted), or None for a world without a clip."""
-    clip = env._start_clip
-    if clip is None:
+    """The action whose PD targets are the world's start clip (the tracking aid's track) one step ahead, its
+    last frame held once it ends; None for a world without a clip."""
+    track = env._track
+    if track is None:
         return None
-    target = clip[min(env._steps + 1, len(clip) - 1), 7:]
-    return np.clip((target - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0)
+    return env.action_of_targets(track.qpos[track.frame(env._steps + 1), 7:])
 
 
 #: the approach script's bounds: a waypoint counts as reached within PASSED (m of the pelvis), the last one (the
@@ -143,8 +142,7 @@ class ApproachScript:
         return self.waypoints[0] + CARROT * ahead / max(math.hypot(*ahead), 1e-6)
 
     def playback(self, env) -> np.ndarray:
-        target = self.frames[min(env._steps - self.played_from + 1, len(self.frames) - 1), 7:]
-        return np.clip((target - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0)
+        return env.action_of_targets(self.frames[min(env._steps - self.played_from + 1, len(self.frames) - 1), 7:])
 
 
 def build_parser() -> argparse.ArgumentParser:

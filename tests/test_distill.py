@@ -108,14 +108,14 @@ def test_the_sims_playback_labels_the_start_clips_next_frame_and_a_run_writes_th
     script = baseline_script("distill_sims")
     env = gym.make("SIMS-Sit-v0", text_encoder="hashing", interaction_start_fraction=1.0, track_reward=2.0).unwrapped
     env.reset(seed=0)
-    clip = env._start_clip
+    clip = env._track.qpos
     for _ in range(3):
         action = script.playback_action(env)
         target = np.clip(clip[min(env._steps + 1, len(clip) - 1), 7:], env._ctrl_offset - env._ctrl_scale,
                          env._ctrl_offset + env._ctrl_scale)
         np.testing.assert_allclose(env._ctrl_offset + env._ctrl_scale * action, target, atol=1e-9)
         env.step(action)
-    env._start_clip = None
+    env._track = None
     assert script.playback_action(env) is None
     sit = Path(__file__).resolve().parents[1] / "checkpoints" / "SIMS-Sit-v0" / "s13_checkpoint_6500352.pt"
     out = tmp_path / "sit.pt"

@@ -392,9 +392,8 @@ def test_an_interlevel_stair_start_tracks_its_climb_and_pays_the_terms_by_hand()
 
 def _playback(env) -> np.ndarray:
     """The action whose PD targets are the start clip's next frame (``baselines/distill_sims.py``'s teacher)."""
-    clip = env._start_clip
-    target = clip[min(env._steps + 1, len(clip) - 1), 7:]
-    return np.clip((target - env._ctrl_offset) / env._ctrl_scale, -1.0, 1.0)
+    track = env._track
+    return env.action_of_targets(track.qpos[track.frame(env._steps + 1), 7:])
 
 
 def test_a_sims_hold_cuts_the_episode_after_the_goal_is_held_for_its_seconds():

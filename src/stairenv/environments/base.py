@@ -903,6 +903,11 @@ class HumanoidEnv(gym.Env):
         """PD targets ``offset + scale * action`` (numpy's two operations, in one compiled call)."""
         pd_targets(self._ctrl_offset, self._ctrl_scale, action, self._ctrl)
 
+    def action_of_targets(self, joint_targets: np.ndarray) -> np.ndarray:
+        """The action whose PD targets are ``joint_targets`` (28 joint angles; ``_apply_action`` inverted),
+        clipped to the action range: how a clip is played back through the servos."""
+        return np.clip((joint_targets - self._ctrl_offset) / self._ctrl_scale, -1.0, 1.0)
+
     def _physics_sound(self, expected_time: float) -> bool:
         """After the physics: False (and a reset needed) if it diverged or went faster than a body can
         (``_state_sound``); otherwise body poses brought up to qpos."""

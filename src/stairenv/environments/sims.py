@@ -46,7 +46,7 @@ from stairenv.humanoid import load_humanoid_spec
 from stairenv.humanoid.state import PELVIS
 from stairenv.motion.rsi import standing_clips
 from stairenv.motion.synthesis import WALK_STYLES
-from stairenv.motion.tracking import ReferenceTrack, track_of_frames
+from stairenv.motion.tracking import ReferenceTrack
 from stairenv.style.features import push_amp_features
 from stairenv.tasks import curriculum
 from stairenv.tasks import sims as task
@@ -281,7 +281,6 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
         self.min_root_height = aids.min_root_height
         self.track_reward, self.max_track_error = aids.track_reward, aids.max_track_error
         self._tracking_on = bool(self.track_reward) or self.max_track_error is not None
-        self._start_clip: np.ndarray | None = None
         self._track: ReferenceTrack | None = None
         #: the reward's near-zone bound |x* - x|^2 (m^2): the paper's, or the ``near_distance`` aid's
         self._near_squared_distance = (task.NEAR_SQUARED_DISTANCE if aids.near_distance is None
@@ -429,7 +428,7 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
     def _place_character(self, rng: np.random.Generator, options: dict[str, Any] | None) -> bool:
         """Get up: seated or lying on the piece; otherwise standing (or in a reference state) on the floor."""
         target = self._target
-        self._start_clip = self._track = None
+        self._track = None
         if self.skill == "getup":
             pose = self.getup_from
             if pose == "any":
@@ -438,8 +437,6 @@ class SIMSEnv(SIMSStarts, ScenePoseAPI, HumanoidEnv):
             return False
         if self._interaction_start:
             if self._place_interaction_start(rng, target):
-                if self._tracking_on:    # the training aid: the clip followed on from the start frame
-                    self._track = track_of_frames(self._start_clip, self.dt)
                 return True
             # no frame fits this piece: a start as the others, from the state reset left (the frames
             # tried wrote joint angles and velocities)

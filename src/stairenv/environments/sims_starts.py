@@ -11,7 +11,7 @@ import numpy as np
 
 from stairenv.humanoid.placement import place_state_in_frame
 from stairenv.motion import interaction_starts
-from stairenv.motion.tracking import frames_in_world
+from stairenv.motion.tracking import frames_in_world, track_of_frames
 from stairenv.tasks import sims as task
 from stairenv.world.furniture import PlacedFurniture
 
@@ -174,7 +174,7 @@ class SIMSStarts:
             if self._start_fits(qpos[k], qvel[k], yaw, origin):
                 self._start = self.data.qpos[self._idx.qpos_root][:2].copy()
                 if self._tracking_on:  # the tracking aid follows the clip's frames from here on, in the world
-                    self._start_clip = frames_in_world(qpos[k:], yaw, origin)
+                    self._track = track_of_frames(frames_in_world(qpos[k:], yaw, origin), self.dt)
                 return True
         return False
 

@@ -27,6 +27,8 @@ from collections.abc import Iterable
 from concurrent.futures import ProcessPoolExecutor
 import functools
 import hashlib
+import importlib
+import importlib.metadata
 import multiprocessing
 import os
 from pathlib import Path
@@ -103,9 +105,6 @@ _SYNTHESIS_MODULES = ("stairenv.motion.synthesis", "stairenv.motion.ik", "staire
 def _fingerprint() -> str:
     """A digest of the synthesis code's source, the humanoid's MJCF and the numerical libraries' versions (not
     of any float)."""
-    import importlib
-    import importlib.metadata
-
     digest = hashlib.sha256()
     for name in _SYNTHESIS_MODULES:
         digest.update(Path(importlib.import_module(name).__file__).read_bytes())
@@ -244,8 +243,7 @@ def fill_cache(keys: Iterable[tuple[int, int, int, str]], workers: int) -> int:
         return 0
     if workers <= 1:
         for key in missing:
-            _remember(key, _synthesise(*key))
-            store_climb(key, _CLIMBS[key])
+            _climb(*key)
         return len(missing)
     # spawned workers: a fork of a process already running torch or a thread pool can deadlock
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
